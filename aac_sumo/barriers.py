@@ -1,0 +1,144 @@
+"""Safety regions of obstacles and the discrete-time barrier condition.
+
+Two shapes, both ellipses in the world frame:
+
+* **F-CBF** (paper eqs. 6-7): semi-axes grow with the obstacle's speed through a sigmoid,
+  ``a = L/2 + mu1 * sigma(|v_par| - v0) * |v_par|``, ``b = W/2 + mu2 * sigma(|v_perp| - v0) * |v_perp|``,
+  with the major axis along the obstacle's velocity (its heading when it stands still).
+* **CBF**: the obstacle's fixed footprint ellipse ``(L/2, W/2)`` along its heading.
+
+The ego robot is covered by discs of radius ``r`` whose centres lie on its body axis; the
+barrier keeps every disc centre outside the safety ellipse grown by ``d = r + d_safe``. Inside
+the MPC this is the algebraic form ``h = (x'/A)^2 + (y'/B)^2 - 1`` of an ellipse ``(A, B)`` that
+provably contains the Minkowski sum ``ellipse + disc(d)`` (see :func:`inflate_for_disc`), so every
+point the MPC accepts has exact signed distance ``>= d`` from the safety ellipse.
+
+The obstacle's shape at each MPC stage comes from its predicted velocity at that stage, which
+is how the paper's shape-change term (rho) enters the discrete condition
+``h(x_{k+1}, ob_{k+1}) - (1 - gamma) h(x_k, ob_k) >= 0``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+BARRIERS = ("fcbf", "cbf")
+#: Per-stage, per-slot parameter layout fed to the MPC.
+STAGE_FIELDS = ("cx", "cy", "cos", "sin", "inv_a2", "inv_b2", "active")
+N_STAGE_FIELDS = len(STAGE_FIELDS)
+
+
+@dataclass(frozen=True)
+class FcbfParams:
+    """Shape parameters of the F-CBF ellipse: gains [s], sigmoid steepness [s/m], threshold [m/s]."""
+
+    mu1: float = 0.2
+    mu2: float = 0.2
+    k: float = 2.0
+    v0: float = 1.0
+
+
+def sigmoid(x, k: float):
+    """Logistic function ``1 / (1 + exp(-k x))``, numerically safe for large |k x|."""
+    return 0.5 * (1.0 + np.tanh(0.5 * k * np.asarray(x, dtype=float)))
+
+
+def fcbf_axes(length, width, velocity, heading, params: FcbfParams, v_eps: float = 1e-3):
+    """F-CBF safety ellipse semi-axes [m] and orientation [rad] of obstacles.
+
+    ``length``, ``width`` and ``heading`` have shape (...); ``velocity`` has shape (..., 2) in the
+    world frame [m/s]. The orientation is the velocity heading, or ``heading`` below ``v_eps``.
+    The velocity is split into the components along and across that orientation.
+    """
+    velocity = np.asarray(velocity, dtype=float)
+    speed = np.hypot(velocity[..., 0], velocity[..., 1])
+    phi = np.where(speed > v_eps, np.arctan2(velocity[..., 1], velocity[..., 0]), heading)
+    v_par = np.abs(velocity[..., 0] * np.cos(phi) + velocity[..., 1] * np.sin(phi))
+    v_perp = np.abs(-velocity[..., 0] * np.sin(phi) + velocity[..., 1] * np.cos(phi))
+    a = 0.5 * np.asarray(length) + params.mu1 * sigmoid(v_par - params.v0, params.k) * v_par
+    b = 0.5 * np.asarray(width) + params.mu2 * sigmoid(v_perp - params.v0, params.k) * v_perp
+    return a, b, phi
+
+
+def cbf_axes(length, width, heading):
+    """Plain-CBF ellipse: the fixed footprint ellipse ``(L/2, W/2)`` along the obstacle's heading."""
+    return 0.5 * np.asarray(length, dtype=float), 0.5 * np.asarray(width, dtype=float), np.asarray(heading, dtype=float)
+
+
+def inflate_for_disc(a, b, d):
+    """Semi-axes ``(A, B)`` of an ellipse containing ``ellipse(a, b) + disc(d)`` (Minkowski sum).
+
+    From ``(sqrt(S) + d)^2 <= (1 + e) S + (1 + 1/e) d^2`` applied to the support function
+    ``S = a^2 u_x^2 + b^2 u_y^2`` with ``e = d / sqrt(a b)``, which balances the excess along
+    both axes. Equality holds for a circle (``A = B = r + d``).
+    """
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    d = np.asarray(d, dtype=float)
+    e = d / np.sqrt(a * b)
+    grow = 1.0 + e
+    shrink = np.where(e > 0, 1.0 + 1.0 / np.where(e > 0, e, 1.0), 0.0)
+    return np.sqrt(grow * a**2 + shrink * d**2), np.sqrt(grow * b**2 + shrink * d**2)
+
+
+def barrier_value(px, py, cx, cy, cos_phi, sin_phi, inv_a2, inv_b2):
+    """Algebraic barrier ``(x'/A)^2 + (y'/B)^2 - 1`` of a point; works for numpy and casadi."""
+    dx = px - cx
+    dy = py - cy
+    xl = cos_phi * dx + sin_phi * dy
+    yl = -sin_phi * dx + cos_phi * dy
+    return xl * xl * inv_a2 + yl * yl * inv_b2 - 1.0
+
+
+@dataclass(frozen=True)
+class ObstaclePrediction:
+    """Predicted obstacle over the horizon: centres (N+1, 2) [m], velocities (N+1, 2) [m/s],
+    headings (N+1,) [rad], and its footprint length/width [m]."""
+
+    centres: np.ndarray
+    velocities: np.ndarray
+    headings: np.ndarray
+    length: float
+    width: float
+
+
+def predict_constant_velocity(centre, velocity, heading, length, width, horizon: int, dt: float) -> ObstaclePrediction:
+    """Constant-velocity prediction over stages ``0..horizon``."""
+    steps = np.arange(horizon + 1)[:, None] * dt
+    centre = np.asarray(centre, dtype=float)
+    velocity = np.asarray(velocity, dtype=float)
+    return ObstaclePrediction(
+        centres=centre + steps * velocity,
+        velocities=np.repeat(velocity[None, :], horizon + 1, axis=0),
+        headings=np.full(horizon + 1, float(heading)),
+        length=float(length),
+        width=float(width),
+    )
+
+
+def safety_ellipses(pred: ObstaclePrediction, barrier: str, fcbf: FcbfParams) -> np.ndarray:
+    """Safety ellipse per stage as rows ``[cx, cy, a, b, phi]`` (shape (N+1, 5))."""
+    if barrier == "fcbf":
+        a, b, phi = fcbf_axes(pred.length, pred.width, pred.velocities, pred.headings, fcbf)
+    elif barrier == "cbf":
+        a, b, phi = cbf_axes(np.full(len(pred.headings), pred.length), np.full(len(pred.headings), pred.width), pred.headings)
+    else:
+        raise ValueError(f"unknown barrier {barrier!r}; expected one of {BARRIERS}")
+    return np.column_stack([pred.centres, np.broadcast_to(a, phi.shape), np.broadcast_to(b, phi.shape), phi])
+
+
+def stage_parameters(ellipses: np.ndarray, d: float) -> np.ndarray:
+    """MPC parameters (N+1, 7) of one obstacle slot from ellipses (N+1, 5) and ego clearance ``d``."""
+    big_a, big_b = inflate_for_disc(ellipses[:, 2], ellipses[:, 3], d)
+    phi = ellipses[:, 4]
+    return np.column_stack(
+        [ellipses[:, 0], ellipses[:, 1], np.cos(phi), np.sin(phi), big_a**-2, big_b**-2, np.ones(len(phi))]
+    )
+
+
+def inactive_slot(horizon: int) -> np.ndarray:
+    """Parameters of an unused obstacle slot: far away and switched off (constraint reads 1 >= 0)."""
+    row = np.array([1e6, 1e6, 1.0, 0.0, 1e-6, 1e-6, 0.0])
+    return np.tile(row, (horizon + 1, 1))

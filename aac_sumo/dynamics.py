@@ -1,0 +1,67 @@
+"""Kinematic bicycle model of the paper (forward-Euler, rear-axle reference point).
+
+State ``[x, y, heading, v]``: rear-axle midpoint in the world frame [m], heading [rad,
+counter-clockwise from +x], longitudinal speed [m/s]. Input ``[accel, steer]``: [m/s^2], front
+wheel angle [rad]. One definition serves numpy (simulation) and casadi (MPC).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+NX = 4
+NU = 2
+
+
+def bicycle_step(state, control, dt: float, wheelbase, xp=np):
+    """One Euler step of the paper's discrete bicycle model.
+
+    ``xp`` is the math namespace: ``numpy`` for arrays of shape (..., 4) / (..., 2), or
+    ``casadi`` for symbolic column vectors. Returns the next state in the same namespace.
+    """
+    x, y, heading, v = (state[..., i] for i in range(NX)) if xp is np else (state[i] for i in range(NX))
+    accel, steer = (control[..., i] for i in range(NU)) if xp is np else (control[i] for i in range(NU))
+    nxt = (
+        x + v * xp.cos(heading) * dt,
+        y + v * xp.sin(heading) * dt,
+        heading + v * xp.tan(steer) / wheelbase * dt,
+        v + accel * dt,
+    )
+    return np.stack(nxt, axis=-1) if xp is np else xp.vertcat(*nxt)
+
+
+@dataclass(frozen=True)
+class VehicleLimits:
+    """Input and speed bounds of one robot. Speeds in m/s, accelerations in m/s^2, steer in rad."""
+
+    a_min: float = -6.0
+    a_max: float = 3.0
+    steer_max: float = 0.6
+    v_min: float = 0.0
+    v_max: float = 20.0
+
+    def clip_input(self, control: np.ndarray) -> np.ndarray:
+        """Clip ``[accel, steer]`` (shape (..., 2)) to the bounds."""
+        lo = np.array([self.a_min, -self.steer_max])
+        hi = np.array([self.a_max, self.steer_max])
+        return np.clip(control, lo, hi)
+
+    def braking_input(self, speed: float, dt: float) -> np.ndarray:
+        """Hardest admissible braking that does not go below ``v_min`` within ``dt``, zero steer."""
+        return np.array([max(self.a_min, min(0.0, (self.v_min - speed) / dt)), 0.0])
+
+
+@dataclass(frozen=True)
+class BicycleModel:
+    """Bicycle model of one robot: geometry, limits and the numpy step used by simulators."""
+
+    wheelbase: float
+    limits: VehicleLimits
+
+    def step(self, state: np.ndarray, control: np.ndarray, dt: float) -> np.ndarray:
+        """Advance with clipped inputs; the speed is kept inside ``[v_min, v_max]``."""
+        nxt = bicycle_step(state, self.limits.clip_input(control), dt, self.wheelbase)
+        nxt[..., 3] = np.clip(nxt[..., 3], self.limits.v_min, self.limits.v_max)
+        return nxt

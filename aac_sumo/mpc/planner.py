@@ -1,0 +1,177 @@
+"""Single-robot MPC-FCBF planner: the component every coordinator shares.
+
+It turns one robot's state, reference and surrounding obstacles into a plan. Obstacles are
+ranked by distance and the nearest ``slots`` fill the compiled problem; unused slots are switched
+off. Each solve is warm-started from the robot's shifted previous plan. If the fast solver fails
+it retries once with ipopt; if that fails too the robot brakes along its heading and the step is
+reported as ``infeasible`` or ``failed``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from aac_sumo.barriers import FcbfParams, ObstaclePrediction, inactive_slot, predict_constant_velocity, safety_ellipses, stage_parameters
+from aac_sumo.dynamics import bicycle_step
+from aac_sumo.mpc.problem import ProblemShape, get_problem
+from aac_sumo.world import Obstacle, RobotSpec
+
+STATUSES = ("solved", "infeasible", "failed")
+
+
+@dataclass(frozen=True)
+class MpcConfig:
+    """Everything the planner needs besides the robot and its surroundings.
+
+    Weights are diagonal: Q on ``[x, y, heading, v]`` errors, R on ``[accel, steer]``, S on input
+    changes, and the terminal P = ``terminal_scale`` * Q. ``d_safe`` [m] is added to the ego disc
+    radius. ``gamma`` in (0, 1] is the barrier decay rate per control period ``dt`` [s].
+    """
+
+    horizon: int = 10
+    dt: float = 0.1
+    solver: str = "fatrop"
+    barrier: str = "fcbf"
+    gamma: float = 0.3
+    d_safe: float = 0.2
+    fcbf: FcbfParams = FcbfParams()
+    slots: int = 8
+    discs: int = 1
+    q_pos: float = 1.0
+    q_heading: float = 1.0
+    q_speed: float = 1.0
+    r_accel: float = 0.1
+    r_steer: float = 0.1
+    s_accel: float = 0.1
+    s_steer: float = 1.0
+    terminal_scale: float = 5.0
+    max_iter: int = 100
+    max_cpu_time: float = 1.0
+    retry_with_ipopt: bool = True
+
+    def weights(self) -> np.ndarray:
+        q = np.array([self.q_pos, self.q_pos, self.q_heading, self.q_speed])
+        return np.concatenate([q, [self.r_accel, self.r_steer], [self.s_accel, self.s_steer], self.terminal_scale * q])
+
+    def shape(self, solver: str) -> ProblemShape:
+        return ProblemShape(self.horizon, self.slots, self.discs, solver, self.dt, self.max_iter, self.max_cpu_time)
+
+
+@dataclass
+class Plan:
+    """A robot's plan: states (N+1, 4), inputs (N, 2), status, solve wall time [ms], solver used."""
+
+    states: np.ndarray
+    inputs: np.ndarray
+    status: str
+    solve_ms: float
+    solver: str
+    iterations: int = -1
+    detail: str = ""
+
+    def shifted(self, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Warm start for the next period: drop the first stage, repeat the last, pin ``state``."""
+        states = np.vstack([self.states[1:], self.states[-1:]])
+        inputs = np.vstack([self.inputs[1:], self.inputs[-1:]])
+        states[0] = state
+        return states, inputs
+
+
+def ego_discs(robot: RobotSpec, discs: int) -> tuple[np.ndarray, float]:
+    """Offsets [m] of ``discs`` covering-disc centres from the rear axle along the heading, and
+    their common radius [m]; together they cover the robot's footprint rectangle."""
+    piece = robot.length / discs
+    offsets = robot.centre_offset - 0.5 * robot.length + piece * (np.arange(discs) + 0.5)
+    return offsets, float(np.hypot(0.5 * piece, 0.5 * robot.width))
+
+
+def predict(obstacle: Obstacle, horizon: int, dt: float) -> ObstaclePrediction:
+    """The obstacle's centres and velocities over stages ``0..horizon``: its given prediction if
+    long enough, else constant velocity."""
+    if obstacle.predicted is not None and len(obstacle.predicted) >= horizon + 1:
+        centres = np.asarray(obstacle.predicted[: horizon + 1], dtype=float)
+        vel = np.vstack([np.diff(centres, axis=0) / dt, obstacle.velocity[None, :]])
+        vel[-1] = vel[-2] if horizon >= 1 else obstacle.velocity
+        return ObstaclePrediction(centres, vel, np.full(horizon + 1, obstacle.heading), obstacle.length, obstacle.width)
+    return predict_constant_velocity(obstacle.centre, obstacle.velocity, obstacle.heading, obstacle.length, obstacle.width, horizon, dt)
+
+
+class MpcPlanner:
+    """Plans one robot at a time with the compiled MPC-FCBF problem for ``config``."""
+
+    def __init__(self, config: MpcConfig):
+        self.config = config
+        self.problem = get_problem(config.shape(config.solver))
+        retry = config.retry_with_ipopt and config.solver != "ipopt"
+        self.retry_problem = get_problem(config.shape("ipopt")) if retry else None
+
+    def obstacle_parameters(self, robot: RobotSpec, state: np.ndarray, obstacles: list[Obstacle | ObstaclePrediction]) -> np.ndarray:
+        """Stage parameters (N+1, slots, 7) of the nearest obstacles around ``state``."""
+        cfg = self.config
+        preds = [o if isinstance(o, ObstaclePrediction) else predict(o, cfg.horizon, cfg.dt) for o in obstacles]
+        offsets, radius = ego_discs(robot, cfg.discs)
+        if len(preds) > cfg.slots:
+            gaps = [np.hypot(*(p.centres[0] - state[:2])) - 0.5 * np.hypot(p.length, p.width) for p in preds]
+            preds = [preds[i] for i in np.argsort(gaps, kind="stable")[: cfg.slots]]
+        d = radius + cfg.d_safe
+        slots = [stage_parameters(safety_ellipses(p, cfg.barrier, cfg.fcbf), d) for p in preds]
+        slots += [inactive_slot(cfg.horizon)] * (cfg.slots - len(slots))
+        return np.stack(slots, axis=1)
+
+    def plan(
+        self,
+        robot: RobotSpec,
+        state: np.ndarray,
+        reference: np.ndarray,
+        u_prev: np.ndarray,
+        obstacles: list[Obstacle | ObstaclePrediction],
+        previous: Plan | None = None,
+    ) -> Plan:
+        """Plan for ``robot`` at ``state`` tracking ``reference`` (N+1, 4) around ``obstacles``."""
+        cfg = self.config
+        lim = robot.model.limits
+        state = np.asarray(state, dtype=float).copy()
+        state[3] = np.clip(state[3], lim.v_min, lim.v_max)
+        offsets, _ = ego_discs(robot, cfg.discs)
+        params = dict(
+            u_prev=u_prev,
+            wheelbase=robot.model.wheelbase,
+            gamma=cfg.gamma,
+            disc_offsets=offsets,
+            weights=cfg.weights(),
+            x_ref=reference,
+            obstacles=self.obstacle_parameters(robot, state, obstacles),
+        )
+        if previous is not None and len(previous.inputs) == cfg.horizon:
+            guess = previous.shifted(state)
+        else:
+            guess = self.rollout(robot, state, np.zeros((cfg.horizon, 2)))
+        bounds = ([-np.inf, -np.inf, -np.inf, lim.v_min], [np.inf, np.inf, np.inf, lim.v_max], [lim.a_min, -lim.steer_max], [lim.a_max, lim.steer_max])
+
+        total_ms, outcome, used = 0.0, None, cfg.solver
+        for problem in (self.problem, self.retry_problem):
+            if problem is None:
+                continue
+            lbx, ubx = problem.bounds(state, *bounds)
+            outcome = problem.solve(problem.parameters(**params), problem.pack(*guess), lbx, ubx)
+            total_ms += outcome.solve_ms
+            used = problem.shape.solver
+            if outcome.status == "solved":
+                return Plan(outcome.states, outcome.inputs, "solved", total_ms, used, outcome.iterations, outcome.detail)
+        inputs = np.empty((cfg.horizon, 2))
+        states = np.empty((cfg.horizon + 1, 4))
+        states[0] = state
+        for k in range(cfg.horizon):  # brake to a stop, never reverse
+            inputs[k] = lim.braking_input(states[k, 3], cfg.dt)
+            states[k + 1] = robot.model.step(states[k], inputs[k], cfg.dt)
+        return Plan(states, inputs, outcome.status, total_ms, "fallback", outcome.iterations, f"{used}: {outcome.detail}")
+
+    def rollout(self, robot: RobotSpec, state: np.ndarray, inputs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """States (N+1, 4) from applying ``inputs`` (N, 2) with the planner's model, and the inputs."""
+        states = np.empty((len(inputs) + 1, 4))
+        states[0] = state
+        for k, u in enumerate(inputs):
+            states[k + 1] = bicycle_step(states[k], u, self.config.dt, robot.model.wheelbase)
+        return states, inputs

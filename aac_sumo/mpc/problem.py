@@ -1,0 +1,239 @@
+"""The MPC-FCBF optimal control problem (paper eq. 25), built once per shape and solved many times.
+
+Decision variables are ordered stage by stage, ``[X0, U0, X1, U1, ..., X_N]``, and constraints
+likewise, so structure-exploiting solvers (fatrop) see an optimal-control problem. The measured
+initial state pins ``X0`` through the variable bounds. Everything else that changes between
+solves (reference, previous input, weights, wheelbase,
+gamma, ego disc offsets, obstacle ellipses per stage) is a parameter.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from functools import lru_cache
+
+import casadi as ca
+import numpy as np
+
+from aac_sumo.barriers import N_STAGE_FIELDS, barrier_value
+from aac_sumo.dynamics import NU, NX, bicycle_step
+
+SOLVERS = ("fatrop", "sqp", "ipopt")
+N_WEIGHTS = 12  # Q(4), R(2), S(2), P(4) diagonals
+
+
+@dataclass(frozen=True)
+class ProblemShape:
+    """What a compiled problem is specialised for."""
+
+    horizon: int
+    slots: int
+    discs: int
+    solver: str
+    dt: float
+    max_iter: int = 100
+    max_cpu_time: float = 1.0
+
+
+@dataclass
+class SolveOutcome:
+    """Raw result of one solve: states (N+1, 4), inputs (N, 2), status, wall time [ms], iterations."""
+
+    states: np.ndarray
+    inputs: np.ndarray
+    status: str
+    solve_ms: float
+    iterations: int
+    detail: str
+
+
+class MpcProblem:
+    """One compiled MPC-FCBF problem. Build with :func:`get_problem` so each shape is built once."""
+
+    def __init__(self, shape: ProblemShape):
+        self.shape = shape
+        n, slots, discs = shape.horizon, shape.slots, shape.discs
+        self.n_w = (n + 1) * NX + n * NU
+        self.param_sizes = {
+            "u_prev": NU,
+            "wheelbase": 1,
+            "gamma": 1,
+            "disc_offsets": discs,
+            "weights": N_WEIGHTS,
+            "x_ref": (n + 1) * NX,
+            "obstacles": (n + 1) * slots * N_STAGE_FIELDS,
+        }
+        p = ca.SX.sym("p", sum(self.param_sizes.values()))
+        par = self._split(p)
+        w = ca.SX.sym("w", self.n_w)
+        xs = [w[self._x_index(k)] for k in range(n + 1)]
+        us = [w[self._u_index(k)] for k in range(n)]
+        weights = par["weights"]
+        q, r, s, pw = weights[0:4], weights[4:6], weights[6:8], weights[8:12]
+        x_ref = ca.reshape(par["x_ref"], NX, n + 1)
+        obstacles = ca.reshape(par["obstacles"], N_STAGE_FIELDS, (n + 1) * slots)
+
+        cost = 0
+        g, equality = [], []
+        u_last = par["u_prev"]
+        for k in range(n):
+            err = xs[k] - x_ref[:, k]
+            du = us[k] - u_last
+            cost += ca.dot(q, err**2) + ca.dot(r, us[k] ** 2) + ca.dot(s, du**2)
+            u_last = us[k]
+            x_next = bicycle_step(xs[k], us[k], shape.dt, par["wheelbase"], xp=ca)
+            g.append(xs[k + 1] - x_next)
+            equality += [True] * NX
+            # barrier condition of stage k depends on (x_k, u_k) only
+            for slot in range(slots):
+                ob_now = obstacles[:, k * slots + slot]
+                ob_next = obstacles[:, (k + 1) * slots + slot]
+                for disc in range(discs):
+                    h_now = self._disc_barrier(xs[k], par["disc_offsets"][disc], ob_now)
+                    h_next = self._disc_barrier(x_next, par["disc_offsets"][disc], ob_next)
+                    active = ob_next[6]
+                    g.append(active * (h_next - (1 - par["gamma"]) * h_now) + (1 - active))
+                    equality.append(False)
+        err = xs[n] - x_ref[:, n]
+        cost += ca.dot(pw, err**2)
+        g = ca.cse(ca.vertcat(*g))
+        self.n_g = g.shape[0]
+        self._lbg = np.where(equality, 0.0, 0.0)
+        self._ubg = np.where(equality, 0.0, np.inf)
+        self.solver = ca.nlpsol("mpc", *_solver_plugin(shape), {"x": w, "p": p, "f": cost, "g": g}, _solver_options(shape, equality))
+
+    def _split(self, p):
+        out, i = {}, 0
+        for name, size in self.param_sizes.items():
+            out[name] = p[i : i + size]
+            i += size
+        return out
+
+    def _x_index(self, k: int) -> slice:
+        start = k * (NX + NU)
+        return slice(start, start + NX)
+
+    def _u_index(self, k: int) -> slice:
+        start = k * (NX + NU) + NX
+        return slice(start, start + NU)
+
+    @staticmethod
+    def _disc_barrier(state, offset, ob):
+        px = state[0] + offset * ca.cos(state[2])
+        py = state[1] + offset * ca.sin(state[2])
+        return barrier_value(px, py, ob[0], ob[1], ob[2], ob[3], ob[4], ob[5])
+
+    def pack(self, states: np.ndarray, inputs: np.ndarray) -> np.ndarray:
+        """Decision vector from states (N+1, 4) and inputs (N, 2)."""
+        w = np.empty(self.n_w)
+        for k in range(self.shape.horizon + 1):
+            w[self._x_index(k)] = states[k]
+            if k < self.shape.horizon:
+                w[self._u_index(k)] = inputs[k]
+        return w
+
+    def unpack(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """States (N+1, 4) and inputs (N, 2) from a decision vector."""
+        n = self.shape.horizon
+        states = np.array([w[self._x_index(k)] for k in range(n + 1)])
+        inputs = np.array([w[self._u_index(k)] for k in range(n)])
+        return states, inputs
+
+    def parameters(self, **values) -> np.ndarray:
+        """Concatenate named parameter blocks (see ``param_sizes``) into the parameter vector."""
+        parts = []
+        for name, size in self.param_sizes.items():
+            block = np.asarray(values[name], dtype=float).ravel()
+            if block.size != size:
+                raise ValueError(f"parameter {name} has {block.size} values, expected {size}")
+            parts.append(block)
+        return np.concatenate(parts)
+
+    def bounds(self, x0, lower_state, upper_state, lower_input, upper_input) -> tuple[np.ndarray, np.ndarray]:
+        """Variable bounds: ``X0`` pinned to the measured state ``x0``, then per-state (4,) and
+        per-input (2,) limits on the later stages."""
+        n = self.shape.horizon
+        lower = np.tile(np.asarray(lower_state, dtype=float), (n + 1, 1))
+        upper = np.tile(np.asarray(upper_state, dtype=float), (n + 1, 1))
+        lower[0] = upper[0] = x0
+        return (
+            self.pack(lower, np.tile(lower_input, (n, 1))),
+            self.pack(upper, np.tile(upper_input, (n, 1))),
+        )
+
+    def solve(self, params: np.ndarray, w0: np.ndarray, lbx: np.ndarray, ubx: np.ndarray) -> SolveOutcome:
+        """Solve once from the initial guess ``w0``; never raises on solver failure."""
+        start = time.perf_counter()
+        try:
+            sol = self.solver(x0=w0, p=params, lbx=lbx, ubx=ubx, lbg=self._lbg, ubg=self._ubg)
+            w = np.asarray(sol["x"]).ravel()
+            g = np.asarray(sol["g"]).ravel()
+            stats = self.solver.stats()
+            detail = str(stats.get("return_status", ""))
+            status = _classify(stats, detail)
+            if status == "solved" and not self._satisfies(w, g, lbx, ubx):
+                status, detail = "failed", f"{detail} (constraint check failed)"
+            iterations = int(stats.get("iter_count", -1))
+        except RuntimeError as exc:  # casadi raises on evaluation errors (NaN, etc.)
+            w, status, detail, iterations = w0, "failed", str(exc).splitlines()[0], -1
+        solve_ms = (time.perf_counter() - start) * 1e3
+        states, inputs = self.unpack(w)
+        return SolveOutcome(states, inputs, status, solve_ms, iterations, detail)
+
+    def _satisfies(self, w, g, lbx, ubx, tol: float = 1e-4) -> bool:
+        ok_g = np.all(g >= self._lbg - tol) and np.all(g <= self._ubg + tol)
+        ok_x = np.all(w >= lbx - tol) and np.all(w <= ubx + tol)
+        return bool(ok_g and ok_x and np.all(np.isfinite(w)))
+
+
+def _classify(stats: dict, detail: str) -> str:
+    if stats.get("success", False):
+        return "solved"
+    if "nfeasib" in detail:  # Infeasible_Problem_Detected, Local infeasibility, ...
+        return "infeasible"
+    return "failed"
+
+
+def _solver_plugin(shape: ProblemShape) -> tuple[str]:
+    return ({"fatrop": "fatrop", "sqp": "sqpmethod", "ipopt": "ipopt"}[shape.solver],)
+
+
+def _solver_options(shape: ProblemShape, equality: list[bool]) -> dict:
+    common = {"print_time": False, "error_on_fail": False}
+    if shape.solver == "ipopt":
+        return common | {
+            "ipopt": {
+                "print_level": 0,
+                "sb": "yes",
+                "max_iter": shape.max_iter,
+                "max_cpu_time": shape.max_cpu_time,
+                "tol": 1e-6,
+                "acceptable_tol": 1e-4,
+                "mu_strategy": "adaptive",
+            }
+        }
+    if shape.solver == "fatrop":
+        return common | {
+            "structure_detection": "auto",
+            "equality": equality,
+            "fatrop": {"print_level": 0, "max_iter": shape.max_iter, "tol": 1e-6, "mu_init": 1e-3},
+        }
+    if shape.solver == "sqp":
+        return common | {
+            "qpsol": "qrqp",
+            "qpsol_options": {"print_iter": False, "print_header": False, "error_on_fail": False},
+            "max_iter": shape.max_iter,
+            "print_header": False,
+            "print_iteration": False,
+            "print_status": False,
+            "hessian_approximation": "exact",
+            "convexify_strategy": "eigen-clip",
+        }
+    raise ValueError(f"unknown solver {shape.solver!r}; expected one of {SOLVERS}")
+
+
+@lru_cache(maxsize=None)
+def get_problem(shape: ProblemShape) -> MpcProblem:
+    """The compiled problem for ``shape``, built on first use and cached for the process."""
+    return MpcProblem(shape)

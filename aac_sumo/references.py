@@ -1,0 +1,81 @@
+"""Reference trajectories: a polyline path followed at a cruise speed, slowing to stop at its end.
+
+Positions in the world frame [m]; the reference is for the rear-axle point.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class PathReference:
+    """Path ``waypoints`` (M, 2) [m] driven at ``speed`` [m/s]; decelerates at ``decel`` [m/s^2]
+    to stop at the last waypoint when ``stop_at_end`` is set."""
+
+    def __init__(self, waypoints, speed: float, decel: float = 1.5, stop_at_end: bool = True):
+        pts = np.asarray(waypoints, dtype=float)
+        if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2:
+            raise ValueError("a path needs at least two (x, y) waypoints")
+        seg = np.diff(pts, axis=0)
+        keep = np.r_[True, np.hypot(seg[:, 0], seg[:, 1]) > 1e-9]
+        self.points = pts[keep]
+        seg = np.diff(self.points, axis=0)
+        self.seg_len = np.hypot(seg[:, 0], seg[:, 1])
+        self.seg_heading = np.arctan2(seg[:, 1], seg[:, 0])
+        self.s = np.r_[0.0, np.cumsum(self.seg_len)]
+        self.length = float(self.s[-1])
+        self.speed = float(speed)
+        self.decel = float(decel)
+        self.stop_at_end = stop_at_end
+
+    def project(self, point) -> tuple[float, float]:
+        """Arc length [m] of the closest path point to ``point`` and the distance [m] to it."""
+        p = np.asarray(point, dtype=float)
+        a = self.points[:-1]
+        d = np.diff(self.points, axis=0)
+        t = np.clip(np.einsum("ij,ij->i", p - a, d) / self.seg_len**2, 0.0, 1.0)
+        closest = a + t[:, None] * d
+        dist = np.hypot(*(closest - p).T)
+        i = int(np.argmin(dist))
+        return float(self.s[i] + t[i] * self.seg_len[i]), float(dist[i])
+
+    def distance(self, points) -> np.ndarray:
+        """Distance [m] from each of ``points`` (K, 2) to the path."""
+        return np.array([self.project(p)[1] for p in np.atleast_2d(points)])
+
+    def speed_at(self, s) -> np.ndarray:
+        """Reference speed [m/s] at arc length ``s``."""
+        s = np.asarray(s, dtype=float)
+        if not self.stop_at_end:
+            return np.full_like(s, self.speed)
+        return np.minimum(self.speed, np.sqrt(2.0 * self.decel * np.clip(self.length - s, 0.0, None)))
+
+    def pose_at(self, s) -> np.ndarray:
+        """Rows ``[x, y, heading]`` at arc lengths ``s`` (clamped to the path; extrapolated past
+        the end along the last segment when the path does not stop)."""
+        s = np.atleast_1d(np.asarray(s, dtype=float))
+        i = np.clip(np.searchsorted(self.s, s, side="right") - 1, 0, len(self.seg_len) - 1)
+        local = s - self.s[i]
+        if self.stop_at_end:
+            local = np.clip(local, 0.0, self.seg_len[i])
+        h = self.seg_heading[i]
+        xy = self.points[i] + local[:, None] * np.column_stack([np.cos(h), np.sin(h)])
+        return np.column_stack([xy, h])
+
+    def horizon(self, state, steps: int, dt: float) -> np.ndarray:
+        """Reference states (steps + 1, 4) starting from the projection of ``state``'s position.
+
+        Headings are unwrapped to lie within pi of the robot's heading.
+        """
+        s0, _ = self.project(state[:2])
+        s = np.empty(steps + 1)
+        s[0] = s0
+        for k in range(steps):
+            s[k + 1] = s[k] + self.speed_at(s[k]) * dt
+        poses = self.pose_at(s)
+        heading = state[2] + np.angle(np.exp(1j * (poses[:, 2] - state[2])))
+        return np.column_stack([poses[:, :2], heading, self.speed_at(s)])
+
+    def finished(self, state, tolerance: float) -> bool:
+        """True when the robot is within ``tolerance`` [m] of the path's end."""
+        return bool(np.hypot(*(np.asarray(state[:2]) - self.points[-1])) <= tolerance)
