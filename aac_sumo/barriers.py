@@ -67,20 +67,34 @@ def cbf_axes(length, width, heading):
     return 0.5 * np.asarray(length, dtype=float), 0.5 * np.asarray(width, dtype=float), np.asarray(heading, dtype=float)
 
 
-def inflate_for_disc(a, b, d):
+def inflate_for_disc(a, b, d, toward=None):
     """Semi-axes ``(A, B)`` of an ellipse containing ``ellipse(a, b) + disc(d)`` (Minkowski sum).
 
-    From ``(sqrt(S) + d)^2 <= (1 + e) S + (1 + 1/e) d^2`` applied to the support function
-    ``S = a^2 u_x^2 + b^2 u_y^2`` with ``e = d / sqrt(a b)``, which balances the excess along
-    both axes. Equality holds for a circle (``A = B = r + d``).
+    For any ``e > 0``, ``(sqrt(S) + d)^2 <= (1 + e) S + (1 + 1/e) d^2`` bounds the support function
+    ``S(u) = a^2 u_x^2 + b^2 u_y^2`` of the grown set, so ``A^2 = (1 + e) a^2 + (1 + 1/e) d^2`` and
+    ``B^2 = (1 + e) b^2 + (1 + 1/e) d^2`` always contain it. The bound is exact in the direction
+    ``u`` with ``e = d / sqrt(S(u))``. ``toward`` (..., 2), a point in the ellipse's local frame,
+    picks ``u`` as the ellipse normal where the ray to that point leaves the ellipse, so the
+    region is tight on the side facing the ego; without it ``e = d / sqrt(a b)``.
     """
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
     d = np.asarray(d, dtype=float)
-    e = d / np.sqrt(a * b)
+    if toward is None:
+        support = a * b
+    else:
+        local = np.asarray(toward, dtype=float)
+        scale = np.hypot(local[..., 0] / a, local[..., 1] / b)
+        scale = np.where(scale > 1e-12, scale, 1.0)
+        normal = np.stack([local[..., 0] / scale / a**2, local[..., 1] / scale / b**2], axis=-1)
+        normal_len = np.hypot(normal[..., 0], normal[..., 1])
+        ux = np.where(normal_len > 1e-12, normal[..., 0] / np.where(normal_len > 1e-12, normal_len, 1.0), 1.0)
+        uy = np.where(normal_len > 1e-12, normal[..., 1] / np.where(normal_len > 1e-12, normal_len, 1.0), 0.0)
+        support = (a * ux) ** 2 + (b * uy) ** 2
+    e = np.where(d > 0, d / np.sqrt(support), 0.0)
     grow = 1.0 + e
-    shrink = np.where(e > 0, 1.0 + 1.0 / np.where(e > 0, e, 1.0), 0.0)
-    return np.sqrt(grow * a**2 + shrink * d**2), np.sqrt(grow * b**2 + shrink * d**2)
+    spread = np.where(e > 0, 1.0 + 1.0 / np.where(e > 0, e, 1.0), 0.0)
+    return np.sqrt(grow * a**2 + spread * d**2), np.sqrt(grow * b**2 + spread * d**2)
 
 
 def barrier_value(px, py, cx, cy, cos_phi, sin_phi, inv_a2, inv_b2):
@@ -129,13 +143,20 @@ def safety_ellipses(pred: ObstaclePrediction, barrier: str, fcbf: FcbfParams) ->
     return np.column_stack([pred.centres, np.broadcast_to(a, phi.shape), np.broadcast_to(b, phi.shape), phi])
 
 
-def stage_parameters(ellipses: np.ndarray, d: float) -> np.ndarray:
-    """MPC parameters (N+1, 7) of one obstacle slot from ellipses (N+1, 5) and ego clearance ``d``."""
-    big_a, big_b = inflate_for_disc(ellipses[:, 2], ellipses[:, 3], d)
+def stage_parameters(ellipses: np.ndarray, d: float, ego=None) -> np.ndarray:
+    """MPC parameters (N+1, 7) of one obstacle slot from ellipses (N+1, 5) and ego clearance ``d``.
+
+    ``ego`` (2,) or (N+1, 2), the ego's world position, makes each stage's region tightest on the
+    side facing it (see :func:`inflate_for_disc`); containment holds either way.
+    """
     phi = ellipses[:, 4]
-    return np.column_stack(
-        [ellipses[:, 0], ellipses[:, 1], np.cos(phi), np.sin(phi), big_a**-2, big_b**-2, np.ones(len(phi))]
-    )
+    cos_phi, sin_phi = np.cos(phi), np.sin(phi)
+    toward = None
+    if ego is not None:
+        rel = np.asarray(ego, dtype=float) - ellipses[:, :2]
+        toward = np.column_stack([cos_phi * rel[:, 0] + sin_phi * rel[:, 1], -sin_phi * rel[:, 0] + cos_phi * rel[:, 1]])
+    big_a, big_b = inflate_for_disc(ellipses[:, 2], ellipses[:, 3], d, toward)
+    return np.column_stack([ellipses[:, 0], ellipses[:, 1], cos_phi, sin_phi, big_a**-2, big_b**-2, np.ones(len(phi))])
 
 
 def inactive_slot(horizon: int) -> np.ndarray:

@@ -116,7 +116,8 @@ class MpcPlanner:
             gaps = [np.hypot(*(p.centres[0] - state[:2])) - 0.5 * np.hypot(p.length, p.width) for p in preds]
             preds = [preds[i] for i in np.argsort(gaps, kind="stable")[: cfg.slots]]
         d = radius + cfg.d_safe
-        slots = [stage_parameters(safety_ellipses(p, cfg.barrier, cfg.fcbf), d) for p in preds]
+        centre = state[:2] + robot.centre_offset * np.array([np.cos(state[2]), np.sin(state[2])])
+        slots = [stage_parameters(safety_ellipses(p, cfg.barrier, cfg.fcbf), d, centre) for p in preds]
         slots += [inactive_slot(cfg.horizon)] * (cfg.slots - len(slots))
         return np.stack(slots, axis=1)
 
@@ -128,8 +129,12 @@ class MpcPlanner:
         u_prev: np.ndarray,
         obstacles: list[Obstacle | ObstaclePrediction],
         previous: Plan | None = None,
+        corridor: np.ndarray | None = None,
     ) -> Plan:
-        """Plan for ``robot`` at ``state`` tracking ``reference`` (N+1, 4) around ``obstacles``."""
+        """Plan for ``robot`` at ``state`` tracking ``reference`` (N+1, 4) around ``obstacles``.
+
+        ``corridor`` optionally bounds the planned rear-axle positions to the world-frame box
+        ``[x_min, x_max, y_min, y_max]`` [m] (a straight lane, say)."""
         cfg = self.config
         lim = robot.model.limits
         state = np.asarray(state, dtype=float).copy()
@@ -148,7 +153,8 @@ class MpcPlanner:
             guess = previous.shifted(state)
         else:
             guess = self.rollout(robot, state, np.zeros((cfg.horizon, 2)))
-        bounds = ([-np.inf, -np.inf, -np.inf, lim.v_min], [np.inf, np.inf, np.inf, lim.v_max], [lim.a_min, -lim.steer_max], [lim.a_max, lim.steer_max])
+        box = np.array([-np.inf, np.inf, -np.inf, np.inf]) if corridor is None else np.asarray(corridor, dtype=float)
+        bounds = ([box[0], box[2], -np.inf, lim.v_min], [box[1], box[3], np.inf, lim.v_max], [lim.a_min, -lim.steer_max], [lim.a_max, lim.steer_max])
 
         total_ms, outcome, used = 0.0, None, cfg.solver
         for problem in (self.problem, self.retry_problem):

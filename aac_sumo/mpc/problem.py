@@ -171,9 +171,12 @@ class MpcProblem:
             g = np.asarray(sol["g"]).ravel()
             stats = self.solver.stats()
             detail = str(stats.get("return_status", ""))
+            feasible = self._satisfies(w, g, lbx, ubx)
             status = _classify(stats, detail)
-            if status == "solved" and not self._satisfies(w, g, lbx, ubx):
+            if status == "solved" and not feasible:
                 status, detail = "failed", f"{detail} (constraint check failed)"
+            elif status != "solved" and feasible:  # stopped early at a verified-feasible iterate
+                status, detail = "solved", f"suboptimal: {detail}"
             iterations = int(stats.get("iter_count", -1))
         except RuntimeError as exc:  # casadi raises on evaluation errors (NaN, etc.)
             w, status, detail, iterations = w0, "failed", str(exc).splitlines()[0], -1
@@ -181,7 +184,8 @@ class MpcProblem:
         states, inputs = self.unpack(w)
         return SolveOutcome(states, inputs, status, solve_ms, iterations, detail)
 
-    def _satisfies(self, w, g, lbx, ubx, tol: float = 1e-4) -> bool:
+    def _satisfies(self, w, g, lbx, ubx, tol: float = 1e-6) -> bool:
+        """Every constraint and bound holds within ``tol`` and the iterate is finite."""
         ok_g = np.all(g >= self._lbg - tol) and np.all(g <= self._ubg + tol)
         ok_x = np.all(w >= lbx - tol) and np.all(w <= ubx + tol)
         return bool(ok_g and ok_x and np.all(np.isfinite(w)))

@@ -1,0 +1,246 @@
+"""Scenario files: a TOML schema where every key is declared, typed, checked and documented.
+
+A scenario is a TOML file of sections (``[scenario]``, ``[controller]``, ``[robot]``,
+``[metrics]`` and one section named after the scenario's ``kind``). Keys left out take the
+defaults below; any key not declared here is an error. ``--set section.key=value`` overrides a
+key after loading, with the same type checks. Every error is a :class:`ScenarioError` whose
+message is one line naming the file, the key and what was expected.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+BUNDLED_DIR = Path(__file__).resolve().parents[1] / "scenarios"
+
+
+class ScenarioError(Exception):
+    """A scenario problem the user must fix; ``str()`` is one line: file, key, expectation."""
+
+    def __init__(self, file: str | Path, key: str, expected: str, got: Any = None):
+        self.file, self.key, self.expected = str(file), key, expected
+        tail = "" if got is None else f", got {got!r}"
+        super().__init__(f"{self.file}: {key}: expected {expected}{tail}")
+
+
+@dataclass(frozen=True)
+class Key:
+    """A declared key: its type (``float``, ``int``, ``bool``, ``str``, or a tuple of allowed
+    strings), default, optional extra check and a description of the expected value."""
+
+    type: type | tuple[str, ...]
+    default: Any
+    doc: str
+    check: Callable[[Any], bool] | None = None
+    expect: str = ""
+
+    def expected(self) -> str:
+        if isinstance(self.type, tuple):
+            return "one of " + ", ".join(self.type)
+        base = {float: "a number", int: "an integer", bool: "true or false", str: "a string"}[self.type]
+        return f"{base} {self.expect}".strip()
+
+    def validate(self, value: Any) -> Any:
+        """The value converted to the key's type, or ``ValueError``."""
+        if isinstance(self.type, tuple):
+            ok = isinstance(value, str) and value in self.type
+        elif self.type is float:
+            ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+            value = float(value) if ok else value
+        elif self.type is int:
+            ok = isinstance(value, int) and not isinstance(value, bool)
+        else:
+            ok = isinstance(value, self.type)
+        if not ok or (self.check is not None and not self.check(value)):
+            raise ValueError(self.expected())
+        return value
+
+
+def _positive(x):
+    return x > 0
+
+
+def _non_negative(x):
+    return x >= 0
+
+
+P = dict(check=_positive, expect="> 0")
+NN = dict(check=_non_negative, expect=">= 0")
+
+COMMON: dict[str, dict[str, Key]] = {
+    "scenario": {
+        "name": Key(str, "unnamed", "label written into metrics.json"),
+        "kind": Key(("braking",), "braking", "which experiment builds the world"),
+        "seed": Key(int, 0, "seed of every random choice in the run", **NN),
+        "dt": Key(float, 0.1, "control period and simulation step [s]", **P),
+        "duration": Key(float, 20.0, "time limit [s]", **P),
+    },
+    "controller": {
+        "coordinator": Key(("independent",), "independent", "who plans when: every robot plans for itself each period"),
+        "barrier": Key(("fcbf", "cbf"), "fcbf", "F-CBF (velocity-stretched ellipse) or plain CBF (footprint ellipse)"),
+        "horizon": Key(int, 10, "MPC horizon N [steps]", check=lambda n: 1 <= n <= 100, expect="in 1..100"),
+        "solver": Key(("fatrop", "sqp", "ipopt"), "fatrop", "NLP solver of the fast path"),
+        "retry_with_ipopt": Key(bool, True, "retry a failed fast-path solve once with ipopt"),
+        "gamma": Key(float, 0.3, "discrete barrier decay rate", check=lambda g: 0 < g <= 1, expect="in (0, 1]"),
+        "d_safe": Key(float, 0.2, "margin added to the ego's covering-disc radius [m]", **NN),
+        "mu1": Key(float, 0.2, "F-CBF gain along the velocity [s]", **NN),
+        "mu2": Key(float, 0.2, "F-CBF gain across the velocity [s]", **NN),
+        "sigmoid_k": Key(float, 2.0, "F-CBF sigmoid steepness k [s/m]", **P),
+        "v0": Key(float, 1.0, "F-CBF sigmoid threshold v0 [m/s]", **NN),
+        "obstacle_slots": Key(int, 8, "obstacles the MPC considers (nearest first)", check=lambda n: n >= 1, expect=">= 1"),
+        "ego_discs": Key(int, 1, "discs covering the ego footprint", check=lambda n: 1 <= n <= 5, expect="in 1..5"),
+        "q_pos": Key(float, 1.0, "Q weight on position error [1/m^2]", **NN),
+        "q_heading": Key(float, 1.0, "Q weight on heading error [1/rad^2]", **NN),
+        "q_speed": Key(float, 1.0, "Q weight on speed error [s^2/m^2]", **NN),
+        "r_accel": Key(float, 0.1, "R weight on acceleration", **NN),
+        "r_steer": Key(float, 0.1, "R weight on steering angle", **NN),
+        "s_accel": Key(float, 0.1, "S weight on acceleration change", **NN),
+        "s_steer": Key(float, 1.0, "S weight on steering change", **NN),
+        "terminal_scale": Key(float, 5.0, "terminal weight P = terminal_scale * Q", **NN),
+        "max_iter": Key(int, 100, "iteration cap per solve", **P),
+        "max_cpu_time": Key(float, 1.0, "CPU-time cap per ipopt solve [s]", **P),
+    },
+    "robot": {
+        "length": Key(float, 1.0, "footprint length [m]", **P),
+        "width": Key(float, 0.6, "footprint width [m]", **P),
+        "wheelbase": Key(float, 0.8, "wheelbase L [m]", **P),
+        "a_min": Key(float, -6.0, "strongest braking [m/s^2]", check=lambda a: a < 0, expect="< 0"),
+        "a_max": Key(float, 3.0, "strongest acceleration [m/s^2]", **P),
+        "steer_max": Key(float, 0.6, "steering limit [rad]", check=lambda s: 0 < s < 1.5, expect="in (0, 1.5)"),
+        "v_max": Key(float, 30.0, "speed limit [m/s]", **P),
+        "allow_reverse": Key(bool, False, "allow negative speed down to -v_max"),
+    },
+    "metrics": {
+        "accel_threshold": Key(float, 3.0, "|longitudinal acceleration| that counts as aggressive [m/s^2]", **P),
+        "lat_accel_threshold": Key(float, 3.0, "lateral acceleration v^2 |curvature| that counts as aggressive [m/s^2]", **P),
+        "stop_speed": Key(float, 0.05, "speed below which a robot counts as stopped [m/s]", **NN),
+    },
+}
+
+KIND_SECTIONS: dict[str, dict[str, Key]] = {
+    "braking": {
+        "speed": Key(float, 10.0, "initial speed of ego and lead [m/s]", **P),
+        "gap": Key(float, 7.0, "initial centre-to-centre distance, lead ahead of ego [m]", **P),
+        "t_brake": Key(float, 1.0, "time the lead starts braking [s]", **NN),
+        "lead_decel": Key(float, 6.0, "lead deceleration magnitude [m/s^2]", **P),
+        "lead_length": Key(float, 1.0, "lead footprint length [m]", **P),
+        "lead_width": Key(float, 0.6, "lead footprint width [m]", **P),
+        "lane_y": Key(float, 0.0, "y of the lane centre line [m]"),
+        "lane_width": Key(float, 1.0, "lane width; the ego's rear axle keeps (lane_width - robot.width)/2 from the centre line [m]", **P),
+    },
+}
+
+
+class Scenario:
+    """A validated scenario: nested ``{section: {key: value}}`` plus where it came from."""
+
+    def __init__(self, data: dict[str, dict[str, Any]], source: str):
+        self.data = data
+        self.source = source
+
+    @property
+    def kind(self) -> str:
+        return self.data["scenario"]["kind"]
+
+    def __getitem__(self, dotted: str) -> Any:
+        section, key = dotted.split(".", 1)
+        return self.data[section][key]
+
+    def schema(self) -> dict[str, dict[str, Key]]:
+        return schema_for(self.kind)
+
+    def with_overrides(self, assignments: list[str]) -> "Scenario":
+        """A copy with ``section.key=value`` assignments applied and type-checked."""
+        data = copy.deepcopy(self.data)
+        for text in assignments:
+            dotted, sep, raw = text.partition("=")
+            if not sep:
+                raise ScenarioError(self.source, text, "--set KEY=VALUE")
+            schema = schema_for(data["scenario"]["kind"])
+            section, key = _lookup(schema, dotted.strip(), self.source)
+            data[section][key] = _check(schema, section, key, parse_value(raw.strip()), self.source)
+        return Scenario(data, self.source)
+
+    def to_toml(self) -> str:
+        """The full scenario as TOML text (every key, defaults included)."""
+        lines = []
+        for section, keys in self.data.items():
+            lines.append(f"[{section}]")
+            lines += [f"{k} = {_toml_value(v)}" for k, v in keys.items()]
+            lines.append("")
+        return "\n".join(lines)
+
+
+def schema_for(kind: str) -> dict[str, dict[str, Key]]:
+    """All sections a scenario of ``kind`` may hold."""
+    return COMMON | {kind: KIND_SECTIONS[kind]}
+
+
+def parse_value(raw: str) -> Any:
+    """A ``--set`` value read as a TOML literal (``10``, ``0.5``, ``true``, ``"x"``), else a bare string."""
+    try:
+        return tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        return raw
+
+
+def resolve(name_or_path: str) -> Path:
+    """A bundled scenario name (``braking``) or a path to a ``.toml`` file."""
+    path = Path(name_or_path)
+    if path.suffix != ".toml" and not path.exists():
+        path = BUNDLED_DIR / f"{name_or_path}.toml"
+    if not path.is_file():
+        bundled = ", ".join(sorted(p.stem for p in BUNDLED_DIR.glob("*.toml")))
+        raise ScenarioError(name_or_path, "scenario", f"an existing .toml file or a bundled name ({bundled})")
+    return path
+
+
+def load(name_or_path: str, overrides: list[str] | None = None) -> Scenario:
+    """Load, validate and fill defaults; then apply ``overrides`` (``section.key=value``)."""
+    path = resolve(name_or_path)
+    try:
+        raw = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(path, "(syntax)", f"valid TOML ({exc})") from None
+    kind = raw.get("scenario", {}).get("kind", COMMON["scenario"]["kind"].default)
+    if kind not in KIND_SECTIONS:
+        raise ScenarioError(path, "scenario.kind", COMMON["scenario"]["kind"].expected(), kind)
+    schema = schema_for(kind)
+    data = {section: {k: key.default for k, key in keys.items()} for section, keys in schema.items()}
+    for section, table in raw.items():
+        if section not in schema:
+            raise ScenarioError(path, section, "a section among " + ", ".join(schema))
+        if not isinstance(table, dict):
+            raise ScenarioError(path, section, "a [section] table", table)
+        for key, value in table.items():
+            _lookup(schema, f"{section}.{key}", path)
+            data[section][key] = _check(schema, section, key, value, path)
+    return Scenario(data, str(path)).with_overrides(overrides or [])
+
+
+def _lookup(schema, dotted: str, source) -> tuple[str, str]:
+    section, _, key = dotted.partition(".")
+    if section not in schema or key not in schema[section]:
+        known = ", ".join(f"{section}.{k}" for k in schema.get(section, {})) or ", ".join(schema)
+        raise ScenarioError(source, dotted, f"a known key ({known})")
+    return section, key
+
+
+def _check(schema, section: str, key: str, value: Any, source) -> Any:
+    try:
+        return schema[section][key].validate(value)
+    except ValueError as exc:
+        raise ScenarioError(source, f"{section}.{key}", str(exc), value) from None
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return f'"{value}"'
+    return repr(value)

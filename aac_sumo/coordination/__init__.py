@@ -1,0 +1,1 @@
+"""Coordinators decide, each control period, which robots plan and what every robot applies."""

@@ -1,0 +1,72 @@
+"""Pieces every experiment builds the same way from its scenario."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from aac_sumo.barriers import FcbfParams
+from aac_sumo.config import Scenario, ScenarioError
+from aac_sumo.coordination.base import Coordinator
+from aac_sumo.coordination.independent import IndependentCoordinator
+from aac_sumo.dynamics import BicycleModel, VehicleLimits
+from aac_sumo.geometry import pairwise_rect_clearance
+from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
+from aac_sumo.references import PathReference
+from aac_sumo.sim.base import Simulator
+from aac_sumo.world import RobotSpec, WorldState
+
+COORDINATORS: dict[str, type[Coordinator]] = {"independent": IndependentCoordinator}
+
+
+@dataclass
+class Setup:
+    """A ready-to-run experiment. ``finished(world)`` tells, per controlled robot, whether it
+    has finished its task; the run completes when all have."""
+
+    scenario: Scenario
+    sim: Simulator
+    coordinator: Coordinator
+    tasks: list[PathReference]
+    finished: Callable[[WorldState], np.ndarray]
+
+
+def robot_spec(scenario: Scenario, name: str) -> RobotSpec:
+    """A controlled robot with the scenario's ``[robot]`` footprint and limits."""
+    r = scenario.data["robot"]
+    if r["wheelbase"] > r["length"]:
+        raise ScenarioError(scenario.source, "robot.wheelbase", f"at most robot.length ({r['length']})", r["wheelbase"])
+    limits = VehicleLimits(r["a_min"], r["a_max"], r["steer_max"], -r["v_max"] if r["allow_reverse"] else 0.0, r["v_max"])
+    return RobotSpec(name, r["length"], r["width"], BicycleModel(r["wheelbase"], limits))
+
+
+def mpc_config(scenario: Scenario) -> MpcConfig:
+    """The planner settings of ``[controller]``."""
+    c = scenario.data["controller"]
+    return MpcConfig(
+        horizon=c["horizon"], dt=scenario["scenario.dt"], solver=c["solver"], barrier=c["barrier"],
+        gamma=c["gamma"], d_safe=c["d_safe"], fcbf=FcbfParams(c["mu1"], c["mu2"], c["sigmoid_k"], c["v0"]),
+        slots=c["obstacle_slots"], discs=c["ego_discs"], q_pos=c["q_pos"], q_heading=c["q_heading"],
+        q_speed=c["q_speed"], r_accel=c["r_accel"], r_steer=c["r_steer"], s_accel=c["s_accel"],
+        s_steer=c["s_steer"], terminal_scale=c["terminal_scale"], max_iter=c["max_iter"],
+        max_cpu_time=c["max_cpu_time"], retry_with_ipopt=c["retry_with_ipopt"],
+    )
+
+
+def coordinator(scenario: Scenario, tasks: list[PathReference], corridors=None) -> Coordinator:
+    """The ``controller.coordinator`` with its own MPC planner."""
+    return COORDINATORS[scenario["controller.coordinator"]](MpcPlanner(mpc_config(scenario)), tasks, corridors)
+
+
+def check_start(scenario: Scenario, world: WorldState, key: str) -> None:
+    """Exit-2 error naming ``key`` when any two start footprints overlap."""
+    robots = world.robot_footprints()
+    rows = np.vstack([robots] + [o.footprint()[None, :] for o in world.obstacles])
+    gaps = pairwise_rect_clearance(robots, rows)
+    gaps[np.arange(len(robots)), np.arange(len(robots))] = np.inf
+    if np.any(gaps < 0):
+        i, j = np.unravel_index(np.argmin(gaps), gaps.shape)
+        names = [r.name for r in world.robots] + [o.name for o in world.obstacles]
+        raise ScenarioError(scenario.source, key, f"start footprints that do not overlap ({names[i]} overlaps {names[j]} by {-gaps[i, j]:.2f} m)")

@@ -1,0 +1,114 @@
+"""Per-step measurements and the run metrics of CONTRACT.md, computed from recorded data."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from aac_sumo.world import WorldState
+
+#: metrics.json keys, in the order they are written.
+METRIC_KEYS = (
+    "scenario", "coordinator", "barrier", "horizon", "seed", "n_robots", "completed", "task_duration_s",
+    "compute_ms_mean", "compute_ms_median", "compute_ms_p95", "solves", "infeasible_solves",
+    "infeasibility_rate", "min_distance_m", "min_clearance_m", "collisions", "sim_collisions", "ttc_mean_s",
+    "aggressive_driving_rate", "tracking_error_m", "authority_jain", "delay_jain", "delay_max_s",
+    "realtime_factor",
+)
+ROBOT_KINDS = ("robot", "scripted")
+
+
+def time_to_collision(world: WorldState) -> np.ndarray:
+    """Per controlled robot, the smallest TTC [s] to anything ahead in its path, NaN if nothing closes in.
+
+    "Ahead" means the other footprint centre lies in front along the ego heading within the
+    sum of half-widths laterally. TTC = bumper gap along the heading / closing speed, where the
+    closing speed is the ego's speed minus the other's velocity component along the ego heading.
+    """
+    centres = world.robot_centres()
+    others = [world.robot_as_obstacle(j) for j in range(len(world.robots))] + list(world.obstacles)
+    out = np.full(len(world.robots), np.nan)
+    for i, robot in enumerate(world.robots):
+        heading, speed = world.states[i, 2], world.states[i, 3]
+        ahead = np.array([np.cos(heading), np.sin(heading)])
+        left = np.array([-ahead[1], ahead[0]])
+        for j, other in enumerate(others):
+            if j == i:
+                continue
+            rel = other.centre - centres[i]
+            lon, lat = rel @ ahead, rel @ left
+            if lon <= 0 or abs(lat) > 0.5 * (robot.width + other.width):
+                continue
+            closing = speed - other.velocity @ ahead
+            gap = max(lon - 0.5 * (robot.length + other.length), 0.0)
+            if closing > 1e-6:
+                out[i] = np.nanmin([out[i], gap / closing])
+    return out
+
+
+def nearest_robot_distance(world: WorldState) -> np.ndarray:
+    """Per controlled robot, the centre distance [m] to the nearest other robot (controlled or a
+    scripted robot such as the braking lead), inf if there is none."""
+    centres = world.robot_centres()
+    others = [o.centre for o in world.obstacles if o.kind in ROBOT_KINDS]
+    pts = np.vstack([centres] + ([np.array(others)] if others else []))
+    d = np.hypot(*(centres[:, None, :] - pts[None, :, :]).transpose(2, 0, 1))
+    d[np.arange(len(centres)), np.arange(len(centres))] = np.inf
+    return d.min(axis=1) if d.size else np.full(len(centres), np.inf)
+
+
+def jain(values) -> float | None:
+    """Jain's fairness index ``(sum x)^2 / (n sum x^2)``; 1 is perfectly fair. None if empty or all zero."""
+    x = np.asarray(values, dtype=float)
+    if x.size == 0 or not np.any(x):
+        return None
+    return float(x.sum() ** 2 / (x.size * (x**2).sum()))
+
+
+def _finite(x) -> float | None:
+    return None if x is None or not np.isfinite(x) else float(x)
+
+
+def compute_metrics(steps: pd.DataFrame, periods: pd.DataFrame, info: dict) -> dict:
+    """Metrics from the per-robot ``steps`` table and the per-period ``periods`` table.
+
+    ``info`` carries what ran (scenario, coordinator, barrier, horizon, seed, n_robots),
+    ``completed``, ``task_duration_s``, ``collisions``, ``sim_collisions``, ``wall_s``, the
+    aggressive-driving thresholds and ``wheelbase`` per robot.
+    """
+    compute = periods["compute_ms"].to_numpy() if len(periods) else np.array([])
+    solved = steps[steps["status"].notna() & (steps["status"] != "")]
+    solves = int(len(solved))
+    bad = int((solved["status"] != "solved").sum())
+    sim_time = float(periods["t"].max() + info["dt"]) if len(periods) else 0.0
+    m = {k: info.get(k) for k in ("scenario", "coordinator", "barrier", "horizon", "seed", "n_robots")}
+    m.update(
+        completed=bool(info["completed"]),
+        task_duration_s=_finite(info.get("task_duration_s")),
+        compute_ms_mean=_finite(np.mean(compute)) if compute.size else None,
+        compute_ms_median=_finite(np.median(compute)) if compute.size else None,
+        compute_ms_p95=_finite(np.percentile(compute, 95)) if compute.size else None,
+        solves=solves,
+        infeasible_solves=bad,
+        infeasibility_rate=bad / solves if solves else None,
+        min_distance_m=_finite(steps["nearest_robot_m"].min()) if len(steps) else None,
+        min_clearance_m=_finite(steps["clearance_m"].min()) if len(steps) else None,
+        collisions=int(info["collisions"]),
+        sim_collisions=info.get("sim_collisions"),
+        ttc_mean_s=_finite(steps["ttc_s"].mean()) if steps["ttc_s"].notna().any() else None,
+        aggressive_driving_rate=_aggressive_rate(steps, info) if len(steps) else None,
+        tracking_error_m=_finite(np.hypot(steps["x"] - steps["ref_x"], steps["y"] - steps["ref_y"]).mean()) if len(steps) else None,
+        authority_jain=jain(steps.groupby("robot")["authority"].sum()) if len(steps) else None,
+        delay_jain=info.get("delay_jain"),
+        delay_max_s=info.get("delay_max_s"),
+        realtime_factor=_finite(sim_time / info["wall_s"]) if info.get("wall_s") else None,
+    )
+    return {k: m[k] for k in METRIC_KEYS} | {k: v for k, v in m.items() if k not in METRIC_KEYS}
+
+
+def _aggressive_rate(steps: pd.DataFrame, info: dict) -> float:
+    """Share of robots whose applied |accel| or v^2 |tan(steer)| / L ever exceeds the thresholds."""
+    wheelbase = steps["robot"].map(info["wheelbase"])
+    lat = steps["v"] ** 2 * np.abs(np.tan(steps["steer"])) / wheelbase
+    flagged = (steps["accel"].abs() > info["accel_threshold"]) | (lat > info["lat_accel_threshold"])
+    return float(flagged.groupby(steps["robot"]).any().mean())

@@ -1,0 +1,1 @@
+"""Simulators: where the world lives. Each offers ``observe()``, ``step(inputs)`` and ``close()``."""

@@ -1,0 +1,65 @@
+"""The simulator interface and the footprint check every simulator runs itself.
+
+The check never asks the controller: it takes the true footprints after each step, measures
+the exact rectangle clearance between every controlled robot and everything else, and reports
+overlapping pairs. The runner counts a collision each time a pair starts to overlap.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+from aac_sumo.geometry import pairwise_rect_clearance
+from aac_sumo.world import WorldState
+
+
+@dataclass
+class ContactReport:
+    """Per-step geometry facts measured by the simulator.
+
+    ``clearance[i]`` is robot i's smallest footprint gap to anything [m] (negative = overlap),
+    ``overlaps`` the set of overlapping ``(robot name, other name)`` pairs, and
+    ``sim_collisions`` the simulator's own collision count this step (None if it has none).
+    """
+
+    clearance: np.ndarray
+    overlaps: set[tuple[str, str]]
+    sim_collisions: int | None = None
+
+
+def footprint_contacts(world: WorldState) -> ContactReport:
+    """Exact footprint clearances of controlled robots against robots and obstacles."""
+    robots = world.robot_footprints()
+    names = [r.name for r in world.robots]
+    others = np.vstack([robots] + [o.footprint()[None, :] for o in world.obstacles])
+    other_names = names + [o.name for o in world.obstacles]
+    gaps = pairwise_rect_clearance(robots, others)
+    n = len(names)
+    gaps[np.arange(n), np.arange(n)] = np.inf
+    overlaps = {tuple(sorted((names[i], other_names[j]))) for i, j in zip(*np.nonzero(gaps < 0))}
+    return ContactReport(gaps.min(axis=1) if gaps.shape[1] else np.full(n, np.inf), overlaps)
+
+
+class Simulator(ABC):
+    """Small common step interface of every world (internal, SUMO)."""
+
+    dt: float
+
+    @abstractmethod
+    def observe(self) -> WorldState:
+        """The current world as a coordinator sees it."""
+
+    @abstractmethod
+    def step(self, inputs: np.ndarray) -> ContactReport:
+        """Apply ``inputs`` (n, 2) for one period ``dt`` and report the resulting contacts."""
+
+    @abstractmethod
+    def agents(self) -> list[dict]:
+        """Every agent's current pose for ``trajectories.csv``: name, kind, x, y (footprint
+        centre [m]), heading [rad], v [m/s], length, width [m]."""
+
+    def close(self) -> None:
+        """Release resources (nothing for the internal simulator)."""

@@ -1,0 +1,82 @@
+"""Pure-numpy world: controlled bicycle robots, scripted agents and static obstacles."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from aac_sumo.sim.base import ContactReport, Simulator, footprint_contacts
+from aac_sumo.world import Obstacle, RobotSpec, WorldState
+
+
+@dataclass
+class ScriptedAgent:
+    """An uncontrolled agent driving straight along ``heading`` [rad] from footprint centre
+    ``centre`` [m] at ``speed`` [m/s]; from time ``t`` of each ``(t, accel)`` in ``schedule`` it
+    accelerates at ``accel`` [m/s^2], never below zero speed."""
+
+    name: str
+    centre: np.ndarray
+    heading: float
+    speed: float
+    length: float
+    width: float
+    schedule: tuple[tuple[float, float], ...] = ()
+    kind: str = "scripted"
+
+    def accel_at(self, t: float) -> float:
+        active = [a for start, a in self.schedule if t >= start - 1e-9]
+        return active[-1] if active else 0.0
+
+    def advance(self, t: float, dt: float) -> None:
+        """Exact constant-acceleration motion over [t, t + dt], stopping at zero speed."""
+        a = self.accel_at(t)
+        tau = dt if a >= 0 or self.speed + a * dt >= 0 else self.speed / -a
+        distance = self.speed * tau + 0.5 * a * tau**2
+        self.centre = self.centre + distance * np.array([np.cos(self.heading), np.sin(self.heading)])
+        self.speed = max(0.0, self.speed + a * dt)
+
+    def as_obstacle(self) -> Obstacle:
+        vel = self.speed * np.array([np.cos(self.heading), np.sin(self.heading)])
+        return Obstacle(self.name, self.kind, self.centre.copy(), vel, self.heading, self.length, self.width)
+
+
+class InternalSimulator(Simulator):
+    """Steps controlled robots with their bicycle models and scripted agents exactly, then runs
+    its own footprint check."""
+
+    def __init__(self, robots: list[RobotSpec], states: np.ndarray, dt: float,
+                 scripted: list[ScriptedAgent] = (), statics: list[Obstacle] = ()):
+        self.robots = list(robots)
+        self.states = np.array(states, dtype=float)
+        self.dt = dt
+        self.scripted = list(scripted)
+        self.statics = list(statics)
+        self.t = 0.0
+
+    def observe(self) -> WorldState:
+        obstacles = [a.as_obstacle() for a in self.scripted] + self.statics
+        return WorldState(self.t, self.states.copy(), self.robots, obstacles)
+
+    def step(self, inputs: np.ndarray) -> ContactReport:
+        inputs = np.asarray(inputs, dtype=float)
+        for i, robot in enumerate(self.robots):
+            self.states[i] = robot.model.step(self.states[i], inputs[i], self.dt)
+        for agent in self.scripted:
+            agent.advance(self.t, self.dt)
+        self.t += self.dt
+        return footprint_contacts(self.observe())
+
+    def agents(self) -> list[dict]:
+        world = self.observe()
+        rows = [
+            dict(name=r.name, kind="controlled", x=fp[0], y=fp[1], heading=fp[4], v=s[3], length=r.length, width=r.width)
+            for r, fp, s in zip(self.robots, world.robot_footprints(), self.states)
+        ]
+        rows += [
+            dict(name=o.name, kind=o.kind, x=o.centre[0], y=o.centre[1], heading=o.heading,
+                 v=float(np.hypot(*o.velocity)), length=o.length, width=o.width)
+            for o in world.obstacles
+        ]
+        return rows

@@ -1,0 +1,279 @@
+"""Specification tests for aac_sumo.dynamics (the paper's discrete kinematic bicycle model).
+
+State ``[x, y, heading, v]`` at the rear axle, input ``[accel, steer]``; one forward-Euler step is
+
+    x+ = x + v cos(heading) dt,  y+ = y + v sin(heading) dt,
+    heading+ = heading + v tan(steer) / L dt,  v+ = v + accel dt.
+
+The tests check the closed-form motions this implies (straight line, regular polygon on a circle,
+constant acceleration), numpy/casadi agreement, and the limits applied by the simulator model.
+"""
+
+import casadi as ca
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from aac_sumo.dynamics import NU, NX, BicycleModel, VehicleLimits, bicycle_step
+
+coord = st.floats(-100.0, 100.0)
+heading_st = st.floats(-np.pi, np.pi)
+speed_st = st.floats(0.1, 20.0)
+dt_st = st.sampled_from([0.01, 0.05, 0.1, 0.2])
+wheelbase_st = st.floats(0.3, 4.0)
+
+
+def rollout(state, control, dt, wheelbase, steps):
+    """States (steps + 1, 4) from holding ``control`` constant."""
+    out = [np.asarray(state, dtype=float)]
+    for _ in range(steps):
+        out.append(bicycle_step(out[-1], np.asarray(control, dtype=float), dt, wheelbase))
+    return np.array(out)
+
+
+# --------------------------------------------------------------------------------------------
+# Closed-form motions
+# --------------------------------------------------------------------------------------------
+
+
+@given(x0=coord, y0=coord, v=speed_st, dt=dt_st, wheelbase=wheelbase_st)
+@settings(max_examples=50)
+def test_straight_line_heading_zero(x0, y0, v, dt, wheelbase):
+    """Zero steer, zero accel, heading 0: x_k = x0 + v k dt, y, heading and v never change."""
+    states = rollout([x0, y0, 0.0, v], [0.0, 0.0], dt, wheelbase, 40)
+    k = np.arange(41)
+    np.testing.assert_allclose(states[:, 0], x0 + v * k * dt, rtol=1e-12, atol=1e-10)
+    assert np.all(states[:, 1] == y0)
+    assert np.all(states[:, 2] == 0.0)
+    assert np.all(states[:, 3] == v)
+
+
+@given(x0=coord, y0=coord, heading=heading_st, v=speed_st, dt=dt_st, wheelbase=wheelbase_st)
+@settings(max_examples=50)
+def test_straight_line_arbitrary_heading(x0, y0, heading, v, dt, wheelbase):
+    """Zero steer, zero accel: the rear axle moves along its heading by v dt per step."""
+    states = rollout([x0, y0, heading, v], [0.0, 0.0], dt, wheelbase, 40)
+    k = np.arange(41)
+    np.testing.assert_allclose(states[:, 0], x0 + v * k * dt * np.cos(heading), rtol=1e-12, atol=1e-10)
+    np.testing.assert_allclose(states[:, 1], y0 + v * k * dt * np.sin(heading), rtol=1e-12, atol=1e-10)
+    assert np.all(states[:, 2] == heading)
+    assert np.all(states[:, 3] == v)
+
+
+def polygon_circle(p0, heading0, v, steer, dt, wheelbase):
+    """Centre and circumradius of the regular polygon traced by constant (v, steer) Euler steps.
+
+    Each step is a chord of length s = v dt followed by a turn of beta = v tan(steer) dt / L, so
+    the vertices lie on a circle of radius R = s / (2 |sin(beta / 2)|) whose centre is the chord
+    midpoint shifted by s / (2 tan(beta / 2)) along the left normal.
+    """
+    s = v * dt
+    beta = v * np.tan(steer) * dt / wheelbase
+    t = np.array([np.cos(heading0), np.sin(heading0)])
+    n = np.array([-t[1], t[0]])
+    centre = np.asarray(p0) + 0.5 * s * t + s / (2.0 * np.tan(0.5 * beta)) * n
+    return centre, s / (2.0 * abs(np.sin(0.5 * beta)))
+
+
+@given(
+    x0=coord,
+    y0=coord,
+    heading=heading_st,
+    v=speed_st,
+    steer=st.floats(0.05, 0.6) | st.floats(-0.6, -0.05),
+    dt=dt_st,
+    wheelbase=wheelbase_st,
+)
+@settings(max_examples=60)
+def test_constant_steer_points_lie_on_circle(x0, y0, heading, v, steer, dt, wheelbase):
+    """Constant steer, zero accel: the discrete points are the vertices of a regular polygon
+    with circumradius R_dt = v dt / (2 sin(v tan(steer) dt / (2 L))), and the heading grows by
+    v tan(steer) / L dt per step."""
+    beta = v * np.tan(steer) * dt / wheelbase
+    steps = 30
+    states = rollout([x0, y0, heading, v], [0.0, steer], dt, wheelbase, steps)
+    centre, radius = polygon_circle([x0, y0], heading, v, steer, dt, wheelbase)
+    dist = np.hypot(states[:, 0] - centre[0], states[:, 1] - centre[1])
+    scale = max(radius, abs(x0), abs(y0), 1.0)
+    np.testing.assert_allclose(dist, radius, rtol=0, atol=1e-10 * scale)
+    np.testing.assert_allclose(np.diff(states[:, 2]), beta, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(states[:, 2], heading + beta * np.arange(steps + 1), rtol=1e-12, atol=1e-12)
+    # turning left (steer > 0) puts the centre on the left of the initial heading
+    left = -np.sin(heading) * (centre[0] - x0) + np.cos(heading) * (centre[1] - y0)
+    assert np.sign(left) == np.sign(steer)
+
+
+@given(v=speed_st, steer=st.floats(0.05, 0.6), wheelbase=wheelbase_st)
+def test_polygon_radius_tends_to_continuous_turn_radius(v, steer, wheelbase):
+    """As dt -> 0 the polygon circumradius tends to the bicycle's turn radius L / tan(steer);
+    at dt = 1e-3 the difference is second order (R_dt ~ R (1 + beta^2 / 24))."""
+    turn_radius = wheelbase / np.tan(steer)
+    radii = []
+    for dt in (1e-1, 1e-2, 1e-3):
+        _, r_dt = polygon_circle([0.0, 0.0], 0.0, v, steer, dt, wheelbase)
+        radii.append(r_dt)
+    beta = v * np.tan(steer) * 1e-3 / wheelbase
+    assert abs(radii[-1] - turn_radius) <= (1.01 * beta**2 / 24.0 + 1e-12) * turn_radius
+    assert abs(radii[-1] - turn_radius) <= 1e-4 * turn_radius
+    errors = np.abs(np.array(radii) - turn_radius)
+    assert np.all(np.diff(errors) <= 0.0)
+
+
+def test_simulated_turn_at_small_dt_follows_continuous_circle():
+    """Integrating a quarter turn at dt = 1e-3 stays within 1e-3 R of the continuous circle of
+    radius L / tan(steer) centred on the left of the start."""
+    v, steer, wheelbase, dt = 5.0, 0.3, 2.0, 1e-3
+    turn_radius = wheelbase / np.tan(steer)
+    steps = int(round(0.5 * np.pi / (v * np.tan(steer) / wheelbase) / dt))
+    states = rollout([0.0, 0.0, 0.0, v], [0.0, steer], dt, wheelbase, steps)
+    dist = np.hypot(states[:, 0], states[:, 1] - turn_radius)
+    assert np.max(np.abs(dist - turn_radius)) < 1e-3 * turn_radius
+    assert states[-1, 2] == pytest.approx(0.5 * np.pi, abs=v * np.tan(steer) / wheelbase * dt)
+
+
+@given(
+    x0=coord,
+    v0=st.floats(0.0, 20.0),
+    accel=st.floats(-6.0, 3.0),
+    dt=dt_st,
+    wheelbase=wheelbase_st,
+)
+@settings(max_examples=50)
+def test_constant_acceleration(x0, v0, accel, dt, wheelbase):
+    """Heading 0, zero steer, constant accel: v_k = v0 + a k dt and
+    x_k = x0 + v0 k dt + a dt^2 k (k - 1) / 2 (Euler uses the speed at the start of each step)."""
+    steps = 30
+    states = rollout([x0, 0.0, 0.0, v0], [accel, 0.0], dt, wheelbase, steps)
+    k = np.arange(steps + 1)
+    np.testing.assert_allclose(states[:, 3], v0 + accel * k * dt, rtol=1e-12, atol=1e-11)
+    expected_x = x0 + v0 * k * dt + accel * dt**2 * k * (k - 1) / 2.0
+    np.testing.assert_allclose(states[:, 0], expected_x, rtol=1e-12, atol=1e-10)
+    assert np.all(states[:, 1] == 0.0)
+    assert np.all(states[:, 2] == 0.0)
+
+
+# --------------------------------------------------------------------------------------------
+# numpy / casadi agreement and batching
+# --------------------------------------------------------------------------------------------
+
+_SX_STATE = ca.SX.sym("x", NX)
+_SX_INPUT = ca.SX.sym("u", NU)
+_SX_L = ca.SX.sym("L")
+_SX_DT = 0.1
+_CASADI_STEP = ca.Function("step", [_SX_STATE, _SX_INPUT, _SX_L], [bicycle_step(_SX_STATE, _SX_INPUT, _SX_DT, _SX_L, xp=ca)])
+
+state_st = st.tuples(coord, coord, st.floats(-2 * np.pi, 2 * np.pi), st.floats(-5.0, 25.0))
+input_st = st.tuples(st.floats(-10.0, 10.0), st.floats(-1.2, 1.2))
+
+
+@given(state=state_st, control=input_st, wheelbase=wheelbase_st)
+@settings(max_examples=100)
+def test_numpy_and_casadi_agree(state, control, wheelbase):
+    """The same definition evaluated with numpy, with casadi DM and through a symbolic casadi
+    Function gives the same next state."""
+    state, control = np.array(state), np.array(control)
+    expected = bicycle_step(state, control, _SX_DT, wheelbase)
+    dm = np.asarray(bicycle_step(ca.DM(state), ca.DM(control), _SX_DT, wheelbase, xp=ca)).ravel()
+    sym = np.asarray(_CASADI_STEP(state, control, wheelbase)).ravel()
+    assert expected.shape == (NX,)
+    np.testing.assert_allclose(dm, expected, rtol=1e-13, atol=1e-12)
+    np.testing.assert_allclose(sym, expected, rtol=1e-13, atol=1e-12)
+
+
+@given(
+    states=st.lists(state_st, min_size=1, max_size=6),
+    controls=st.lists(input_st, min_size=6, max_size=6),
+    wheelbase=wheelbase_st,
+)
+@settings(max_examples=30)
+def test_numpy_batch_equals_rowwise(states, controls, wheelbase):
+    """Arrays of shape (n, 4) / (n, 2) step row by row."""
+    states = np.array(states)
+    controls = np.array(controls)[: len(states)]
+    batch = bicycle_step(states, controls, 0.1, wheelbase)
+    assert batch.shape == states.shape
+    for i in range(len(states)):
+        np.testing.assert_array_equal(batch[i], bicycle_step(states[i], controls[i], 0.1, wheelbase))
+
+
+# --------------------------------------------------------------------------------------------
+# Limits: BicycleModel.step and VehicleLimits
+# --------------------------------------------------------------------------------------------
+
+LIMITS = VehicleLimits(a_min=-6.0, a_max=3.0, steer_max=0.6, v_min=0.0, v_max=12.0)
+MODEL = BicycleModel(wheelbase=0.8, limits=LIMITS)
+
+
+@given(
+    state=st.tuples(coord, coord, heading_st, st.floats(LIMITS.v_min, LIMITS.v_max)),
+    control=st.tuples(st.floats(-50.0, 50.0), st.floats(-3.0, 3.0)),
+    dt=dt_st,
+)
+@settings(max_examples=100)
+def test_model_step_clips_inputs_and_speed(state, control, dt):
+    """BicycleModel.step applies the Euler step with the input clipped to the limits and keeps
+    the speed inside [v_min, v_max]."""
+    state, control = np.array(state), np.array(control)
+    nxt = MODEL.step(state, control, dt)
+    accel = min(max(control[0], LIMITS.a_min), LIMITS.a_max)
+    steer = min(max(control[1], -LIMITS.steer_max), LIMITS.steer_max)
+    x, y, heading, v = state
+    np.testing.assert_allclose(nxt[0], x + v * np.cos(heading) * dt, rtol=1e-14, atol=1e-12)
+    np.testing.assert_allclose(nxt[1], y + v * np.sin(heading) * dt, rtol=1e-14, atol=1e-12)
+    np.testing.assert_allclose(nxt[2], heading + v * np.tan(steer) / MODEL.wheelbase * dt, rtol=1e-14, atol=1e-12)
+    np.testing.assert_allclose(nxt[3], min(max(v + accel * dt, LIMITS.v_min), LIMITS.v_max), rtol=1e-14, atol=1e-12)
+    assert LIMITS.v_min <= nxt[3] <= LIMITS.v_max
+    # never reverses: the displacement is along the heading, never against it
+    assert (nxt[0] - x) * np.cos(heading) + (nxt[1] - y) * np.sin(heading) >= -1e-12
+
+
+def test_model_step_does_not_mutate_its_arguments():
+    state = np.array([1.0, 2.0, 0.3, 4.0])
+    control = np.array([100.0, -5.0])
+    MODEL.step(state, control, 0.1)
+    np.testing.assert_array_equal(state, [1.0, 2.0, 0.3, 4.0])
+    np.testing.assert_array_equal(control, [100.0, -5.0])
+
+
+def test_hard_braking_stops_and_stays_stopped():
+    """Full braking from 5 m/s at a_min = -6 m/s^2 stops after ceil(5 / 0.6) steps and never
+    goes backwards."""
+    state = np.array([0.0, 0.0, 0.0, 5.0])
+    speeds, xs = [state[3]], [state[0]]
+    for _ in range(20):
+        state = MODEL.step(state, np.array([-100.0, 0.0]), 0.1)
+        speeds.append(state[3])
+        xs.append(state[0])
+    assert speeds[9] == 0.0 and speeds[8] > 0.0
+    assert np.all(np.diff(speeds) <= 0.0) and min(speeds) == 0.0
+    assert np.all(np.diff(xs) >= 0.0)
+    assert xs[-1] == xs[10]
+
+
+def test_clip_input_batches():
+    controls = np.array([[10.0, 1.0], [-10.0, -1.0], [1.0, 0.1]])
+    np.testing.assert_array_equal(LIMITS.clip_input(controls), [[3.0, 0.6], [-6.0, -0.6], [1.0, 0.1]])
+
+
+@given(
+    v_min=st.floats(0.0, 3.0),
+    extra=st.floats(0.0, 15.0),
+    a_min=st.floats(-10.0, -0.5),
+    dt=dt_st,
+)
+@settings(max_examples=100)
+def test_braking_input_never_below_v_min(v_min, extra, a_min, dt):
+    """braking_input is admissible (a_min <= accel <= 0, zero steer), never brings the speed below
+    v_min within dt, and is the hardest such braking: it either uses a_min or lands on v_min."""
+    limits = VehicleLimits(a_min=a_min, a_max=3.0, steer_max=0.6, v_min=v_min, v_max=v_min + 20.0)
+    speed = v_min + extra
+    accel, steer = limits.braking_input(speed, dt)
+    assert steer == 0.0
+    assert a_min <= accel <= 0.0
+    nxt = speed + accel * dt
+    assert nxt >= v_min - 1e-12
+    assert accel == a_min or nxt == pytest.approx(v_min, abs=1e-12)
+    # through the raw (unclipped) dynamics as well
+    state = bicycle_step(np.array([0.0, 0.0, 0.0, speed]), np.array([accel, steer]), dt, 1.0)
+    assert state[3] >= v_min - 1e-12

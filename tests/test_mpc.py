@@ -1,0 +1,321 @@
+"""Specification tests for the MPC-FCBF planner (aac_sumo.mpc).
+
+What a user of :class:`MpcPlanner` may rely on:
+
+* on an empty road it tracks its reference;
+* every plan reported ``solved`` keeps every ego disc at least ``radius + d_safe`` (exact Euclidean
+  distance) outside every obstacle's safety ellipse at every stage, for F-CBF and plain CBF;
+* when no admissible plan exists it says so (status not ``solved``, solver ``fallback``) and
+  brakes along its heading without reversing;
+* warm starts and the solver choice do not change a well-posed solution.
+"""
+
+from functools import lru_cache
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, assume, given, note, settings
+from hypothesis import strategies as st
+
+from aac_sumo.barriers import barrier_value, safety_ellipses
+from aac_sumo.dynamics import BicycleModel, VehicleLimits, bicycle_step
+from aac_sumo.geometry import ellipse_signed_distance
+from aac_sumo.mpc.planner import STATUSES, MpcConfig, MpcPlanner, Plan, ego_discs, predict
+from aac_sumo.world import Obstacle, RobotSpec
+
+HORIZON, DT, SLOTS = 10, 0.1, 2
+LIMITS = VehicleLimits(a_min=-6.0, a_max=3.0, steer_max=0.6, v_min=0.0, v_max=12.0)
+ROBOT = RobotSpec("ego", length=1.0, width=0.6, model=BicycleModel(wheelbase=0.8, limits=LIMITS))
+DIST_TOL = 1e-6  # exact-distance tolerance on solved plans [m]
+
+
+@lru_cache(maxsize=None)
+def planner(barrier="fcbf", gamma=0.3, discs=1, solver="fatrop", retry=True) -> MpcPlanner:
+    """Planners share compiled problems through get_problem's per-process cache."""
+    cfg = MpcConfig(horizon=HORIZON, dt=DT, solver=solver, barrier=barrier, gamma=gamma, slots=SLOTS, discs=discs, retry_with_ipopt=retry)
+    return MpcPlanner(cfg)
+
+
+def straight_reference(x_start, speed, t0=0.0, y=0.0):
+    """Reference along y = const at constant ``speed``: stage k at time t0 + k dt."""
+    k = np.arange(HORIZON + 1)
+    return np.column_stack([x_start + speed * (t0 + k * DT), np.full(HORIZON + 1, y), np.zeros(HORIZON + 1), np.full(HORIZON + 1, speed)])
+
+
+def disc_centres(states, offsets):
+    """Disc centres (N+1, discs, 2) of rear-axle states (N+1, 4)."""
+    direction = np.stack([np.cos(states[:, 2]), np.sin(states[:, 2])], axis=-1)
+    return states[:, None, :2] + offsets[None, :, None] * direction[:, None, :]
+
+
+def clearance_margins(states, obstacles, cfg: MpcConfig):
+    """Exact signed distance from every ego disc centre to every obstacle's safety ellipse at the
+    same stage, minus the required clearance radius + d_safe. Shape (obstacles, N+1, discs)."""
+    offsets, radius = ego_discs(ROBOT, cfg.discs)
+    centres = disc_centres(states, offsets)
+    out = []
+    for ob in obstacles:
+        ell = safety_ellipses(predict(ob, len(states) - 1, cfg.dt), cfg.barrier, cfg.fcbf)
+        sd = ellipse_signed_distance(centres, *(ell[:, i, None] for i in range(5)))
+        out.append(sd - radius - cfg.d_safe)
+    return np.array(out)
+
+
+def moved(obstacles, dt):
+    """Obstacles after dt at constant velocity (what the constant-velocity prediction assumes)."""
+    return [
+        Obstacle(o.name, o.kind, o.centre + o.velocity * dt, o.velocity, o.heading, o.length, o.width) for o in obstacles
+    ]
+
+
+def assert_model_trajectory(plan: Plan, state):
+    """A plan is a trajectory of the bicycle model from ``state`` within the robot's limits."""
+    assert plan.states.shape == (HORIZON + 1, 4) and plan.inputs.shape == (HORIZON, 2)
+    np.testing.assert_allclose(plan.states[0], state, atol=1e-9)
+    predicted = bicycle_step(plan.states[:-1], plan.inputs, DT, ROBOT.model.wheelbase)
+    np.testing.assert_allclose(plan.states[1:], predicted, atol=1e-6)
+    assert np.all(plan.inputs[:, 0] >= LIMITS.a_min - 1e-6) and np.all(plan.inputs[:, 0] <= LIMITS.a_max + 1e-6)
+    assert np.all(np.abs(plan.inputs[:, 1]) <= LIMITS.steer_max + 1e-6)
+    assert np.all(plan.states[:, 3] >= LIMITS.v_min - 1e-6) and np.all(plan.states[:, 3] <= LIMITS.v_max + 1e-6)
+
+
+def cone(x, y, heading=0.0):
+    return Obstacle("cone", "static", np.array([x, y]), np.zeros(2), heading, 0.8, 0.5)
+
+
+def walker(x, y, vx, vy):
+    return Obstacle("ped", "pedestrian", np.array([x, y]), np.array([vx, vy]), float(np.arctan2(vy, vx)), 0.6, 0.6)
+
+
+# --------------------------------------------------------------------------------------------
+# Geometry of the ego discs and slot filling (no solves)
+# --------------------------------------------------------------------------------------------
+
+
+@given(discs=st.integers(1, 5), length=st.floats(0.3, 6.0), width=st.floats(0.2, 3.0), wheelbase=st.floats(0.1, 4.0))
+@settings(max_examples=40)
+def test_ego_discs_cover_the_footprint(discs, length, width, wheelbase):
+    """Every point of the footprint rectangle (centred wheelbase/2 ahead of the rear axle) lies in
+    at least one disc, so keeping the disc centres clear keeps the body clear."""
+    robot = RobotSpec("r", length, width, BicycleModel(wheelbase, LIMITS))
+    offsets, radius = ego_discs(robot, discs)
+    assert offsets.shape == (discs,)
+    along = robot.centre_offset + np.linspace(-0.5 * length, 0.5 * length, 61)
+    across = np.linspace(-0.5 * width, 0.5 * width, 21)
+    gx, gy = np.meshgrid(along, across)
+    dist = np.hypot(gx[..., None] - offsets, gy[..., None]).min(axis=-1)
+    assert dist.max() <= radius * (1 + 1e-12)
+
+
+def test_nearest_obstacles_fill_the_slots():
+    """With more obstacles than slots the nearest ones are planned around; unused slots are off."""
+    pl = planner()
+    state = np.array([0.0, 0.0, 0.0, 3.0])
+    far, near, mid = cone(40.0, 0.0), cone(3.0, 1.0), cone(8.0, -1.0)
+    params = pl.obstacle_parameters(ROBOT, state, [far, near, mid])
+    assert params.shape == (HORIZON + 1, SLOTS, 7)
+    used = {tuple(params[0, s, :2]) for s in range(SLOTS)}
+    assert used == {(3.0, 1.0), (8.0, -1.0)}
+    assert np.all(params[..., 6] == 1.0)
+    one = pl.obstacle_parameters(ROBOT, state, [near])
+    assert np.all(one[:, 0, 6] == 1.0) and np.all(one[:, 1, 6] == 0.0)
+
+
+def test_plan_shifted_warm_start():
+    states = np.arange(3 * 4, dtype=float).reshape(3, 4)
+    inputs = np.arange(2 * 2, dtype=float).reshape(2, 2) + 100
+    plan = Plan(states, inputs, "solved", 0.0, "fatrop")
+    new_state = np.array([-1.0, -2.0, -3.0, -4.0])
+    s, u = plan.shifted(new_state)
+    np.testing.assert_array_equal(s, [new_state, states[2], states[2]])
+    np.testing.assert_array_equal(u, [inputs[1], inputs[1]])
+    np.testing.assert_array_equal(plan.states, np.arange(12.0).reshape(3, 4))  # not mutated
+
+
+# --------------------------------------------------------------------------------------------
+# Tracking
+# --------------------------------------------------------------------------------------------
+
+
+def test_tracks_straight_reference_from_lateral_offset():
+    """Closed loop on an empty road: start 1 m beside a 3 m/s straight reference, slower than it;
+    after 6 s the robot is on the line at the reference speed, every solve succeeded."""
+    pl = planner()
+    state = np.array([0.0, 1.0, 0.0, 2.0])
+    u_prev, previous, statuses = np.zeros(2), None, []
+    for i in range(60):
+        plan = pl.plan(ROBOT, state, straight_reference(0.0, 3.0, t0=i * DT), u_prev, [], previous)
+        statuses.append(plan.status)
+        assert_model_trajectory(plan, state)
+        u_prev = plan.inputs[0]
+        state = ROBOT.model.step(state, u_prev, DT)
+        previous = plan
+    assert statuses == ["solved"] * 60
+    assert abs(state[1]) < 0.1
+    assert abs(state[3] - 3.0) < 0.2
+    assert abs(state[2]) < 0.05
+    assert abs(state[0] - 3.0 * 60 * DT) < 0.5
+
+
+# --------------------------------------------------------------------------------------------
+# Safety of solved plans
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("barrier", ["fcbf", "cbf"])
+@given(
+    cone_xy=st.tuples(st.floats(2.0, 9.0), st.floats(-1.5, 1.5)),
+    walker_xy=st.tuples(st.floats(3.0, 12.0), st.floats(-5.0, 5.0)),
+    walker_v=st.tuples(st.floats(-2.0, 2.0), st.floats(-2.0, 2.0)),
+    speed=st.floats(1.0, 6.0),
+    gamma=st.sampled_from([0.3, 1.0]),
+)
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.filter_too_much])
+def test_solved_plans_never_enter_safety_ellipses(barrier, cone_xy, walker_xy, walker_v, speed, gamma):
+    """From a safe start, a solved plan keeps every ego disc centre at exact distance
+    >= radius + d_safe from each obstacle's safety ellipse at each stage."""
+    pl = planner(barrier=barrier, gamma=gamma)
+    state = np.array([0.0, 0.0, 0.0, speed])
+    obstacles = [cone(*cone_xy, heading=0.4), walker(*walker_xy, *walker_v)]
+    # safe start: the algebraic barrier (which the MPC propagates) is non-negative now
+    params = pl.obstacle_parameters(ROBOT, state, obstacles)
+    offsets, _ = ego_discs(ROBOT, pl.config.discs)
+    centres = disc_centres(state[None], offsets)[0]
+    h0 = [barrier_value(c[0], c[1], *params[0, s, :6]) for s in range(SLOTS) for c in centres]
+    assume(min(h0) >= 0.0)
+    plan = pl.plan(ROBOT, state, straight_reference(0.0, speed), np.zeros(2), obstacles)
+    note(f"status={plan.status} solver={plan.solver}")
+    assert plan.status in STATUSES
+    if plan.status == "solved":
+        assert_model_trajectory(plan, state)
+        assert clearance_margins(plan.states, obstacles, pl.config).min() >= -DIST_TOL
+    else:
+        assert plan.solver == "fallback"
+
+
+@pytest.mark.parametrize("gamma", [0.3, 1.0])
+@pytest.mark.parametrize("barrier", ["fcbf", "cbf"])
+def test_closed_loop_passes_obstacles_without_entering_safety_ellipses(barrier, gamma):
+    """A cone just beside the lane and a pedestrian crossing it: 5 s of closed loop with two ego
+    discs. Every solved plan is safe at every stage, the executed trajectory is safe, and the
+    robot gets past both obstacles back onto its lane."""
+    pl = planner(barrier=barrier, gamma=gamma, discs=2)
+    cfg = pl.config
+    state = np.array([0.0, 0.0, 0.0, 3.0])
+    obstacles = [cone(5.0, 0.1), walker(9.0, -2.5, 0.0, 1.0)]
+    u_prev, previous = np.zeros(2), None
+    solved, executed_margin, active = 0, np.inf, False
+    for _ in range(50):
+        plan = pl.plan(ROBOT, state, straight_reference(state[0], 3.0), u_prev, obstacles, previous)
+        if plan.status == "solved":
+            solved += 1
+            margins = clearance_margins(plan.states, obstacles, cfg)
+            assert margins.min() >= -DIST_TOL, f"solved plan enters a safety ellipse by {-margins.min():.3g} m"
+            active |= margins.min() < 0.1
+        u_prev = plan.inputs[0]
+        state = ROBOT.model.step(state, u_prev, DT)
+        obstacles = moved(obstacles, DT)
+        previous = plan
+        executed_margin = min(executed_margin, clearance_margins(state[None], obstacles, cfg).min())
+    assert solved == 50
+    assert executed_margin >= -DIST_TOL
+    assert active, "the obstacles never constrained the plan; the scenario tests nothing"
+    assert state[0] > 12.0 and abs(state[1]) < 0.2
+
+
+# --------------------------------------------------------------------------------------------
+# Infeasibility contract
+# --------------------------------------------------------------------------------------------
+
+
+def test_impossible_start_is_reported_and_brakes():
+    """10 m/s straight at a wall-like static obstacle 2.6 m ahead: the first barrier condition
+    h(x1) >= (1 - gamma) h(x0) fails for every admissible input (x1's position does not depend on
+    u0), so no plan exists. The planner must say so and brake along its heading."""
+    pl = planner(barrier="fcbf", gamma=0.3, discs=1)
+    cfg = pl.config
+    state = np.array([0.0, 0.0, 0.0, 10.0])
+    obstacles = [Obstacle("wall", "static", np.array([2.6, 0.0]), np.zeros(2), 0.0, 1.0, 1.0)]
+
+    # Precondition, checked rather than assumed: infeasible whatever u0.
+    params = pl.obstacle_parameters(ROBOT, state, obstacles)[:, 0, :]
+    offsets, _ = ego_discs(ROBOT, cfg.discs)
+    grid = np.stack(np.meshgrid(np.linspace(LIMITS.a_min, LIMITS.a_max, 7), np.linspace(-LIMITS.steer_max, LIMITS.steer_max, 61)), -1).reshape(-1, 2)
+    x1 = bicycle_step(np.tile(state, (len(grid), 1)), grid, DT, ROBOT.model.wheelbase)
+    assert np.ptp(x1[:, :2], axis=0).max() == 0.0
+    c0 = disc_centres(state[None], offsets)[0, 0]
+    c1 = disc_centres(x1, offsets)[:, 0]
+    h0 = barrier_value(c0[0], c0[1], *params[0, :6])
+    h1 = barrier_value(c1[:, 0], c1[:, 1], *params[1, :6])
+    assert h0 > 0.0
+    assert h1.max() < (1 - cfg.gamma) * h0
+
+    plan = pl.plan(ROBOT, state, straight_reference(0.0, 10.0), np.zeros(2), obstacles)
+    assert plan.status in ("infeasible", "failed")
+    assert plan.solver == "fallback"
+    np.testing.assert_array_equal(plan.states[0], state)
+    assert plan.inputs[0, 0] < 0.0
+    assert np.all(plan.inputs[:, 1] == 0.0)
+    speeds = plan.states[:, 3]
+    assert np.all(np.diff(speeds) <= 0.0) and np.all(speeds >= 0.0)
+    assert np.all(plan.states[:, 1] == 0.0) and np.all(plan.states[:, 2] == 0.0)  # along its heading
+    np.testing.assert_allclose(speeds, np.maximum(10.0 + LIMITS.a_min * DT * np.arange(HORIZON + 1), 0.0), atol=1e-12)
+
+
+def test_fallback_from_slow_start_never_reverses():
+    """Fallback braking from 0.5 m/s stops and stays stopped (v_min = 0)."""
+    pl = planner(barrier="cbf", gamma=0.3, discs=1)
+    state = np.array([0.0, 0.0, 0.0, 0.5])
+    # The ego's disc already overlaps the obstacle (h0 ~ -0.85) and moves only 5 cm per step
+    # towards it, so h(x1) >= (1 - gamma) h(x0) cannot hold.
+    obstacles = [Obstacle("box", "static", np.array([0.9, 0.0]), np.zeros(2), 0.0, 1.0, 1.0)]
+    plan = pl.plan(ROBOT, state, straight_reference(0.0, 0.5), np.zeros(2), obstacles)
+    assert plan.status != "solved"
+    assert plan.solver == "fallback"
+    assert plan.inputs[0, 0] == pytest.approx(-5.0)  # (0 - 0.5) / 0.1, inside a_min
+    assert np.all(plan.inputs[1:, 0] == 0.0)
+    assert np.all(plan.states[1:, 3] == 0.0)
+    assert np.all(np.diff(plan.states[:, 0]) >= 0.0)
+
+
+# --------------------------------------------------------------------------------------------
+# Warm start and solver agreement
+# --------------------------------------------------------------------------------------------
+
+WELL_POSED = dict(state=np.array([0.0, 0.0, 0.0, 3.0]), obstacles=[cone(2.5, 1.0)])
+
+
+def test_obstacle_binds_in_well_posed_case():
+    """The cone beside the lane changes the plan (so agreement tests below are not trivial)."""
+    pl = planner()
+    ref = straight_reference(0.0, 3.0)
+    free = pl.plan(ROBOT, WELL_POSED["state"], ref, np.zeros(2), [])
+    bound = pl.plan(ROBOT, WELL_POSED["state"], ref, np.zeros(2), WELL_POSED["obstacles"])
+    assert free.status == bound.status == "solved"
+    assert np.abs(bound.states - free.states).max() > 0.05
+    assert bound.inputs[0, 1] < -0.01  # steers away (to the right) from the cone on the left
+
+
+def test_warm_start_reproduces_first_input():
+    """Solving the same problem again, warm-started from the previous plan, returns the same
+    first input."""
+    pl = planner()
+    ref = straight_reference(0.0, 3.0)
+    first = pl.plan(ROBOT, WELL_POSED["state"], ref, np.zeros(2), WELL_POSED["obstacles"])
+    second = pl.plan(ROBOT, WELL_POSED["state"], ref, np.zeros(2), WELL_POSED["obstacles"], previous=first)
+    assert first.status == second.status == "solved"
+    np.testing.assert_allclose(second.inputs[0], first.inputs[0], atol=1e-4)
+    np.testing.assert_allclose(second.states, first.states, atol=1e-3)
+
+
+@pytest.mark.parametrize("obstacles", [[], WELL_POSED["obstacles"]], ids=["empty", "cone"])
+def test_fatrop_and_ipopt_agree(obstacles):
+    """The structure-exploiting fast path and ipopt find the same optimum of a well-posed problem."""
+    state = np.array([0.0, 0.5, 0.1, 2.5]) if not obstacles else WELL_POSED["state"]
+    ref = straight_reference(0.0, 3.0)
+    fast = planner(solver="fatrop", retry=False).plan(ROBOT, state, ref, np.zeros(2), obstacles)
+    slow = planner(solver="ipopt").plan(ROBOT, state, ref, np.zeros(2), obstacles)
+    assert (fast.status, fast.solver) == ("solved", "fatrop")
+    assert (slow.status, slow.solver) == ("solved", "ipopt")
+    np.testing.assert_allclose(fast.inputs[0], slow.inputs[0], atol=1e-3)
+    np.testing.assert_allclose(fast.states, slow.states, atol=1e-3)
