@@ -127,6 +127,7 @@ KIND_SECTIONS: dict[str, dict[str, Key]] = {
         "speed": Key(float, 10.0, "initial speed of ego and lead [m/s]", **P),
         "gap": Key(float, 7.0, "initial centre-to-centre distance, lead ahead of ego [m]", **P),
         "t_brake": Key(float, 1.0, "time the lead starts braking [s]", **NN),
+        "t_brake_jitter": Key(float, 0.2, "the seed shifts t_brake uniformly within +- this [s]", **NN),
         "lead_decel": Key(float, 6.0, "lead deceleration magnitude [m/s^2]", **P),
         "lead_length": Key(float, 1.0, "lead footprint length [m]", **P),
         "lead_width": Key(float, 0.6, "lead footprint width [m]", **P),

@@ -33,7 +33,7 @@ from aac_sumo.geometry import ellipse_signed_distance
 length_st = st.floats(0.2, 6.0)
 width_st = st.floats(0.2, 3.0)
 heading_st = st.floats(-np.pi, np.pi)
-speed_st = st.floats(0.0, 30.0)
+moving_st = st.just(0.0) | st.floats(2e-3, 30.0)  # at rest, or above fcbf_axes' v_eps = 1e-3
 params_st = st.builds(FcbfParams, mu1=st.floats(0.0, 1.0), mu2=st.floats(0.0, 1.0), k=st.floats(0.1, 10.0), v0=st.floats(0.0, 5.0))
 
 
@@ -95,14 +95,15 @@ def test_fcbf_axes_follow_eqs_6_7_and_velocity_direction(length, width, heading,
     length=length_st,
     width=width_st,
     heading=heading_st,
-    speeds=st.tuples(speed_st, speed_st),
+    speeds=st.tuples(moving_st, moving_st),
     direction=heading_st,
     params=params_st,
 )
 @settings(max_examples=150)
 def test_fcbf_axes_grow_monotonically_with_speed(length, width, heading, speeds, direction, params):
     """For the same direction of motion, a faster obstacle never has a smaller ellipse; with
-    mu1 > 0 its major axis is strictly longer."""
+    mu1 > 0 its major axis is strictly longer. (Speeds in (0, v_eps] are excluded: there the
+    ellipse keeps the obstacle's heading and the velocity may have a tiny perpendicular part.)"""
     slow, fast = sorted(speeds)
     unit = np.array([np.cos(direction), np.sin(direction)])
     a_slow, b_slow, _ = fcbf_axes(length, width, slow * unit, heading, params)

@@ -14,7 +14,7 @@ from functools import lru_cache
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, assume, given, note, settings
+from hypothesis import HealthCheck, assume, event, given, note, settings
 from hypothesis import strategies as st
 
 from aac_sumo.barriers import barrier_value, safety_ellipses
@@ -185,6 +185,7 @@ def test_solved_plans_never_enter_safety_ellipses(barrier, cone_xy, walker_xy, w
     assume(min(h0) >= 0.0)
     plan = pl.plan(ROBOT, state, straight_reference(0.0, speed), np.zeros(2), obstacles)
     note(f"status={plan.status} solver={plan.solver}")
+    event(f"{plan.status} ({plan.solver})")
     assert plan.status in STATUSES
     if plan.status == "solved":
         assert_model_trajectory(plan, state)

@@ -1,6 +1,7 @@
 """S3, emergency braking (paper Table III): an MPC-controlled ego follows an uncontrolled lead
 in one lane at the same speed, the lead ``gap`` metres ahead (centre to centre). At ``t_brake``
-the lead brakes at ``lead_decel`` to a stop. The ego's reference keeps cruising at the initial
+the lead brakes at ``lead_decel`` to a stop; the seed shifts that instant uniformly within
+``t_brake_jitter``. The ego's reference keeps cruising at the initial
 speed along the lane, so only its barrier makes it stop. The ego may not leave its lane
 (``lane_width``): its planned rear axle stays within the lane minus half its width. The run ends when both stand still."""
 
@@ -23,8 +24,10 @@ def build_braking(scenario: Scenario) -> Setup:
         raise ScenarioError(scenario.source, "braking.speed", f"at most robot.v_max ({ego.model.limits.v_max})", speed)
     rear_axle_x = -ego.centre_offset
     state = np.array([[rear_axle_x, y, 0.0, speed]])
+    rng = np.random.default_rng(scenario["scenario.seed"])
+    t_brake = b["t_brake"] + rng.uniform(-b["t_brake_jitter"], b["t_brake_jitter"])
     lead = ScriptedAgent("lead", np.array([b["gap"], y]), 0.0, speed, b["lead_length"], b["lead_width"],
-                         schedule=((b["t_brake"], -b["lead_decel"]),))
+                         schedule=((t_brake, -b["lead_decel"]),))
     sim = InternalSimulator([ego], state, scenario["scenario.dt"], scripted=[lead])
     check_start(scenario, sim.observe(), "braking.gap")
     lane_end = speed * scenario["scenario.duration"] + 10 * b["gap"] + 100.0

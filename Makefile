@@ -1,0 +1,29 @@
+# Two commands for a fresh clone: `make demo` runs the main job, `make test` runs every test.
+# Both create .venv and install the package with its dev extras on first use.
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+
+.PHONY: demo test test-fast bench clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e ".[dev]"
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(BIN)/aac-sumo table braking --out out/table_braking
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+test-fast: $(STAMP)
+	$(BIN)/python -m pytest -q -m "not slow"
+
+bench: $(STAMP)
+	$(BIN)/aac-sumo bench mpc --out out/bench
+
+clean:
+	rm -rf $(VENV) out .pytest_cache .hypothesis

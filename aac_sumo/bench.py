@@ -1,0 +1,170 @@
+"""Speed figures measured in one process: ``aac-sumo bench``.
+
+``mpc`` times one MPC-FCBF solve (``Plan.solve_ms``) inside a closed loop: an ego robot
+(1.0 m x 0.6 m, wheelbase 0.8 m) drives along a straight reference at 8 m/s through a course of
+eight real obstacles (three static cones beside its lane, two pedestrians crossing it, three
+slower vehicles in the neighbouring lanes), so every obstacle slot is filled and the barrier
+constraints are active at some steps. Each step applies ``plan.inputs[0]`` with the bicycle
+model and passes the plan back as the warm start. When the ego leaves the course the episode
+restarts from the beginning (the first solve of an episode is cold-started).
+
+Every shipped solver configuration is timed on its own (``retry_with_ipopt=False``) and its
+failures (status other than ``solved``) are counted: ``fatrop`` (the fast path), ``ipopt`` (the
+baseline) and ``sqp`` (skipped, with a note, when most of its solves fail). ``ratio`` is the
+baseline's median divided by this configuration's median (a speed-up when above 1).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from aac_sumo.dynamics import BicycleModel, VehicleLimits
+from aac_sumo.mpc.planner import MpcConfig, MpcPlanner, Plan
+from aac_sumo.references import PathReference
+from aac_sumo.world import Obstacle, RobotSpec
+
+HORIZONS = (5, 10, 15)
+SOLVERS = ("fatrop", "ipopt", "sqp")
+BASELINE = "ipopt"
+SLOTS = 8
+DT = 0.1
+SPEED = 8.0
+COURSE_END = 95.0  # the episode restarts once the ego's rear axle passes this x [m]
+MAX_EPISODE_STEPS = 250  # ... or after this many steps (if it got stuck)
+WARMUP = 5
+
+
+@dataclass
+class BenchRecord:
+    """One timed configuration, as written to ``bench.json``."""
+
+    name: str
+    horizon: int
+    samples: int
+    median_ms: float
+    p95_ms: float
+    failures: int
+    solver: str
+    slots: int = SLOTS
+    mean_ms: float = 0.0
+    ratio_to: str | None = None
+    ratio: float | None = None
+
+    def as_json(self) -> dict:
+        out = dict(self.__dict__)
+        if self.ratio_to is None:
+            del out["ratio_to"], out["ratio"]
+        return out
+
+
+@dataclass
+class BenchReport:
+    records: list[BenchRecord] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+
+def ego_spec() -> RobotSpec:
+    return RobotSpec("ego", 1.0, 0.6, BicycleModel(0.8, VehicleLimits(-6.0, 3.0, 0.6, 0.0, 20.0)))
+
+
+# (name, kind, centre at t=0, velocity, length, width)
+_COURSE = (
+    ("cone1", "cone", (18.0, 0.75), (0.0, 0.0), 0.4, 0.4),
+    ("cone2", "cone", (42.0, -0.75), (0.0, 0.0), 0.4, 0.4),
+    ("cone3", "cone", (70.0, 0.7), (0.0, 0.0), 0.4, 0.4),
+    ("ped1", "pedestrian", (30.0, -4.5), (0.0, 1.3), 0.5, 0.5),
+    ("ped2", "pedestrian", (58.0, 5.0), (0.0, -1.2), 0.5, 0.5),
+    ("car_left", "robot", (6.0, 1.7), (5.0, 0.0), 1.0, 0.6),
+    ("car_right", "robot", (12.0, -1.7), (4.0, 0.0), 1.0, 0.6),
+    ("car_left2", "robot", (35.0, 1.8), (3.0, 0.0), 1.0, 0.6),
+)
+
+
+def obstacles_at(t: float) -> list[Obstacle]:
+    """The eight course obstacles at time ``t`` [s] of an episode (constant velocities)."""
+    out = []
+    for name, kind, centre, vel, length, width in _COURSE:
+        v = np.array(vel, dtype=float)
+        heading = math.atan2(v[1], v[0]) if np.any(v) else 0.0
+        out.append(Obstacle(name, kind, np.array(centre, dtype=float) + v * t, v, heading, length, width))
+    return out
+
+
+def closed_loop_times(solver: str, horizon: int, samples: int, warmup: int = WARMUP) -> tuple[np.ndarray, int]:
+    """Solve times [ms] of ``samples`` warm-started closed-loop solves after ``warmup`` untimed
+    ones, and how many of the timed solves did not end ``solved``."""
+    robot = ego_spec()
+    planner = MpcPlanner(MpcConfig(horizon=horizon, dt=DT, slots=SLOTS, solver=solver, retry_with_ipopt=False))
+    path = PathReference([[0.0, 0.0], [COURSE_END + 200.0, 0.0]], SPEED, stop_at_end=False)
+    times, failures = [], 0
+    state, previous, u_prev, t, steps = None, None, np.zeros(2), 0.0, 0
+    for i in range(warmup + samples):
+        if state is None or state[0] > COURSE_END or steps >= MAX_EPISODE_STEPS:
+            state, previous, u_prev, t, steps = np.array([0.0, 0.0, 0.0, SPEED]), None, np.zeros(2), 0.0, 0
+        plan: Plan = planner.plan(robot, state, path.horizon(state, horizon, DT), u_prev, obstacles_at(t), previous)
+        if i >= warmup:
+            times.append(plan.solve_ms)
+            failures += plan.status != "solved"
+        u_prev = plan.inputs[0]
+        state = robot.model.step(state, u_prev, DT)
+        previous, t, steps = plan, t + DT, steps + 1
+    return np.array(times), failures
+
+
+def bench_mpc(samples: int = 100, horizons=HORIZONS, solvers=SOLVERS, progress=None) -> BenchReport:
+    """Time every solver configuration at every horizon; see the module docstring."""
+    report = BenchReport()
+    medians: dict[tuple[str, int], float] = {}
+    for horizon in horizons:
+        for solver in solvers:
+            if progress:
+                progress(f"mpc/{solver} N={horizon}")
+            times, failures = closed_loop_times(solver, horizon, samples)
+            if solver == "sqp" and failures > samples / 2:
+                report.notes.append(f"mpc/sqp N={horizon} skipped: {failures} of {samples} solves failed")
+                continue
+            median = float(np.median(times))
+            medians[(solver, horizon)] = median
+            report.records.append(BenchRecord(
+                name=f"mpc/{solver}", horizon=horizon, samples=len(times), median_ms=median,
+                p95_ms=float(np.percentile(times, 95)), failures=int(failures), solver=solver,
+                mean_ms=float(np.mean(times)),
+            ))
+    for rec in report.records:
+        base = medians.get((BASELINE, rec.horizon))
+        if rec.solver != BASELINE and base is not None and rec.median_ms > 0:
+            rec.ratio_to, rec.ratio = f"mpc/{BASELINE}", base / rec.median_ms
+    return report
+
+
+def markdown(report: BenchReport) -> str:
+    """The records as a markdown table, plus notes."""
+    lines = [
+        "| name | N | samples | median [ms] | p95 [ms] | failures | speed-up vs |",
+        "|---|---:|---:|---:|---:|---:|---|",
+    ]
+    for r in report.records:
+        ratio = f"{r.ratio:.2f}x {r.ratio_to}" if r.ratio is not None else "(baseline)" if r.solver == BASELINE else ""
+        lines.append(f"| {r.name} | {r.horizon} | {r.samples} | {r.median_ms:.2f} | {r.p95_ms:.2f} | {r.failures} | {ratio} |")
+    text = "\n".join(lines) + "\n"
+    if report.notes:
+        text += "\n" + "\n".join(f"- {n}" for n in report.notes) + "\n"
+    return text
+
+
+def write(report: BenchReport, out: Path) -> None:
+    """``bench.json`` (a list of records) and ``bench.md`` in ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "bench.json").write_text(json.dumps([r.as_json() for r in report.records], indent=2) + "\n")
+    header = (
+        "# MPC-FCBF solve time\n\n"
+        f"One warm-started solve per control period in a closed loop (ego 1.0 m x 0.6 m at {SPEED:g} m/s "
+        f"past {len(_COURSE)} obstacles, {SLOTS} slots, dt {DT} s, barrier fcbf); each solver alone "
+        f"(no ipopt retry); {WARMUP} untimed warm-up solves. Speed-up = baseline median / median.\n\n"
+    )
+    (out / "bench.md").write_text(header + markdown(report))

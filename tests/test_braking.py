@@ -1,0 +1,61 @@
+"""Emergency braking (S3): seeded closed-loop runs and the simulator's own collision check."""
+
+import numpy as np
+import pytest
+
+from aac_sumo import config, runner
+from aac_sumo.config import ScenarioError
+from aac_sumo.dynamics import BicycleModel, VehicleLimits
+from aac_sumo.experiments import build
+from aac_sumo.sim.internal import InternalSimulator, ScriptedAgent
+from aac_sumo.world import RobotSpec
+
+
+@pytest.mark.parametrize("speed", [5, 10, 15])
+def test_fcbf_brakes_without_collision(speed):
+    scenario = config.load("braking", [f"braking.speed={speed}", "controller.barrier=fcbf", "scenario.seed=0"])
+    m = runner.run(scenario).metrics
+    assert m["collisions"] == 0
+    assert m["min_clearance_m"] > 0
+    assert m["completed"] is True  # both robots came to rest before the time limit
+    assert "error" not in m
+
+
+def test_fcbf_keeps_more_distance_than_cbf_at_10_mps():
+    fcbf = runner.run(config.load("braking", ["braking.speed=10", "controller.barrier=fcbf"])).metrics
+    cbf = runner.run(config.load("braking", ["braking.speed=10", "controller.barrier=cbf"])).metrics
+    assert fcbf["min_distance_m"] > cbf["min_distance_m"]
+
+
+def test_simulator_counts_collisions_without_the_controller():
+    """Driving blindly into a stopped lead overlaps footprints; the simulator reports it."""
+    robot = RobotSpec("ego", 1.0, 0.6, BicycleModel(0.8, VehicleLimits()))
+    lead = ScriptedAgent("lead", np.array([3.0, 0.0]), 0.0, 0.0, 1.0, 0.6)
+    sim = InternalSimulator([robot], np.array([[-0.4, 0.0, 0.0, 5.0]]), 0.1, scripted=[lead])
+    reports = [sim.step(np.zeros((1, 2))) for _ in range(12)]
+    clearance = [r.clearance[0] for r in reports]
+    assert clearance[0] == pytest.approx(2.0 - 0.5, abs=1e-9)  # bumper gap after 0.5 m of travel
+    assert any(("ego", "lead") in r.overlaps for r in reports)
+    assert min(clearance) < 0
+
+
+def test_lead_follows_its_braking_schedule_exactly():
+    lead = ScriptedAgent("lead", np.zeros(2), 0.0, 10.0, 1.0, 0.6, schedule=((0.0, -5.0),))
+    t = 0.0
+    for _ in range(30):
+        lead.advance(t, 0.1)
+        t += 0.1
+    assert lead.speed == 0.0
+    assert lead.centre[0] == pytest.approx(10.0**2 / (2 * 5.0))  # stopping distance v^2 / 2a
+
+
+def test_overlapping_start_is_a_scenario_error():
+    with pytest.raises(ScenarioError, match="braking.gap"):
+        build(config.load("braking", ["braking.gap=0.5"]))
+
+
+def test_seed_shifts_only_the_braking_instant():
+    a = build(config.load("braking", ["scenario.seed=1"])).sim.scripted[0].schedule[0][0]
+    b = build(config.load("braking", ["scenario.seed=2"])).sim.scripted[0].schedule[0][0]
+    assert a != b
+    assert abs(a - 1.0) <= 0.2 and abs(b - 1.0) <= 0.2
