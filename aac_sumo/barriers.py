@@ -84,17 +84,14 @@ def inflate_for_disc(a, b, d, toward=None):
         support = a * b
     else:
         local = np.asarray(toward, dtype=float)
-        scale = np.hypot(local[..., 0] / a, local[..., 1] / b)
-        scale = np.where(scale > 1e-12, scale, 1.0)
-        normal = np.stack([local[..., 0] / scale / a**2, local[..., 1] / scale / b**2], axis=-1)
-        normal_len = np.hypot(normal[..., 0], normal[..., 1])
-        ux = np.where(normal_len > 1e-12, normal[..., 0] / np.where(normal_len > 1e-12, normal_len, 1.0), 1.0)
-        uy = np.where(normal_len > 1e-12, normal[..., 1] / np.where(normal_len > 1e-12, normal_len, 1.0), 0.0)
+        nx, ny = local[..., 0] / a**2, local[..., 1] / b**2  # normal direction, up to scale
+        length = np.hypot(nx, ny)
+        safe = np.where(length > 0, length, 1.0)
+        ux, uy = np.where(length > 0, nx / safe, 1.0), np.where(length > 0, ny / safe, 0.0)
         support = (a * ux) ** 2 + (b * uy) ** 2
-    e = np.where(d > 0, d / np.sqrt(support), 0.0)
-    grow = 1.0 + e
-    spread = np.where(e > 0, 1.0 + 1.0 / np.where(e > 0, e, 1.0), 0.0)
-    return np.sqrt(grow * a**2 + spread * d**2), np.sqrt(grow * b**2 + spread * d**2)
+    root = np.sqrt(support)  # e = d / root; (1 + 1/e) d^2 = d^2 + d root, free of 1/e
+    return (np.sqrt(a**2 * (1.0 + d / root) + d**2 + d * root),
+            np.sqrt(b**2 * (1.0 + d / root) + d**2 + d * root))
 
 
 def barrier_value(px, py, cx, cy, cos_phi, sin_phi, inv_a2, inv_b2):
