@@ -86,6 +86,7 @@ COMMON: dict[str, dict[str, Key]] = {
         "horizon": Key(int, 10, "MPC horizon N [steps]", check=lambda n: 1 <= n <= 100, expect="in 1..100"),
         "solver": Key(("fatrop", "sqp", "ipopt"), "fatrop", "NLP solver of the fast path"),
         "retry_with_ipopt": Key(bool, True, "retry a failed fast-path solve once with ipopt"),
+        "codegen": Key(bool, False, "compile the fast path to C with gcc (cached on disk; ~2x faster solves)"),
         "gamma": Key(float, 0.3, "discrete barrier decay rate", check=lambda g: 0 < g <= 1, expect="in (0, 1]"),
         "d_safe": Key(float, 0.2, "margin added to the ego's covering-disc radius [m]", **NN),
         "mu1": Key(float, 0.2, "F-CBF gain along the velocity [s]", **NN),

@@ -4,8 +4,8 @@ reported, and everything recorded up to it is kept."""
 from __future__ import annotations
 
 import json
+import sys
 import time
-import traceback
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -69,7 +69,7 @@ def run(scenario: Scenario) -> RunResult:
                 ))
     except Exception as exc:  # keep what was recorded; report the failure in metrics
         error = f"{type(exc).__name__}: {exc}".splitlines()[0]
-        traceback.print_exc()
+        print(f"aac-sumo: run stopped at t={len(periods) * dt:.2f} s: {error}", file=sys.stderr)
     finally:
         sim.close()
 

@@ -51,7 +51,7 @@ def mpc_config(scenario: Scenario) -> MpcConfig:
         slots=c["obstacle_slots"], discs=c["ego_discs"], q_pos=c["q_pos"], q_heading=c["q_heading"],
         q_speed=c["q_speed"], r_accel=c["r_accel"], r_steer=c["r_steer"], s_accel=c["s_accel"],
         s_steer=c["s_steer"], terminal_scale=c["terminal_scale"], max_iter=c["max_iter"],
-        max_cpu_time=c["max_cpu_time"], retry_with_ipopt=c["retry_with_ipopt"],
+        max_cpu_time=c["max_cpu_time"], retry_with_ipopt=c["retry_with_ipopt"], codegen=c["codegen"],
     )
 
 

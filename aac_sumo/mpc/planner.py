@@ -50,13 +50,16 @@ class MpcConfig:
     max_iter: int = 100
     max_cpu_time: float = 1.0
     retry_with_ipopt: bool = True
+    codegen: bool = False
 
     def weights(self) -> np.ndarray:
         q = np.array([self.q_pos, self.q_pos, self.q_heading, self.q_speed])
         return np.concatenate([q, [self.r_accel, self.r_steer], [self.s_accel, self.s_steer], self.terminal_scale * q])
 
     def shape(self, solver: str) -> ProblemShape:
-        return ProblemShape(self.horizon, self.slots, self.discs, solver, self.dt, self.max_iter, self.max_cpu_time)
+        """Problem shape for ``solver``; only the fast path is compiled to C when ``codegen``."""
+        codegen = self.codegen and solver == self.solver
+        return ProblemShape(self.horizon, self.slots, self.discs, solver, self.dt, self.max_iter, self.max_cpu_time, codegen)
 
 
 @dataclass

@@ -9,9 +9,14 @@ gamma, ego disc offsets, obstacle ellipses per stage) is a parameter.
 
 from __future__ import annotations
 
+import hashlib
+import os
+import subprocess
+import tempfile
 import time
 from dataclasses import dataclass
 from functools import lru_cache
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -34,6 +39,7 @@ class ProblemShape:
     dt: float
     max_iter: int = 100
     max_cpu_time: float = 1.0
+    codegen: bool = False
 
 
 @dataclass
@@ -99,9 +105,13 @@ class MpcProblem:
         cost += ca.dot(pw, err**2)
         g = ca.cse(ca.vertcat(*g))
         self.n_g = g.shape[0]
+        self.equality = equality
         self._lbg = np.where(equality, 0.0, 0.0)
         self._ubg = np.where(equality, 0.0, np.inf)
-        self.solver = ca.nlpsol("mpc", *_solver_plugin(shape), {"x": w, "p": p, "f": cost, "g": g}, _solver_options(shape, equality))
+        plugin, options = _solver_plugin(shape), _solver_options(shape, equality)
+        self.solver = ca.nlpsol("mpc", plugin, {"x": w, "p": p, "f": cost, "g": g}, options)
+        if shape.codegen:
+            self.solver = ca.nlpsol("mpc", plugin, compiled_dependencies(self.solver), options)
 
     def _split(self, p):
         out, i = {}, 0
@@ -199,8 +209,36 @@ def _classify(stats: dict, detail: str) -> str:
     return "failed"
 
 
-def _solver_plugin(shape: ProblemShape) -> tuple[str]:
-    return ({"fatrop": "fatrop", "sqp": "sqpmethod", "ipopt": "ipopt"}[shape.solver],)
+def _solver_plugin(shape: ProblemShape) -> str:
+    return {"fatrop": "fatrop", "sqp": "sqpmethod", "ipopt": "ipopt"}[shape.solver]
+
+
+def cache_dir() -> Path:
+    """Where compiled problems are kept: ``$AAC_SUMO_CACHE`` or ``~/.cache/aac-sumo``."""
+    return Path(os.environ.get("AAC_SUMO_CACHE", Path.home() / ".cache" / "aac-sumo"))
+
+
+def compiled_dependencies(solver: ca.Function) -> str:
+    """Path of a shared library with the solver's generated C functions (objective, constraints
+    and their derivatives), compiled with gcc -O1 once per distinct problem and cached on disk
+    under the hash of the generated source. First build of a horizon-15 problem: ~20 s."""
+    folder = cache_dir()
+    folder.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=folder) as tmp:
+        source = Path(tmp) / "mpc.c"
+        cwd = os.getcwd()
+        try:  # casadi writes generated code into the working directory
+            os.chdir(tmp)
+            solver.generate_dependencies("mpc.c")
+        finally:
+            os.chdir(cwd)
+        digest = hashlib.sha256(source.read_bytes() + ca.__version__.encode()).hexdigest()[:16]
+        library = folder / f"mpc_{digest}.so"
+        if not library.exists():
+            built = Path(tmp) / "mpc.so"
+            subprocess.run(["gcc", "-fPIC", "-shared", "-O1", str(source), "-o", str(built), "-lm"], check=True)
+            os.replace(built, library)  # atomic: parallel workers never load a half-written file
+    return str(library)
 
 
 def _solver_options(shape: ProblemShape, equality: list[bool]) -> dict:

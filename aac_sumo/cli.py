@@ -1,0 +1,238 @@
+"""The ``aac-sumo`` command line (see CONTRACT.md): run, sweep, table, bench.
+
+Every user mistake (unknown key, bad value, missing or broken scenario file, bad ``--grid`` /
+``--set`` syntax, unknown command) ends with exit status 2 and one line on stderr,
+``aac-sumo: error: <message>``, never a traceback. A run that fails mid-way (or a sweep/table
+with failed runs) still writes its outputs and exits with status 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+PROG = "aac-sumo"
+
+
+class UsageError(Exception):
+    """A command-line mistake; its message is one line."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # one line instead of usage + message, still exit status 2
+        where = self.prog[len(PROG):].strip()
+        raise UsageError(f"{where}: {message}" if where else message)
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 1, got {value}")
+    return value
+
+
+def _int_list(text: str) -> list[int]:
+    try:
+        values = [int(v) for v in text.split(",")]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated integers, got {text!r}") from None
+    if not values or min(values) < 1:
+        raise argparse.ArgumentTypeError(f"expected integers >= 1, got {text!r}")
+    return values
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog=PROG, description="AAC + MPC-FCBF experiments: run, sweep, reproduce the paper's tables, benchmark.")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="{run,sweep,table,bench}")
+
+    def add_set(p):
+        p.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
+                       help="override a scenario key, e.g. controller.horizon=5 (repeatable)")
+
+    p = sub.add_parser("run", help="one run of a scenario")
+    p.add_argument("scenario", metavar="SCENARIO", help="a .toml file or a bundled scenario name (e.g. braking)")
+    add_set(p)
+    p.add_argument("--seed", type=int, help="the run's seed (same as --set scenario.seed=S)")
+    p.add_argument("--out", type=Path, help="output directory (default out/<scenario name>)")
+    p.add_argument("--gui", action="store_true", help="show the simulator's GUI (SUMO scenarios only)")
+
+    p = sub.add_parser("sweep", help="every combination of a grid of keys, K seeds each, in parallel")
+    p.add_argument("scenario", metavar="SCENARIO")
+    p.add_argument("--grid", action="append", default=[], metavar="KEY=V1,V2,...", help="a key and its values (repeatable)")
+    add_set(p)
+    p.add_argument("--seeds", type=_positive_int, default=1, metavar="K", help="seeds per combination: base seed + 0..K-1 (default 1)")
+    p.add_argument("--workers", type=_positive_int, metavar="W", help="worker processes (default: CPU count)")
+    p.add_argument("--out", type=Path, help="output directory (default out/sweep/<scenario name>)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+    from aac_sumo.tables import TABLES
+
+    p = sub.add_parser("table", help="one of the paper's tables, ours beside the paper's values")
+    p.add_argument("name", choices=TABLES, metavar="{" + ",".join(TABLES) + "}")
+    p.add_argument("--seeds", type=_positive_int, default=1, metavar="K", help="seeds per cell (default 1)")
+    p.add_argument("--workers", type=_positive_int, metavar="W", help="worker processes (default: CPU count)")
+    add_set(p)
+    p.add_argument("--out", type=Path, help="output directory (default out/table/<name>)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+    p = sub.add_parser("bench", help="speed figures: medians and ratios measured in one process")
+    p.add_argument("target", nargs="?", default="all", choices=("mpc", "aac", "all"), metavar="{mpc,aac,all}")
+    p.add_argument("--out", type=Path, default=Path("out/bench"), help="output directory (default out/bench)")
+    p.add_argument("--samples", type=_positive_int, default=100, metavar="S", help="timed solves per configuration (default 100)")
+    p.add_argument("--horizons", type=_int_list, default=None, metavar="N1,N2,...", help="MPC horizons (default 5,10,15)")
+    p.add_argument("--solvers", default=None, metavar="S1,S2,...", help="solver configurations (default fatrop-c,fatrop,ipopt,sqp)")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    from aac_sumo.config import ScenarioError
+    from aac_sumo.sweep import SweepError
+    from aac_sumo.tables import TableUnavailable
+
+    args = None
+    try:
+        args = build_parser().parse_args(argv)
+        return {"run": cmd_run, "sweep": cmd_sweep, "table": cmd_table, "bench": cmd_bench}[args.command](args)
+    except SystemExit as exc:  # --help
+        return exc.code if isinstance(exc.code, int) else 0
+    except (UsageError, ScenarioError, SweepError, TableUnavailable, FileNotFoundError) as exc:
+        return _fail(exc)
+    except UnicodeDecodeError as exc:  # a scenario file that is not UTF-8 text
+        name = getattr(args, "scenario", None) or "scenario file"
+        return _fail(f"{name}: (encoding): expected UTF-8 text ({exc.reason} at byte {exc.start})")
+    except OSError as exc:  # e.g. --out names a file
+        return _fail(f"{exc.filename or ''}: {exc.strerror or exc}".lstrip(": "))
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted (finished runs are kept)", file=sys.stderr)
+        return 130
+
+
+def _fail(message) -> int:
+    text = " ".join(str(message).split()) or type(message).__name__
+    print(f"{PROG}: error: {text}", file=sys.stderr)
+    return 2
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+def _fmt_value(value) -> str:
+    if value is None:
+        return "—"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return "—" if not math.isfinite(value) else f"{value:.4g}"
+    return str(value)
+
+
+def metrics_table(metrics: dict) -> str:
+    """Metrics as ``key  value`` lines, aligned, in METRIC_KEYS order then any extra keys."""
+    from aac_sumo.metrics import METRIC_KEYS
+
+    keys = [k for k in METRIC_KEYS if k in metrics] + [k for k in metrics if k not in METRIC_KEYS]
+    width = max(map(len, keys), default=0)
+    return "\n".join(f"  {k:<{width}}  {_fmt_value(metrics[k])}" for k in keys)
+
+
+def _gui_overrides(scenario) -> list[str] | None:
+    """``--set <section>.gui=true`` when the scenario's schema has a GUI switch, else None."""
+    for section, keys in scenario.schema().items():
+        if "gui" in keys:
+            return [f"{section}.gui=true"]
+    return None
+
+
+def _check_out(out: Path) -> None:
+    """Fail before any work when ``--out`` exists but is not a directory."""
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"--out {out}: expected a directory, found a file")
+
+
+def cmd_run(args) -> int:
+    from aac_sumo import config, runner
+
+    sets = list(args.sets) + ([f"scenario.seed={args.seed}"] if args.seed is not None else [])
+    scenario = config.load(args.scenario, sets)
+    if args.gui:
+        gui = _gui_overrides(scenario)
+        if gui is None:
+            print(f"note: scenario kind '{scenario.kind}' runs on the internal simulator, which has no GUI; continuing without one")
+        else:
+            scenario = scenario.with_overrides(gui)
+    out = args.out if args.out is not None else Path("out") / scenario["scenario.name"]
+    _check_out(out)
+    result = runner.run(scenario)
+    runner.write_outputs(result, out)
+    print(f"{scenario['scenario.name']} ({scenario.source})")
+    print(metrics_table(result.metrics))
+    print(f"outputs: {out}")
+    if result.metrics.get("error"):
+        print(f"{PROG}: run failed: {result.metrics['error']}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def cmd_sweep(args) -> int:
+    from aac_sumo import config, sweep
+
+    if args.out is None:  # validate the scenario first, for the default name
+        out = Path("out") / "sweep" / config.load(args.scenario, list(args.sets))["scenario.name"]
+    else:
+        out = args.out
+    _check_out(out)
+    rows, text = sweep.sweep(args.scenario, args.grid, list(args.sets), args.seeds, args.workers, out,
+                             progress=not args.no_progress)
+    print(text, end="")
+    print(f"outputs: {out / 'results.csv'}, {out / 'summary.md'}")
+    return _report_failures(rows)
+
+
+def _report_failures(rows: list[dict]) -> int:
+    failed = sum(r.get("status") != "ok" for r in rows)
+    if failed:
+        print(f"{PROG}: {failed} of {len(rows)} runs failed (status=error in results.csv)", file=sys.stderr)
+        return 1
+    return 0
+
+
+def cmd_table(args) -> int:
+    from aac_sumo import tables
+
+    tables.check_available(args.name)
+    out = args.out if args.out is not None else Path("out") / "table" / args.name
+    _check_out(out)
+    _, text, runs = tables.braking_table(args.seeds, args.workers, out, list(args.sets), progress=not args.no_progress)
+    print(text, end="")
+    print(f"outputs: {out / 'table.csv'}, {out / 'table.md'}, {out / 'results.csv'}")
+    return _report_failures(runs)
+
+
+def cmd_bench(args) -> int:
+    from aac_sumo import bench
+
+    if args.target == "aac":
+        raise UsageError("bench aac: that benchmark is not available yet (a later issue adds it); available: mpc, all")
+    solvers = bench.SOLVERS
+    if args.solvers is not None:
+        solvers = tuple(s.strip() for s in args.solvers.split(","))
+        unknown = [s for s in solvers if s not in bench.SOLVERS]
+        if unknown or not solvers:
+            raise UsageError(f"bench: --solvers {args.solvers!r}: expected names among {', '.join(bench.SOLVERS)}")
+    horizons = tuple(args.horizons) if args.horizons else bench.HORIZONS
+    _check_out(args.out)
+    report = bench.bench_mpc(args.samples, horizons, solvers,
+                             progress=lambda what: print(f"timing {what} ...", file=sys.stderr, flush=True))
+    bench.write(report, args.out)
+    print(bench.markdown(report), end="")
+    print(f"outputs: {args.out / 'bench.json'}, {args.out / 'bench.md'}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,159 @@
+"""The command line: one-line exit-2 errors, a real run's outputs, determinism, bench records."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from aac_sumo.cli import main
+from aac_sumo.metrics import METRIC_KEYS
+
+ROOT = Path(__file__).resolve().parents[1]
+FAST = ["--set", "controller.horizon=5", "--set", "braking.speed=5"]
+
+
+def error_line(capsys) -> str:
+    """The single stderr line of a failed command (asserts there is exactly one)."""
+    err = capsys.readouterr().err
+    lines = err.splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("aac-sumo: error: ")
+    assert "Traceback" not in err
+    return lines[0]
+
+
+def write(tmp_path: Path, name: str, text: str) -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_unknown_set_key(capsys, tmp_path):
+    assert main(["run", "braking", "--set", "controller.horizn=5", "--out", str(tmp_path)]) == 2
+    line = error_line(capsys)
+    assert "controller.horizn" in line and "braking.toml" in line
+    assert not (tmp_path / "metrics.json").exists()
+
+
+def test_wrong_type(capsys):
+    assert main(["run", "braking", "--set", "controller.horizon=abc"]) == 2
+    line = error_line(capsys)
+    assert "controller.horizon" in line and "integer" in line
+
+
+def test_set_without_value(capsys):
+    assert main(["run", "braking", "--set", "controller.horizon"]) == 2
+    assert "KEY=VALUE" in error_line(capsys)
+
+
+def test_bad_toml_names_file(capsys, tmp_path):
+    path = write(tmp_path, "broken.toml", "[scenario\nname = 'x'\n")
+    assert main(["run", str(path)]) == 2
+    assert str(path) in error_line(capsys)
+
+
+def test_missing_file(capsys, tmp_path):
+    path = tmp_path / "nope.toml"
+    assert main(["run", str(path)]) == 2
+    assert "nope.toml" in error_line(capsys)
+    assert main(["run", "no_such_bundled_scenario"]) == 2
+    assert "no_such_bundled_scenario" in error_line(capsys)
+
+
+@pytest.mark.parametrize("text, key", [
+    ('[scenario]\nkind = "braking"\n[controller]\nhorizn = 5\n', "controller.horizn"),
+    ('[scenario]\nkind = "braking"\n[bogus]\nx = 1\n', "bogus"),
+    ('[scenario]\nkind = "braking"\n[braking]\nspeed = "fast"\n', "braking.speed"),
+])
+def test_unknown_or_bad_key_in_file(capsys, tmp_path, text, key):
+    path = write(tmp_path, "mine.toml", text)
+    assert main(["run", str(path)]) == 2
+    line = error_line(capsys)
+    assert str(path) in line and key in line
+
+
+def test_overlapping_start(capsys):
+    assert main(["run", "braking", "--set", "braking.gap=0.5"]) == 2
+    line = error_line(capsys)
+    assert "braking.gap" in line and "overlap" in line
+
+
+@pytest.mark.parametrize("argv", [
+    ["frobnicate"],
+    [],
+    ["table", "nonsense"],
+    ["table", "swarm"],
+    ["table", "lane-change"],
+    ["bench", "aac"],
+    ["sweep", "braking", "--grid", "braking.speed"],
+    ["sweep", "braking", "--grid", "braking.speed=5,,6"],
+    ["sweep", "braking", "--seeds", "0", "--grid", "braking.speed=5"],
+    ["run"],
+])
+def test_usage_errors_are_one_line(capsys, argv):
+    assert main(argv) == 2
+    error_line(capsys)
+
+
+def test_table_not_available_message(capsys):
+    assert main(["table", "swarm"]) == 2
+    assert "not available yet" in error_line(capsys)
+
+
+def test_out_is_a_file(capsys, tmp_path):
+    path = write(tmp_path, "file", "")
+    assert main(["run", "braking", "--out", str(path)]) == 2
+    assert str(path) in error_line(capsys)
+
+
+def test_subprocess_error_has_no_traceback(tmp_path):
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    proc = subprocess.run([sys.executable, "-m", "aac_sumo.cli", "run", "braking", "--set", "controller.nope=1"],
+                          capture_output=True, text=True, env=env, cwd=tmp_path, timeout=120)
+    assert proc.returncode == 2
+    assert proc.stderr.splitlines() == [proc.stderr.strip()] and "controller.nope" in proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_help_exits_zero(capsys):
+    assert main(["--help"]) == 0
+    assert "run" in capsys.readouterr().out
+
+
+def test_run_writes_outputs(capsys, tmp_path):
+    out = tmp_path / "run"
+    assert main(["run", "braking", *FAST, "--gui", "--out", str(out)]) == 0
+    stdout = capsys.readouterr().out
+    assert "no GUI" in stdout and str(out) in stdout and "infeasibility_rate" in stdout
+    for name in ("metrics.json", "steps.csv", "trajectories.csv", "trajectories.png"):
+        assert (out / name).stat().st_size > 0, name
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert set(METRIC_KEYS) <= set(metrics)
+    assert metrics["horizon"] == 5 and metrics["scenario"] == "braking"
+
+
+def test_same_seed_same_trajectories(tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    for out in (a, b):
+        assert main(["run", "braking", *FAST, "--seed", "3", "--out", str(out)]) == 0
+    assert (a / "trajectories.csv").read_bytes() == (b / "trajectories.csv").read_bytes()
+    assert json.loads((a / "metrics.json").read_text())["seed"] == 3
+
+
+def test_bench_records(capsys, tmp_path):
+    assert main(["bench", "mpc", "--samples", "3", "--horizons", "5", "--solvers", "fatrop,ipopt", "--out", str(tmp_path)]) == 0
+    records = json.loads((tmp_path / "bench.json").read_text())
+    assert [r["name"] for r in records] == ["mpc/fatrop", "mpc/ipopt"]
+    for r in records:
+        assert {"name", "horizon", "samples", "median_ms", "p95_ms", "failures"} <= set(r)
+        assert r["horizon"] == 5 and r["samples"] == 3 and 0 <= r["failures"] <= 3
+    fast, base = records
+    assert fast["ratio_to"] == "mpc/ipopt"
+    assert fast["ratio"] == pytest.approx(base["median_ms"] / fast["median_ms"])
+    assert "ratio" not in base
+    assert (tmp_path / "bench.md").read_text().count("mpc/") >= 2
