@@ -88,6 +88,9 @@ def run(scenario: Scenario) -> RunResult:
         metrics["error"] = error
     elif not completed:
         metrics["incomplete_reason"] = f"time limit {duration} s reached"
+    elif collisions:
+        metrics["completed"], metrics["task_duration_s"] = False, None
+        metrics["incomplete_reason"] = f"{collisions} collision(s); wrecked robots stop where they hit"
     return RunResult(metrics, steps_df, periods_df, pd.DataFrame(traj), scenario)
 
 

@@ -59,3 +59,15 @@ def test_seed_shifts_only_the_braking_instant():
     b = build(config.load("braking", ["scenario.seed=2"])).sim.scripted[0].schedule[0][0]
     assert a != b
     assert abs(a - 1.0) <= 0.2 and abs(b - 1.0) <= 0.2
+
+
+def test_wrecked_robots_stop_where_they_hit():
+    robot = RobotSpec("ego", 1.0, 0.6, BicycleModel(0.8, VehicleLimits()))
+    lead = ScriptedAgent("lead", np.array([3.0, 0.0]), 0.0, 0.0, 1.0, 0.6)
+    sim = InternalSimulator([robot], np.array([[-0.4, 0.0, 0.0, 5.0]]), 0.1, scripted=[lead])
+    while not sim.step(np.array([[3.0, 0.0]])).overlaps:
+        pass
+    frozen = sim.states.copy()
+    for _ in range(5):
+        sim.step(np.array([[3.0, 0.0]]))
+    assert np.array_equal(sim.states, frozen) and frozen[0, 3] == 0.0

@@ -44,7 +44,8 @@ class ScriptedAgent:
 
 class InternalSimulator(Simulator):
     """Steps controlled robots with their bicycle models and scripted agents exactly, then runs
-    its own footprint check."""
+    its own footprint check. Agents whose footprints overlapped are wrecked: they stop where
+    they are and ignore further inputs, so no robot drives through another."""
 
     def __init__(self, robots: list[RobotSpec], states: np.ndarray, dt: float,
                  scripted: list[ScriptedAgent] = (), statics: list[Obstacle] = ()):
@@ -54,6 +55,7 @@ class InternalSimulator(Simulator):
         self.scripted = list(scripted)
         self.statics = list(statics)
         self.t = 0.0
+        self.wrecked: set[str] = set()
 
     def observe(self) -> WorldState:
         obstacles = [a.as_obstacle() for a in self.scripted] + self.statics
@@ -62,11 +64,21 @@ class InternalSimulator(Simulator):
     def step(self, inputs: np.ndarray) -> ContactReport:
         inputs = np.asarray(inputs, dtype=float)
         for i, robot in enumerate(self.robots):
-            self.states[i] = robot.model.step(self.states[i], inputs[i], self.dt)
+            if robot.name not in self.wrecked:
+                self.states[i] = robot.model.step(self.states[i], inputs[i], self.dt)
         for agent in self.scripted:
-            agent.advance(self.t, self.dt)
+            if agent.name not in self.wrecked:
+                agent.advance(self.t, self.dt)
         self.t += self.dt
-        return footprint_contacts(self.observe())
+        report = footprint_contacts(self.observe())
+        self.wrecked.update(name for pair in report.overlaps for name in pair)
+        for i, robot in enumerate(self.robots):
+            if robot.name in self.wrecked:
+                self.states[i, 3] = 0.0
+        for agent in self.scripted:
+            if agent.name in self.wrecked:
+                agent.speed = 0.0
+        return report
 
     def agents(self) -> list[dict]:
         world = self.observe()
