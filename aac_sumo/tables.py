@@ -113,7 +113,7 @@ def braking_markdown(rows: list[dict], scenario: config.Scenario, seeds: int) ->
     lines = [
         "# Table III: emergency braking, CBF vs F-CBF",
         "",
-        f"Ego (MPC, N = {c['horizon']}, {c['solver']}{' + ipopt retry' if c['retry_with_ipopt'] else ''}, "
+        f"Ego (MPC, N = {c['horizon']}, {c['solver']}{' compiled to C' if c['codegen'] else ''}{' + ipopt retry' if c['retry_with_ipopt'] else ''}, "
         f"dt = {scenario['scenario.dt']} s) follows a lead {b['gap']} m ahead (centre to centre) at the same speed; "
         f"the lead brakes at {b['lead_decel']} m/s² from t = {b['t_brake']} s. "
         + (f"Ours: mean ± sample std over {seeds} seeds." if seeds > 1 else "Ours: one seed.")
