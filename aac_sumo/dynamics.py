@@ -21,8 +21,8 @@ def bicycle_step(state, control, dt: float, wheelbase, xp=np):
     ``xp`` is the math namespace: ``numpy`` for arrays of shape (..., 4) / (..., 2), or
     ``casadi`` for symbolic column vectors. Returns the next state in the same namespace.
     """
-    x, y, heading, v = (state[..., i] for i in range(NX)) if xp is np else (state[i] for i in range(NX))
-    accel, steer = (control[..., i] for i in range(NU)) if xp is np else (control[i] for i in range(NU))
+    x, y, heading, v = _components(state, NX, xp)
+    accel, steer = _components(control, NU, xp)
     nxt = (
         x + v * xp.cos(heading) * dt,
         y + v * xp.sin(heading) * dt,
@@ -30,6 +30,11 @@ def bicycle_step(state, control, dt: float, wheelbase, xp=np):
         v + accel * dt,
     )
     return np.stack(nxt, axis=-1) if xp is np else xp.vertcat(*nxt)
+
+
+def _components(vec, n: int, xp):
+    """The ``n`` entries of a numpy (..., n) array or a casadi column vector."""
+    return [vec[..., i] for i in range(n)] if xp is np else [vec[i] for i in range(n)]
 
 
 @dataclass(frozen=True)

@@ -106,7 +106,7 @@ class MpcProblem:
         g = ca.cse(ca.vertcat(*g))
         self.n_g = g.shape[0]
         self.equality = equality
-        self._lbg = np.where(equality, 0.0, 0.0)
+        self._lbg = np.zeros(len(equality))
         self._ubg = np.where(equality, 0.0, np.inf)
         plugin, options = _solver_plugin(shape), _solver_options(shape, equality)
         self.solver = ca.nlpsol("mpc", plugin, {"x": w, "p": p, "f": cost, "g": g}, options)
