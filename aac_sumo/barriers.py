@@ -24,6 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aac_sumo.geometry import containing_ellipse
+
 BARRIERS = ("fcbf", "cbf")
 #: Per-stage, per-slot parameter layout fed to the MPC.
 STAGE_FIELDS = ("cx", "cy", "cos", "sin", "inv_a2", "inv_b2", "active")
@@ -45,21 +47,29 @@ def sigmoid(x, k: float):
     return 0.5 * (1.0 + np.tanh(0.5 * k * np.asarray(x, dtype=float)))
 
 
-def fcbf_axes(length, width, velocity, heading, params: FcbfParams, v_eps: float = 1e-3):
-    """F-CBF safety ellipse semi-axes [m] and orientation [rad] of obstacles.
+def fcbf_stretch(velocity, heading, params: FcbfParams, v_eps: float = 1e-3):
+    """F-CBF growth of the semi-axes [m] and the ellipse orientation [rad].
 
-    ``length``, ``width`` and ``heading`` have shape (...); ``velocity`` has shape (..., 2) in the
-    world frame [m/s]. The orientation is the velocity heading, or ``heading`` below ``v_eps``.
-    The velocity is split into the components along and across that orientation.
+    ``velocity`` (..., 2) is world-frame [m/s], ``heading`` (...) [rad]. The orientation is the
+    velocity heading, or ``heading`` below ``v_eps``; the velocity is split into the components
+    along and across it, giving ``mu1 * sigma(|v_par| - v0) * |v_par|`` and the same across.
     """
     velocity = np.asarray(velocity, dtype=float)
     speed = np.hypot(velocity[..., 0], velocity[..., 1])
     phi = np.where(speed > v_eps, np.arctan2(velocity[..., 1], velocity[..., 0]), heading)
     v_par = np.abs(velocity[..., 0] * np.cos(phi) + velocity[..., 1] * np.sin(phi))
     v_perp = np.abs(-velocity[..., 0] * np.sin(phi) + velocity[..., 1] * np.cos(phi))
-    a = 0.5 * np.asarray(length) + params.mu1 * sigmoid(v_par - params.v0, params.k) * v_par
-    b = 0.5 * np.asarray(width) + params.mu2 * sigmoid(v_perp - params.v0, params.k) * v_perp
-    return a, b, phi
+    da = params.mu1 * sigmoid(v_par - params.v0, params.k) * v_par
+    db = params.mu2 * sigmoid(v_perp - params.v0, params.k) * v_perp
+    return da, db, phi
+
+
+def fcbf_axes(length, width, velocity, heading, params: FcbfParams, v_eps: float = 1e-3):
+    """F-CBF safety ellipse semi-axes [m] and orientation [rad] of obstacles: the footprint's
+    ``(L/2, W/2)`` grown by :func:`fcbf_stretch`. ``length``, ``width`` and ``heading`` have
+    shape (...); ``velocity`` has shape (..., 2) in the world frame [m/s]."""
+    da, db, phi = fcbf_stretch(velocity, heading, params, v_eps)
+    return 0.5 * np.asarray(length) + da, 0.5 * np.asarray(width) + db, phi
 
 
 def cbf_axes(length, width, heading):
@@ -154,6 +164,35 @@ def stage_parameters(ellipses: np.ndarray, d: float, ego=None) -> np.ndarray:
         toward = np.column_stack([cos_phi * rel[:, 0] + sin_phi * rel[:, 1], -sin_phi * rel[:, 0] + cos_phi * rel[:, 1]])
     big_a, big_b = inflate_for_disc(ellipses[:, 2], ellipses[:, 3], d, toward)
     return np.column_stack([ellipses[:, 0], ellipses[:, 1], cos_phi, sin_phi, big_a**-2, big_b**-2, np.ones(len(phi))])
+
+
+@dataclass(frozen=True)
+class RegionTrack:
+    """Safety ellipses ``[cx, cy, a, b, phi]`` per stage (N+1, 5), already shaped (e.g. around a
+    robot's swept convex hull); the planner uses them as they are."""
+
+    name: str
+    ellipses: np.ndarray
+
+
+def hull_safety_ellipses(corners, velocities, headings, barrier: str, fcbf: FcbfParams) -> np.ndarray:
+    """Per-stage safety ellipses (N+1, 5) that contain the convex hull of ``corners`` (N+1, P, 2).
+
+    Each stage's base ellipse contains the stage's points (:func:`~aac_sumo.geometry.containing_ellipse`,
+    oriented like the F-CBF ellipse); F-CBF then grows its axes with the stage ``velocities``
+    (N+1, 2) as in :func:`fcbf_stretch`, which only enlarges it, so containment is kept. Plain
+    CBF uses the base ellipse along ``headings`` (N+1,).
+    """
+    if barrier == "fcbf":
+        da, db, phi = fcbf_stretch(velocities, headings, fcbf)
+    elif barrier == "cbf":
+        da, db, phi = 0.0, 0.0, np.asarray(headings, dtype=float)
+    else:
+        raise ValueError(f"unknown barrier {barrier!r}; expected one of {BARRIERS}")
+    ellipses = containing_ellipse(corners, phi)
+    ellipses[:, 2] += da
+    ellipses[:, 3] += db
+    return ellipses
 
 
 def inactive_slot(horizon: int) -> np.ndarray:

@@ -40,7 +40,7 @@ class OrientedRect:
 
     def corners(self) -> np.ndarray:
         """World-frame corners (4, 2), counter-clockwise, starting at front-right."""
-        return _corners(self.as_row())
+        return rect_corners(self.as_row())
 
     def as_row(self) -> np.ndarray:
         """Row ``[cx, cy, length, width, heading]`` as used by :func:`pairwise_rect_clearance`."""
@@ -82,6 +82,10 @@ def _bisect_root(r0, q, z0, z1, g):
 
 def _first_quadrant_closest(e0, e1, y0, y1):
     """Closest ellipse point (x0, x1) and unsigned distance for e0 >= e1 > 0, y0, y1 >= 0 (1-D)."""
+    # Coordinates below 1e-100 of the axis are snapped onto it (an error of at most that much):
+    # subnormal values leave the bisection without relative precision.
+    y0 = np.where(y0 < 1e-100 * e0, 0.0, y0)
+    y1 = np.where(y1 < 1e-100 * e1, 0.0, y1)
     x0 = np.empty_like(y0)
     x1 = np.empty_like(y0)
     z0 = y0 / e0
@@ -172,7 +176,7 @@ def ellipse_closest_point(points, cx, cy, a, b, theta) -> np.ndarray:
 _CORNER_SIGNS = np.array([[1.0, -1.0], [1.0, 1.0], [-1.0, 1.0], [-1.0, -1.0]])
 
 
-def _corners(rects: np.ndarray) -> np.ndarray:
+def rect_corners(rects: np.ndarray) -> np.ndarray:
     """Corners (..., 4, 2) of rectangle rows (..., 5) ``[cx, cy, length, width, heading]``."""
     c, s = np.cos(rects[..., 4:5]), np.sin(rects[..., 4:5])
     du = 0.5 * rects[..., 2:3] * _CORNER_SIGNS[:, 0]
@@ -213,7 +217,7 @@ def _clearance(ra: np.ndarray, rb: np.ndarray) -> np.ndarray:
         ]
     ).min(axis=0)
     # Separated convex polygons: the closest pair always involves a vertex of one of them.
-    gap = np.minimum(_vertex_gap(_corners(ra), rb), _vertex_gap(_corners(rb), ra))
+    gap = np.minimum(_vertex_gap(rect_corners(ra), rb), _vertex_gap(rect_corners(rb), ra))
     return np.where(overlap > 0.0, -overlap, gap)
 
 
@@ -246,3 +250,35 @@ def point_rect_signed_distance(points, rect: OrientedRect) -> np.ndarray:
     outside = np.hypot(np.maximum(qu, 0.0), np.maximum(qv, 0.0))
     inside = np.minimum(np.maximum(qu, qv), 0.0)
     return outside + inside
+
+
+def convex_hull(points) -> np.ndarray:
+    """Vertices (H, 2) of the convex hull of ``points`` (K, 2) [m], counter-clockwise (scipy/Qhull)."""
+    from scipy.spatial import ConvexHull
+
+    pts = np.asarray(points, dtype=float)
+    return pts[ConvexHull(pts).vertices]
+
+
+def containing_ellipse(points, theta) -> np.ndarray:
+    """Ellipses ``[cx, cy, a, b, theta]`` (..., 5) that contain each point set (..., K, 2) [m].
+
+    In the frame rotated by ``theta`` (...,) [rad] the ellipse is centred on the points'
+    bounding box, with the box's aspect ratio, and scaled until the farthest point lies on it, so
+    every point satisfies ``(x'/a)^2 + (y'/b)^2 <= 1``. An ellipse is convex, so it contains the
+    points' convex hull too; the scale is at most sqrt(2) (the box corners).
+    """
+    pts = np.asarray(points, dtype=float)
+    theta = np.asarray(theta, dtype=float)
+    c, s = np.cos(theta)[..., None], np.sin(theta)[..., None]
+    u = c * pts[..., 0] + s * pts[..., 1]
+    v = -s * pts[..., 0] + c * pts[..., 1]
+    u_lo, u_hi, v_lo, v_hi = u.min(-1), u.max(-1), v.min(-1), v.max(-1)
+    uc, vc = 0.5 * (u_lo + u_hi), 0.5 * (v_lo + v_hi)
+    hu = np.maximum(0.5 * (u_hi - u_lo), 1e-9)
+    hv = np.maximum(0.5 * (v_hi - v_lo), 1e-9)
+    scale = np.sqrt(((u - uc[..., None]) / hu[..., None]) ** 2 + ((v - vc[..., None]) / hv[..., None]) ** 2).max(-1)
+    scale = np.maximum(scale, 1.0) * (1.0 + 1e-9)
+    cx = np.cos(theta) * uc - np.sin(theta) * vc
+    cy = np.sin(theta) * uc + np.cos(theta) * vc
+    return np.stack([cx, cy, scale * hu, scale * hv, theta], axis=-1)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aac_sumo.barriers import FcbfParams, ObstaclePrediction, inactive_slot, predict_constant_velocity, safety_ellipses, stage_parameters
+from aac_sumo.barriers import FcbfParams, ObstaclePrediction, RegionTrack, inactive_slot, predict_constant_velocity, safety_ellipses, stage_parameters
 from aac_sumo.dynamics import bicycle_step
 from aac_sumo.mpc.problem import ProblemShape, get_problem
 from aac_sumo.world import Obstacle, RobotSpec
@@ -110,17 +110,19 @@ class MpcPlanner:
         retry = config.retry_with_ipopt and config.solver != "ipopt"
         self.retry_problem = get_problem(config.shape("ipopt")) if retry else None
 
-    def obstacle_parameters(self, robot: RobotSpec, state: np.ndarray, obstacles: list[Obstacle | ObstaclePrediction]) -> np.ndarray:
+    def obstacle_parameters(self, robot: RobotSpec, state: np.ndarray, obstacles: list[Obstacle | ObstaclePrediction | RegionTrack]) -> np.ndarray:
         """Stage parameters (N+1, slots, 7) of the nearest obstacles around ``state``."""
         cfg = self.config
-        preds = [o if isinstance(o, ObstaclePrediction) else predict(o, cfg.horizon, cfg.dt) for o in obstacles]
+        regions = [o.ellipses[: cfg.horizon + 1] if isinstance(o, RegionTrack) else
+                   safety_ellipses(o if isinstance(o, ObstaclePrediction) else predict(o, cfg.horizon, cfg.dt), cfg.barrier, cfg.fcbf)
+                   for o in obstacles]
         offsets, radius = ego_discs(robot, cfg.discs)
-        if len(preds) > cfg.slots:
-            gaps = [np.hypot(*(p.centres[0] - state[:2])) - 0.5 * np.hypot(p.length, p.width) for p in preds]
-            preds = [preds[i] for i in np.argsort(gaps, kind="stable")[: cfg.slots]]
+        if len(regions) > cfg.slots:
+            gaps = [np.hypot(*(e[0, :2] - state[:2])) - max(e[0, 2], e[0, 3]) for e in regions]
+            regions = [regions[i] for i in np.argsort(gaps, kind="stable")[: cfg.slots]]
         d = radius + cfg.d_safe
         centre = state[:2] + robot.centre_offset * np.array([np.cos(state[2]), np.sin(state[2])])
-        slots = [stage_parameters(safety_ellipses(p, cfg.barrier, cfg.fcbf), d, centre) for p in preds]
+        slots = [stage_parameters(e, d, centre) for e in regions]
         slots += [inactive_slot(cfg.horizon)] * (cfg.slots - len(slots))
         return np.stack(slots, axis=1)
 
@@ -130,7 +132,7 @@ class MpcPlanner:
         state: np.ndarray,
         reference: np.ndarray,
         u_prev: np.ndarray,
-        obstacles: list[Obstacle | ObstaclePrediction],
+        obstacles: list[Obstacle | ObstaclePrediction | RegionTrack],
         previous: Plan | None = None,
         corridor: np.ndarray | None = None,
     ) -> Plan:
