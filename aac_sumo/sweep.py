@@ -1,26 +1,38 @@
 """Many runs in parallel: every combination of a grid of scenario keys, K seeds each.
 
 The parent process validates every combination first (a bad key or value stops the sweep
-before any run starts), then hands picklable :class:`Task` s (scenario path plus ``--set``
-overrides) to a process pool; each worker loads its scenario itself. Finished runs are appended
-to ``results.csv`` and flushed one by one, so an interrupted sweep keeps what finished; at the
-end the file is rewritten in grid order and ``summary.md`` is written. A run that raises in a
-worker (or that the runner reports as failed mid-run) becomes a row with ``status=error`` and its
-message; the sweep goes on.
+before any run starts), then hands picklable :class:`Task` s (the validated scenario plus the
+``--set`` overrides that made it) to an :class:`Executor`: a local process pool (``--workers W``)
+or a Dask cluster (``--scheduler tcp://HOST:PORT``), one code path for both. Each run happens in
+a separate worker process, never two at once in one process (libsumo holds one simulation per
+process; a process-wide lock guards this even on multi-threaded Dask workers).
+
+Finished runs are appended to ``results.csv`` and flushed one by one, so an interrupted sweep
+keeps what finished, and ``--resume`` skips the runs already there (``status=ok``); at the end
+the file is rewritten in grid order and ``summary.md`` is written. A run that raises in a worker
+(or that the runner reports as failed mid-run) becomes a row with ``status=error`` and its
+message; a worker process that dies (e.g. a crash in native code) costs only the run it was
+running, which becomes an error row as well. The sweep goes on.
 """
 
 from __future__ import annotations
 
 import csv
+import hashlib
 import itertools
+import json
 import math
 import multiprocessing
 import os
 import signal
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass
+import sys
+import threading
+from collections import deque
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, as_completed, wait
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable, Iterator
 
 from aac_sumo import config
 from aac_sumo.metrics import METRIC_KEYS
@@ -30,6 +42,8 @@ SUMMARY_METRICS = (
     "completed", "task_duration_s", "compute_ms_mean", "infeasibility_rate", "min_distance_m",
     "min_clearance_m", "collisions", "ttc_mean_s", "tracking_error_m", "aggressive_driving_rate",
 )
+#: Seconds to wait for a Dask scheduler (and for its first worker) before giving up.
+CONNECT_TIMEOUT_S = 10.0
 
 
 class SweepError(ValueError):
@@ -38,13 +52,18 @@ class SweepError(ValueError):
 
 @dataclass(frozen=True)
 class Task:
-    """One run: the scenario file, every override (``--set``, grid, seed), and what it varies."""
+    """One run: the scenario file, every override (``--set``, grid, seed), and what it varies.
+
+    ``scenario`` is the validated scenario itself (overrides applied); it travels with the task,
+    so a worker on another machine needs aac-sumo installed but not the scenario file. Without
+    it the worker loads ``source`` with ``overrides``."""
 
     index: int
     source: str
     overrides: tuple[str, ...]
     grid: tuple[tuple[str, Any], ...]
     seed: int
+    scenario: Any = field(default=None, compare=False, repr=False)
 
 
 def parse_grid(texts: Iterable[str]) -> list[tuple[str, list[str]]]:
@@ -79,8 +98,9 @@ def plan_tasks(scenario: str, sets: list[str], grid: list[tuple[str, list[str]]]
         values = tuple((k, loaded[k]) for k in keys)
         base = loaded["scenario.seed"]
         for i in range(seeds):
-            overrides = tuple(sets) + tuple(combo_sets) + (f"scenario.seed={base + i}",)
-            tasks.append(Task(len(tasks), source, overrides, values, base + i))
+            seed_set = f"scenario.seed={base + i}"
+            overrides = tuple(sets) + tuple(combo_sets) + (seed_set,)
+            tasks.append(Task(len(tasks), source, overrides, values, base + i, loaded.with_overrides([seed_set])))
     return tasks
 
 
@@ -89,15 +109,21 @@ def columns(grid_keys: list[str]) -> list[str]:
     return list(grid_keys) + ["seed"] + [k for k in METRIC_KEYS if k != "seed"] + ["status", "error"]
 
 
+#: One simulation at a time per process (libsumo), also on a Dask worker with several threads.
+_ONE_RUN_PER_PROCESS = threading.Lock()
+
+
 def run_task(task: Task) -> dict:
     """Run one task (in a worker); never raises: failures become ``status=error`` rows."""
     row: dict[str, Any] = dict(task.grid) | {"seed": task.seed}
-    try:
-        from aac_sumo import runner
+    with _ONE_RUN_PER_PROCESS:
+        try:
+            from aac_sumo import runner
 
-        result = runner.run(config.load(task.source, list(task.overrides)))
-    except Exception as exc:  # the sweep goes on
-        return row | {"status": "error", "error": _one_line(exc)}
+            scenario = task.scenario if task.scenario is not None else config.load(task.source, list(task.overrides))
+            result = runner.run(scenario)
+        except Exception as exc:  # the sweep goes on
+            return row | {"status": "error", "error": one_line(exc)}
     metrics = result.metrics
     row |= {k: metrics.get(k) for k in METRIC_KEYS if k != "seed"}
     row["seed"] = task.seed
@@ -105,63 +131,325 @@ def run_task(task: Task) -> dict:
     return row | {"status": "error" if error else "ok", "error": error or ""}
 
 
-def _one_line(exc: BaseException) -> str:
+def error_row(task: Task, exc: BaseException) -> dict:
+    """The ``status=error`` row of a task whose call raised outside :func:`run_task`'s guard
+    (its worker died, or the cluster lost it)."""
+    return dict(task.grid) | {"seed": task.seed, "status": "error", "error": one_line(exc)}
+
+
+def one_line(exc: BaseException) -> str:
+    """``Type: first line of the message``."""
     text = str(exc).strip().splitlines()
     return f"{type(exc).__name__}: {text[0] if text else ''}".rstrip(": ")
+
+
+_one_line = one_line  # former name
 
 
 def _init_worker() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is handled by the parent alone
 
 
+# ---------------------------------------------------------------------------------------------
+# executors: one interface over a local process pool and a Dask cluster
+
+
+class WorkerDied(RuntimeError):
+    """The worker process died while it ran this call (a crash in native code, or killed)."""
+
+
+class Executor:
+    """Runs picklable calls in separate worker processes: a local ``spawn`` process pool of
+    ``workers`` processes, or the workers of the Dask scheduler at ``scheduler``
+    (``tcp://HOST:PORT``) through ``dask.distributed``'s ``concurrent.futures`` executor.
+
+    Use it as a context manager; :meth:`map` may be called many times (the local pool's worker
+    processes, and with them their compiled solvers, live until the ``with`` block ends).
+    """
+
+    def __init__(self, workers: int | None = None, scheduler: str | None = None):
+        self.scheduler = scheduler
+        self.workers = max(1, workers or os.cpu_count() or 1)
+        self._pool: ProcessPoolExecutor | None = None
+        self._client = None
+        self._dask = None
+
+    # -- lifetime -----------------------------------------------------------------------------
+
+    def __enter__(self) -> "Executor":
+        if self.scheduler is not None:
+            self._connect()
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> None:
+        self.close(abort=exc_type is not None)
+
+    def close(self, abort: bool = False) -> None:
+        if self._pool is not None:
+            self._drop_pool(abort)
+        if self._client is not None:
+            if self._dask is not None:
+                self._dask.shutdown(wait=not abort)
+            self._client.close()
+            self._client = self._dask = None
+
+    @property
+    def slots(self) -> int:
+        """How many calls run at once (local workers, or the cluster's worker processes)."""
+        if self._client is None:
+            return self.workers
+        return max(1, len(self._client.scheduler_info().get("workers", {})))
+
+    def _connect(self) -> None:
+        where = f"--scheduler {self.scheduler}"
+        try:
+            from distributed import Client
+        except ImportError:
+            raise SweepError(f"{where}: dask.distributed: expected the cluster extra to be installed "
+                             "(pip install 'aac-sumo[cluster]')") from None
+        try:
+            client = Client(self.scheduler, timeout=CONNECT_TIMEOUT_S, set_as_default=False)
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise SweepError(f"{where}: scheduler: expected a reachable Dask scheduler address "
+                             f"(tcp://HOST:PORT), got {one_line(exc)}") from None
+        try:
+            client.wait_for_workers(1, timeout=CONNECT_TIMEOUT_S)
+            versions = client.run(_worker_version)
+        except Exception as exc:
+            client.close()
+            raise SweepError(f"{where}: workers: expected at least one worker that can import aac_sumo "
+                             f"(pip install aac-sumo on every worker), got {one_line(exc)}") from None
+        mine = _worker_version()
+        other = sorted({v for v in versions.values() if v != mine})
+        if other:
+            print(f"aac-sumo: note: cluster workers run aac-sumo {', '.join(other)}, this machine {mine}",
+                  file=sys.stderr)
+        self._client = client
+        self._dask = client.get_executor(pure=False)
+
+    # -- running ------------------------------------------------------------------------------
+
+    def map(self, fn: Callable[[Any], Any], items: list) -> Iterator[tuple[int, Any]]:
+        """``(index, fn(items[index]))`` as calls finish (completion order). A call that raises,
+        or whose worker process dies, yields ``(index, exception)``; the others go on."""
+        if not items:
+            return iter(())
+        if self._client is not None:
+            return self._map_dask(fn, items)
+        return self._map_local(fn, items)
+
+    def _map_dask(self, fn, items) -> Iterator[tuple[int, Any]]:
+        futures = {self._dask.submit(fn, item): i for i, item in enumerate(items)}
+        try:
+            for fut in as_completed(futures):
+                exc = fut.exception()
+                yield futures[fut], exc if exc is not None else fut.result()
+        finally:
+            for fut in futures:
+                fut.cancel()
+
+    def _map_local(self, fn, items) -> Iterator[tuple[int, Any]]:
+        """At most ``workers`` calls in flight, so that when a worker process dies the suspects
+        are exactly the calls that were running; each suspect is then rerun alone in a fresh
+        process, where only the culprit dies again (and yields :class:`WorkerDied`)."""
+        queue = deque(enumerate(items))
+        inflight: dict = {}
+        try:
+            while queue or inflight:
+                pool = self._get_pool()
+                while queue and len(inflight) < self.workers:
+                    i, item = queue.popleft()
+                    inflight[pool.submit(fn, item)] = (i, item)
+                done, _ = wait(inflight, return_when=FIRST_COMPLETED)
+                suspects = []
+                for fut in done:
+                    i, item = inflight.pop(fut)
+                    if isinstance(fut.exception(), BrokenProcessPool):
+                        suspects.append((i, item))
+                    else:
+                        yield i, fut.exception() or fut.result()
+                if not suspects:
+                    continue
+                rest, _ = wait(inflight)  # the broken pool fails every call in flight at once
+                for fut in rest:
+                    i, item = inflight.pop(fut)
+                    if isinstance(fut.exception(), BrokenProcessPool):
+                        suspects.append((i, item))
+                    else:
+                        yield i, fut.exception() or fut.result()
+                self._drop_pool(abort=True)
+                for i, item in sorted(suspects, key=lambda s: s[0]):
+                    yield i, self._run_alone(fn, item)
+        except BaseException:  # Ctrl-C, or the consumer stopped: running calls are lost
+            self._drop_pool(abort=True)
+            raise
+
+    def _run_alone(self, fn, item) -> Any:
+        pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"),
+                                   initializer=_init_worker)
+        try:
+            return pool.submit(fn, item).result()
+        except BrokenProcessPool:
+            return WorkerDied("the worker process died while running this call (a crash in native code, "
+                              "or it was killed); the other runs were not affected")
+        except Exception as exc:
+            return exc
+        finally:
+            _terminate(pool)
+
+    def _get_pool(self) -> ProcessPoolExecutor:
+        if self._pool is None:
+            self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=multiprocessing.get_context("spawn"),
+                                             initializer=_init_worker)
+        return self._pool
+
+    def _drop_pool(self, abort: bool) -> None:
+        pool, self._pool = self._pool, None
+        if pool is None:
+            return
+        if abort:
+            _terminate(pool)
+        else:
+            pool.shutdown()
+
+
+def _terminate(pool: ProcessPoolExecutor) -> None:
+    for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        proc.terminate()
+    pool.shutdown(wait=False, cancel_futures=True)
+
+
+def _worker_version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("aac-sumo")
+    except PackageNotFoundError:
+        return "unknown"
+
+
+# ---------------------------------------------------------------------------------------------
+# results.csv
+
+
+def run_key(row: dict, grid_keys: list[str]) -> tuple[str, ...]:
+    """What identifies a run in ``results.csv``: its grid values and seed, as written there."""
+    return tuple(_cell(row.get(k)) for k in list(grid_keys) + ["seed"])
+
+
+def read_results(path: Path, grid_keys: list[str]) -> list[dict]:
+    """The rows of an earlier ``results.csv`` of the same grid keys, values parsed back
+    (numbers, booleans, ``None`` for empty cells); a file of other columns raises :class:`SweepError`."""
+    with open(path, newline="") as fh:
+        reader = csv.DictReader(fh)
+        found = list(reader.fieldnames or [])
+        rows = list(reader)
+    if found != columns(grid_keys):
+        got = ", ".join(c for c in found if c not in columns([])) or "none"
+        raise SweepError(f"--resume {path}: columns: expected the grid keys of this sweep "
+                         f"({', '.join(grid_keys)}) and the metric columns, got grid keys {got}")
+    return [{k: (v if k in ("status", "error") else _parse_cell(v)) for k, v in r.items()} for r in rows]
+
+
+def _parse_cell(text: str) -> Any:
+    if text == "":
+        return None
+    if text in ("True", "False"):
+        return text == "True"
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
+
+
+def _cell(value: Any) -> str:
+    return "" if value is None else str(value)
+
+
+def _manifest_check(out: Path, manifest: dict, resume: bool) -> None:
+    """Refuse to resume a sweep made of another scenario or other ``--set`` overrides."""
+    path = out / "sweep.json"
+    if resume and path.exists():
+        try:
+            old = json.loads(path.read_text())
+        except (OSError, ValueError):
+            old = {}
+        for key in ("scenario", "scenario_sha256", "sets"):
+            if key in old and old[key] != manifest.get(key):
+                what = {"scenario": "the same scenario file", "scenario_sha256": "an unchanged scenario file",
+                        "sets": "the same --set overrides"}[key]
+                raise SweepError(f"--resume {path}: {key}: expected {what} as the interrupted sweep "
+                                 f"({old[key]}), got {manifest.get(key)}")
+    path.write_text(json.dumps(manifest, indent=2) + "\n")
+
+
+def sweep_manifest(source: str, sets: list[str]) -> dict:
+    """What a resumed sweep must share with the one it continues."""
+    return {"scenario": source, "scenario_sha256": hashlib.sha256(Path(source).read_bytes()).hexdigest(),
+            "sets": list(sets)}
+
+
 def run_tasks(tasks: list[Task], grid_keys: list[str], out: Path, workers: int | None = None,
-              progress: bool = True, desc: str = "sweep") -> list[dict]:
-    """Run ``tasks`` in a process pool, appending each finished row to ``out/results.csv``;
-    returns the rows in task order (the file is rewritten in that order at the end)."""
+              progress: bool = True, desc: str = "sweep", scheduler: str | None = None,
+              resume: bool = False, fn: Callable[[Task], dict] = run_task,
+              manifest: dict | None = None) -> list[dict]:
+    """Run ``tasks`` (locally on ``workers`` processes, or on the Dask cluster at ``scheduler``),
+    appending each finished row to ``out/results.csv``; returns the rows in task order (the file
+    is rewritten in that order at the end, followed by any earlier rows of runs not planned now).
+
+    With ``resume``, runs whose grid values and seed already have a ``status=ok`` row in
+    ``out/results.csv`` are not run again (error rows are retried). ``fn`` runs one task."""
     out.mkdir(parents=True, exist_ok=True)
     path = out / "results.csv"
     fields = columns(grid_keys)
-    workers = max(1, min(workers or os.cpu_count() or 1, len(tasks) or 1))
+    if manifest is not None:
+        _manifest_check(out, manifest, resume)
+    earlier: dict[tuple, dict] = {}
+    if resume and path.exists():
+        for r in read_results(path, grid_keys):
+            if r.get("status") == "ok":
+                earlier[run_key(r, grid_keys)] = r
     rows: dict[int, dict] = {}
+    todo = []
+    for t in tasks:
+        key = run_key(dict(t.grid) | {"seed": t.seed}, grid_keys)
+        if key in earlier:
+            rows[t.index] = earlier.pop(key) | dict(t.grid) | {"seed": t.seed}
+        else:
+            todo.append(t)
+    if resume and rows:
+        print(f"aac-sumo: resuming: {len(rows)} of {len(tasks)} runs already in {path}", file=sys.stderr)
     from tqdm import tqdm
 
     with open(path, "w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=fields, extrasaction="ignore", lineterminator="\n")
         writer.writeheader()
+        writer.writerows(_csv_row(r) for r in list(rows.values()) + list(earlier.values()))
         fh.flush()
-        ctx = multiprocessing.get_context("spawn")
-        pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker)
-        bar = tqdm(total=len(tasks), desc=desc, unit="run", disable=not progress, dynamic_ncols=True)
+        bar = tqdm(total=len(tasks), initial=len(tasks) - len(todo), desc=desc, unit="run",
+                   disable=not progress, dynamic_ncols=True)
         errors = 0
         try:
-            futures = {pool.submit(run_task, t): t for t in tasks}
-            for fut in as_completed(futures):
-                task = futures[fut]
-                try:
-                    row = fut.result()
-                except Exception as exc:  # the worker process itself died
-                    row = dict(task.grid) | {"seed": task.seed, "status": "error", "error": _one_line(exc)}
-                rows[task.index] = row
-                writer.writerow(_csv_row(row))
-                fh.flush()
-                errors += row["status"] != "ok"
-                bar.set_postfix(errors=errors, refresh=False)
-                bar.update()
-        except BaseException:  # Ctrl-C: running tasks are lost, finished ones are in results.csv
-            procs = list((getattr(pool, "_processes", None) or {}).values())
-            for proc in procs:
-                proc.terminate()
-            pool.shutdown(wait=False, cancel_futures=True)
-            raise
+            with Executor(min(workers or os.cpu_count() or 1, len(todo) or 1), scheduler) as ex:
+                for i, result in ex.map(fn, todo):
+                    task = todo[i]
+                    row = error_row(task, result) if isinstance(result, BaseException) else result
+                    rows[task.index] = row
+                    writer.writerow(_csv_row(row))
+                    fh.flush()
+                    errors += row["status"] != "ok"
+                    bar.set_postfix(errors=errors, refresh=False)
+                    bar.update()
         finally:
             bar.close()
-        pool.shutdown()
     ordered = [rows[t.index] for t in tasks]
     tmp = path.with_suffix(".csv.tmp")
     with open(tmp, "w", newline="") as fh:
         writer = csv.DictWriter(fh, fieldnames=fields, extrasaction="ignore", lineterminator="\n")
         writer.writeheader()
-        writer.writerows(_csv_row(r) for r in ordered)
+        writer.writerows(_csv_row(r) for r in ordered + list(earlier.values()))
     os.replace(tmp, path)
     return ordered
 
@@ -234,14 +522,18 @@ def summary_markdown(rows: list[dict], grid_keys: list[str], title: str) -> str:
 
 
 def sweep(scenario: str, grid_texts: list[str], sets: list[str], seeds: int, workers: int | None,
-          out: Path, progress: bool = True) -> tuple[list[dict], str]:
-    """The whole ``aac-sumo sweep`` command: validate, run, write results.csv and summary.md."""
+          out: Path, progress: bool = True, scheduler: str | None = None,
+          resume: bool = False) -> tuple[list[dict], str]:
+    """The whole ``aac-sumo sweep`` command: validate, run (locally or on the Dask cluster at
+    ``scheduler``; with ``resume``, only the runs not yet in results.csv), write results.csv and
+    summary.md."""
     grid = parse_grid(grid_texts)
     if not grid:
         raise SweepError("sweep: expected at least one --grid KEY=V1,V2,...")
     tasks = plan_tasks(scenario, sets, grid, seeds)
     keys = [k for k, _ in grid]
-    rows = run_tasks(tasks, keys, out, workers, progress)
+    rows = run_tasks(tasks, keys, out, workers, progress, scheduler=scheduler, resume=resume,
+                     manifest=sweep_manifest(tasks[0].source, sets))
     name = config.load(tasks[0].source, list(sets))["scenario.name"]
     text = summary_markdown(rows, keys, f"Sweep of {name}: {len(rows)} runs ({seeds} seed{'s' if seeds > 1 else ''} each)")
     (out / "summary.md").write_text(text)
