@@ -67,7 +67,11 @@ def build_parser() -> argparse.ArgumentParser:
     add_set(p)
     p.add_argument("--seeds", type=_positive_int, default=1, metavar="K", help="seeds per combination: base seed + 0..K-1 (default 1)")
     p.add_argument("--workers", type=_positive_int, metavar="W", help="worker processes (default: CPU count)")
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                   help="run on this Dask scheduler's workers instead of local processes (needs aac-sumo[cluster])")
     p.add_argument("--out", type=Path, help="output directory (default out/sweep/<scenario name>)")
+    p.add_argument("--resume", action="store_true",
+                   help="skip the runs that already have a status=ok row in OUT/results.csv")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
     from aac_sumo.tables import TABLES
@@ -187,7 +191,7 @@ def cmd_sweep(args) -> int:
         out = args.out
     _check_out(out)
     rows, text = sweep.sweep(args.scenario, args.grid, list(args.sets), args.seeds, args.workers, out,
-                             progress=not args.no_progress)
+                             progress=not args.no_progress, scheduler=args.scheduler, resume=args.resume)
     print(text, end="")
     print(f"outputs: {out / 'results.csv'}, {out / 'summary.md'}")
     return _report_failures(rows)
