@@ -48,7 +48,7 @@ def _int_list(text: str) -> list[int]:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog=PROG, description="AAC + MPC-FCBF experiments: run, sweep, reproduce the paper's tables, benchmark.")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="{run,sweep,table,bench}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="{run,sweep,tune,table,bench}")
 
     def add_set(p):
         p.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
@@ -72,6 +72,29 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, help="output directory (default out/sweep/<scenario name>)")
     p.add_argument("--resume", action="store_true",
                    help="skip the runs that already have a status=ok row in OUT/results.csv")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+    p = sub.add_parser("tune", help="Bayesian optimization (GP + Expected Improvement) of scenario keys, beside random search")
+    p.add_argument("scenario", metavar="SCENARIO")
+    p.add_argument("--param", dest="params", action="append", default=[], metavar="KEY=LO:HI[:log|:int]",
+                   help="a tuned key and its range, e.g. controller.q_pos=0.1:100:log (repeatable)")
+    p.add_argument("--objective", required=True, metavar="[max:]METRIC",
+                   help="metric to minimise (max:METRIC maximises), mean over the seeds")
+    p.add_argument("--constraint", dest="constraints", action="append", default=[], metavar="METRIC<op>VALUE",
+                   help="must hold on every seed, op one of == <= >= < >, e.g. collisions==0 (repeatable)")
+    p.add_argument("--trials", type=_positive_int, default=20, metavar="T", help="candidates to evaluate (default 20)")
+    p.add_argument("--seeds", type=_positive_int, default=1, metavar="K",
+                   help="scenario seeds per candidate: scenario.seed + 0..K-1, run in parallel (default 1)")
+    p.add_argument("--sampler", choices=("bo", "random"), default="bo", help="bo (default) or random search")
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="the tuner's seed: same seed, same trials (default 0)")
+    p.add_argument("--init", type=_positive_int, metavar="N", help="random trials before the GP takes over (default T//3 within 2..5)")
+    p.add_argument("--xi", type=float, default=0.01, metavar="X", help="EI exploration margin, in standard deviations of the objective (default 0.01)")
+    p.add_argument("--no-baseline", action="store_true", help="skip the random search of the same budget drawn beside BO in tuning.png")
+    add_set(p)
+    p.add_argument("--workers", type=_positive_int, metavar="W", help="worker processes (default: CPU count)")
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                   help="run on this Dask scheduler's workers instead of local processes (needs aac-sumo[cluster])")
+    p.add_argument("--out", type=Path, help="output directory (default out/tune/<scenario name>)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
     from aac_sumo.tables import TABLES
@@ -101,7 +124,7 @@ def main(argv: list[str] | None = None) -> int:
     args = None
     try:
         args = build_parser().parse_args(argv)
-        return {"run": cmd_run, "sweep": cmd_sweep, "table": cmd_table, "bench": cmd_bench}[args.command](args)
+        return {"run": cmd_run, "sweep": cmd_sweep, "tune": cmd_tune, "table": cmd_table, "bench": cmd_bench}[args.command](args)
     except SystemExit as exc:  # --help
         return exc.code if isinstance(exc.code, int) else 0
     except (UsageError, ScenarioError, SweepError, TableUnavailable, FileNotFoundError) as exc:
@@ -195,6 +218,27 @@ def cmd_sweep(args) -> int:
     print(text, end="")
     print(f"outputs: {out / 'results.csv'}, {out / 'summary.md'}")
     return _report_failures(rows)
+
+
+def cmd_tune(args) -> int:
+    from aac_sumo import config, tune
+
+    if args.out is None:  # validate the scenario first, for the default name
+        out = Path("out") / "tune" / config.load(args.scenario, list(args.sets))["scenario.name"]
+    else:
+        out = args.out
+    _check_out(out)
+    result = tune.tune(args.scenario, args.params, args.objective, args.constraints, args.trials, out,
+                       sets=list(args.sets), seeds=args.seeds, sampler=args.sampler, seed=args.seed, init=args.init,
+                       xi=args.xi, baseline=not args.no_baseline, workers=args.workers, scheduler=args.scheduler,
+                       progress=not args.no_progress)
+    print(result.text, end="")
+    files = ["trials.csv"] + (["best.toml"] if result.best is not None else []) + ["tuning.png", "summary.md"]
+    print("outputs: " + ", ".join(str(out / f) for f in files))
+    if result.best is None:
+        print(f"{PROG}: no candidate met the constraints in every run; nothing to write into best.toml", file=sys.stderr)
+        return 1
+    return 0
 
 
 def _report_failures(rows: list[dict]) -> int:
