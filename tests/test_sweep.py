@@ -1,9 +1,11 @@
-"""Sweeps and tables through the process pool: rows, columns, error rows, validation first."""
+"""Sweeps and tables through the process pool and a Dask cluster: rows, columns, error rows,
+crashed workers, --resume, validation first."""
 
 from __future__ import annotations
 
 import csv
 import math
+import os
 from pathlib import Path
 
 import pytest
@@ -105,3 +107,102 @@ def test_table_rows_with_seeds():
     assert math.isnan(row["ttc_mean_s"]) and row["runs"] == 2 and row["errors"] == 1
     assert row["paper_min_distance_m"] == 1.50
     assert "min_distance_m_std" in tables.braking_columns(3)
+
+
+# ---------------------------------------------------------------------------------------------
+# one executor for a process pool and a Dask cluster; crashes; --resume
+
+#: Metrics that depend only on the scenario and its seed (not on timing or on where it ran).
+DETERMINISTIC = ("completed", "task_duration_s", "solves", "infeasible_solves", "infeasibility_rate",
+                 "min_distance_m", "min_clearance_m", "collisions", "ttc_mean_s", "tracking_error_m",
+                 "aggressive_driving_rate")
+
+
+def _die_on_seed_1(task: sweep.Task) -> dict:
+    """A worker that dies (as a native crash would) on the run of seed 1."""
+    if task.seed == 1:
+        os._exit(3)
+    return sweep.run_task(task)
+
+
+def test_dask_cluster_gives_the_process_pool_results(capsys, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    argv = ["sweep", "braking", "--grid", "braking.speed=5,7", "--seeds", "2", *SHORT]
+    assert main(argv + ["--workers", "2", "--out", str(tmp_path / "pool")]) == 0, capsys.readouterr().err
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  dashboard_address=None) as cluster:
+        rc = main(argv + ["--scheduler", cluster.scheduler_address, "--out", str(tmp_path / "dask")])
+    assert rc == 0, capsys.readouterr().err
+    cols, pool = read_rows(tmp_path / "pool" / "results.csv")
+    assert read_rows(tmp_path / "dask" / "results.csv")[0] == cols
+    _, dask = read_rows(tmp_path / "dask" / "results.csv")
+    assert [(r["braking.speed"], r["seed"], r["status"]) for r in dask] == [
+        ("5.0", "0", "ok"), ("5.0", "1", "ok"), ("7.0", "0", "ok"), ("7.0", "1", "ok")]
+    for a, b in zip(pool, dask):
+        assert {k: a[k] for k in DETERMINISTIC} == {k: b[k] for k in DETERMINISTIC}
+
+
+def test_unreachable_scheduler_is_a_one_line_error(capsys, tmp_path, monkeypatch):
+    pytest.importorskip("distributed")
+    monkeypatch.setattr(sweep, "CONNECT_TIMEOUT_S", 1.0)
+    rc = main(["sweep", "braking", "--grid", "braking.speed=5", "--scheduler", "tcp://127.0.0.1:9",
+               "--out", str(tmp_path), *SHORT])
+    assert rc == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("aac-sumo: error: --scheduler tcp://127.0.0.1:9: scheduler: expected")
+
+
+def test_crashed_worker_costs_only_its_run(tmp_path):
+    tasks = sweep.plan_tasks("braking", ["controller.horizon=5", "scenario.duration=2"],
+                             [("braking.speed", ["5"])], seeds=3)
+    rows = sweep.run_tasks(tasks, ["braking.speed"], tmp_path, workers=2, progress=False, fn=_die_on_seed_1)
+    assert [(r["seed"], r["status"]) for r in rows] == [(0, "ok"), (1, "error"), (2, "ok")]
+    assert rows[1]["error"].startswith("WorkerDied: the worker process died")
+    _, written = read_rows(tmp_path / "results.csv")
+    assert [(r["seed"], r["status"]) for r in written] == [("0", "ok"), ("1", "error"), ("2", "ok")]
+
+
+def test_resume_skips_finished_runs_and_retries_errors(capsys, tmp_path):
+    argv = ["sweep", "braking", "--workers", "2", "--out", str(tmp_path), *SHORT]
+    assert main(argv + ["--grid", "braking.speed=5,6,7"]) == 0
+    path = tmp_path / "results.csv"
+    cols, rows = read_rows(path)
+    # an interrupted sweep: speed 5 finished (marked so we can tell it is not run again), speed 6
+    # failed, speed 7 never finished
+    original = [r["min_distance_m"] for r in rows]
+    rows[0]["min_distance_m"] = "123.0"
+    rows[1].update(status="error", error="RuntimeError: boom", min_distance_m="")
+    with open(path, "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=cols, lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(rows[:2])
+    capsys.readouterr()
+    assert main(argv + ["--grid", "braking.speed=5,6,7", "--resume"]) == 0
+    assert "resuming: 1 of 3 runs already in" in capsys.readouterr().err
+    _, resumed = read_rows(path)
+    assert [(r["braking.speed"], r["status"]) for r in resumed] == [("5.0", "ok"), ("6.0", "ok"), ("7.0", "ok")]
+    assert resumed[0]["min_distance_m"] == "123.0"  # kept, not run again
+    assert [r["min_distance_m"] for r in resumed[1:]] == original[1:]  # run (again)
+    assert "| 5.0 | 1/1 |" in (tmp_path / "summary.md").read_text()
+
+
+def test_resume_refuses_another_sweep(capsys, tmp_path):
+    argv = ["sweep", "braking", "--grid", "braking.speed=5", "--out", str(tmp_path), *SHORT]
+    assert main(argv) == 0
+    capsys.readouterr()
+    assert main(argv + ["--resume", "--set", "braking.gap=8"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "sweep.json: sets: expected the same --set overrides" in err[0]
+    assert main(["sweep", "braking", "--grid", "braking.gap=7", "--out", str(tmp_path), "--resume", *SHORT]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "results.csv: columns: expected the grid keys of this sweep (braking.gap)" in err[0]
+
+
+def test_executor_map_yields_exceptions_and_results():
+    with sweep.Executor(workers=2) as ex:
+        got = dict(ex.map(_reciprocal, [1, 0, 4]))
+    assert got[0] == 1.0 and got[2] == 0.25 and isinstance(got[1], ZeroDivisionError)
+
+
+def _reciprocal(x: float) -> float:
+    return 1 / x
