@@ -369,15 +369,19 @@ class Search:
         std = scores.std()
         target = -(scores - scores.mean()) / (std if std > 0 else 1.0)  # bayes_opt maximises
         rng = np.random.RandomState(_seed(self.seed, 2, n))
-        opt = BayesianOptimization(
-            f=None, pbounds={name: p.bounds() for name, p in zip(names, self.params)},
-            acquisition_function=acquisition.ExpectedImprovement(xi=self.xi, random_state=rng),
-            random_state=rng, verbose=0, allow_duplicate_points=True)
-        for t, y in zip(self.trials, target):
-            opt.register(params={name: p.coordinate(t.values[p.key]) for name, p in zip(names, self.params)},
-                         target=float(y))
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # sklearn's GP convergence notes
+        from threadpoolctl import threadpool_limits  # installed with scikit-learn, bayes_opt's GP
+
+        # one BLAS thread: the matrices are tiny, and threads only fight the simulations for cores
+        with warnings.catch_warnings(), threadpool_limits(1):
+            # bayes_opt calls integer parameters experimental; sklearn notes GP fits that hit a bound
+            warnings.simplefilter("ignore")
+            opt = BayesianOptimization(
+                f=None, pbounds={name: p.bounds() for name, p in zip(names, self.params)},
+                acquisition_function=acquisition.ExpectedImprovement(xi=self.xi),
+                random_state=rng, verbose=0, allow_duplicate_points=True)
+            for t, y in zip(self.trials, target):
+                opt.register(params={name: p.coordinate(t.values[p.key]) for name, p in zip(names, self.params)},
+                             target=float(y))
             point = opt.suggest()
         return {p.key: p.value(point[name]) for name, p in zip(names, self.params)}
 
