@@ -108,7 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
     p = sub.add_parser("bench", help="speed figures: medians and ratios measured in one process")
-    p.add_argument("target", nargs="?", default="all", choices=("mpc", "aac", "all"), metavar="{mpc,aac,all}")
+    p.add_argument("target", nargs="?", default="all", choices=("mpc", "aac", "tune", "all"), metavar="{mpc,aac,tune,all}")
     p.add_argument("--out", type=Path, default=Path("out/bench"), help="output directory (default out/bench)")
     p.add_argument("--samples", type=_positive_int, default=100, metavar="S", help="timed solves per configuration (default 100)")
     p.add_argument("--horizons", type=_int_list, default=None, metavar="N1,N2,...", help="MPC horizons (default 5,10,15)")
@@ -264,6 +264,13 @@ def cmd_table(args) -> int:
 def cmd_bench(args) -> int:
     from aac_sumo import bench
 
+    if args.target == "tune":  # BO against random search; --samples = tuner seeds per sampler
+        from aac_sumo import tune
+
+        _check_out(args.out)
+        print(tune.benchmark(args.samples, args.out), end="")
+        print(f"outputs: {args.out / 'tune_bench.json'}, {args.out / 'tune_bench.md'}, {args.out / 'tune_bench.png'}")
+        return 0
     if args.target == "aac":
         raise UsageError("bench aac: that benchmark is not available yet (a later issue adds it); available: mpc, all")
     solvers = bench.SOLVERS
