@@ -234,3 +234,20 @@ def test_no_feasible_candidate_writes_no_best_toml(capsys, tmp_path):
     assert [r["status"] for r in rows] == ["failed", "failed"]
     assert all("braking.gap" in r["errors"] and r["runs_ok"] == "0" for r in rows)
     assert not (tmp_path / "best.toml").exists()
+
+
+def test_sampler_benchmark_writes_paired_records(tmp_path):
+    text = tune.benchmark(samples=2, out=tmp_path, trials=8, workers=2, progress=False)
+    import json
+
+    records = json.loads((tmp_path / "tune_bench.json").read_text())
+    assert [r["name"] for r in records] == ["tune/bo/branin", "tune/random/branin", "tune/bo/hartmann3",
+                                            "tune/random/hartmann3"]
+    for r in records:
+        assert r["trials"] == 8 and r["samples"] == 2 and r["median_best"] >= r["optimum"] - 1e-6
+    bo = records[0]
+    assert bo["ratio_to"] == "tune/random/branin" and 0 <= bo["wins"] + bo["ties"] <= 2
+    # the same tuner seeds give the same figures, run in any order on any worker
+    assert records[1]["median_best"] == pytest.approx(
+        statistics.median(branin_search("random", s, 8)[-1].best_so_far for s in range(2)))
+    assert (tmp_path / "tune_bench.png").stat().st_size > 0 and "| branin | 2 |" in text
