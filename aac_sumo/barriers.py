@@ -176,12 +176,12 @@ class RegionTrack:
 
 
 def hull_safety_ellipses(corners, velocities, headings, barrier: str, fcbf: FcbfParams) -> np.ndarray:
-    """Per-stage safety ellipses (N+1, 5) that contain the convex hull of ``corners`` (N+1, P, 2).
+    """Per-stage safety ellipses (..., 5) that contain the convex hull of ``corners`` (..., P, 2).
 
     Each stage's base ellipse contains the stage's points (:func:`~aac_sumo.geometry.containing_ellipse`,
     oriented like the F-CBF ellipse); F-CBF then grows its axes with the stage ``velocities``
-    (N+1, 2) as in :func:`fcbf_stretch`, which only enlarges it, so containment is kept. Plain
-    CBF uses the base ellipse along ``headings`` (N+1,).
+    (..., 2) as in :func:`fcbf_stretch`, which only enlarges it, so containment is kept. Plain
+    CBF uses the base ellipse along ``headings`` (...).
     """
     if barrier == "fcbf":
         da, db, phi = fcbf_stretch(velocities, headings, fcbf)
@@ -190,8 +190,8 @@ def hull_safety_ellipses(corners, velocities, headings, barrier: str, fcbf: Fcbf
     else:
         raise ValueError(f"unknown barrier {barrier!r}; expected one of {BARRIERS}")
     ellipses = containing_ellipse(corners, phi)
-    ellipses[:, 2] += da
-    ellipses[:, 3] += db
+    ellipses[..., 2] += da
+    ellipses[..., 3] += db
     return ellipses
 
 

@@ -42,7 +42,7 @@ class Key:
     def expected(self) -> str:
         if isinstance(self.type, tuple):
             return "one of " + ", ".join(self.type)
-        base = {float: "a number", int: "an integer", bool: "true or false", str: "a string"}[self.type]
+        base = {float: "a number", int: "an integer", bool: "true or false", str: "a string", list: "a list"}[self.type]
         return f"{base} {self.expect}".strip()
 
     def validate(self, value: Any) -> Any:
@@ -69,19 +69,32 @@ def _non_negative(x):
     return x >= 0
 
 
+def rows(*fields: str) -> dict:
+    """Key options for a list of number rows, one per item, each ``[field, ...]``."""
+
+    def check(value) -> bool:
+        return all(isinstance(r, list) and len(r) == len(fields)
+                   and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in r)
+                   for r in value)
+
+    return dict(check=check, expect=f"of [{', '.join(fields)}] rows")
+
+
 P = dict(check=_positive, expect="> 0")
 NN = dict(check=_non_negative, expect=">= 0")
 
 COMMON: dict[str, dict[str, Key]] = {
     "scenario": {
         "name": Key(str, "unnamed", "label written into metrics.json"),
-        "kind": Key(("braking",), "braking", "which experiment builds the world"),
+        "kind": Key(("braking", "swarm_rescue", "circle_swap", "lane_change"), "braking", "which experiment builds the world"),
         "seed": Key(int, 0, "seed of every random choice in the run", **NN),
         "dt": Key(float, 0.1, "control period and simulation step [s]", **P),
         "duration": Key(float, 20.0, "time limit [s]", **P),
     },
     "controller": {
-        "coordinator": Key(("independent",), "independent", "who plans when: every robot plans for itself each period"),
+        "coordinator": Key(("aac", "lfc", "independent"), "aac",
+                           "who plans when: aac (one authority robot per period), lfc (every robot in index-priority order), "
+                           "independent (every robot for itself)"),
         "barrier": Key(("fcbf", "cbf"), "fcbf", "F-CBF (velocity-stretched ellipse) or plain CBF (footprint ellipse)"),
         "horizon": Key(int, 10, "MPC horizon N [steps]", check=lambda n: 1 <= n <= 100, expect="in 1..100"),
         "solver": Key(("fatrop", "sqp", "ipopt"), "fatrop", "NLP solver of the fast path"),
@@ -116,10 +129,24 @@ COMMON: dict[str, dict[str, Key]] = {
         "v_max": Key(float, 30.0, "speed limit [m/s]", **P),
         "allow_reverse": Key(bool, False, "allow negative speed down to -v_max"),
     },
+    "aac": {
+        "close_distance": Key(float, 2.0, "robots whose footprint centres are closer than this form a close pair [m]", **P),
+        "proximity_iterations": Key(int, 40, "sampling-tree iterations per robot in the proximity decision", **P),
+        "alpha": Key(float, 1.0, "proximity score weight on progress toward the goal [1/m]", **NN),
+        "beta": Key(float, 2.0, "proximity score weight on the collision cost with other robots", **NN),
+        "tree_step": Key(float, 0.3, "sampling-tree step length [m]", **P),
+        "sample_radius": Key(float, 3.0, "sampling-tree samples are drawn within this radius of the robot [m]", **P),
+        "collision_radius": Key(float, 1.0, "a tree node closer than this to another robot costs (1 - d/r)^2 [m]", **P),
+        "safety_stop": Key(bool, True, "non-authority robots brake when their stored input would take them into another's region"),
+        "safety_margin": Key(float, 0.1, "footprint gap below which the safety stop triggers [m]", **NN),
+        "lookahead": Key(float, 1.0, "pure-pursuit lookahead of the tracking law for robots without a plan [m]", **P),
+        "speed_gain": Key(float, 1.0, "speed-error gain of the tracking law [1/s]", **P),
+    },
     "metrics": {
         "accel_threshold": Key(float, 3.0, "|longitudinal acceleration| that counts as aggressive [m/s^2]", **P),
         "lat_accel_threshold": Key(float, 3.0, "lateral acceleration v^2 |curvature| that counts as aggressive [m/s^2]", **P),
         "stop_speed": Key(float, 0.05, "speed below which a robot counts as stopped [m/s]", **NN),
+        "deadlock_time": Key(float, 5.0, "a run in which no unfinished robot moves faster than stop_speed for this long ends as a deadlock [s]", **P),
     },
 }
 
@@ -136,6 +163,44 @@ KIND_SECTIONS: dict[str, dict[str, Key]] = {
         "lane_width": Key(float, 1.0, "lane width; the ego's rear axle keeps (lane_width - robot.width)/2 from the centre line [m]", **P),
     },
 }
+
+KIND_SECTIONS["swarm_rescue"] = {
+    "starts": Key(list, [[0.0, 0.0, 0.0], [0.0, 2.0, 0.0]], "start poses of the robots' rear axles [m, m, rad]", **rows("x", "y", "heading")),
+    "goals": Key(list, [[10.0, 2.0], [10.0, 0.0]], "goal of each robot's rear axle, one per start [m]", **rows("x", "y")),
+    "debris": Key(list, [], "static obstacles as footprint rectangles [m, m, m, m, rad]", **rows("cx", "cy", "length", "width", "heading")),
+    "cruise_speed": Key(float, 1.0, "reference speed along the straight path to the goal [m/s]", **P),
+    "goal_tolerance": Key(float, 0.3, "a robot has arrived when its rear axle is this close to its goal [m]", **P),
+    "start_jitter": Key(float, 0.1, "the seed shifts every start position uniformly within +- this [m]", **NN),
+}
+KIND_SECTIONS["circle_swap"] = {
+    "n_robots": Key(int, 8, "robots evenly spaced on the circle", check=lambda n: n >= 2, expect=">= 2"),
+    "radius": Key(float, 4.0, "circle radius; each robot drives to the antipodal point [m]", **P),
+    "cruise_speed": Key(float, 1.0, "reference speed along the straight path to the goal [m/s]", **P),
+    "goal_tolerance": Key(float, 0.3, "a robot has arrived when its rear axle is this close to its goal [m]", **P),
+    "start_jitter": Key(float, 0.05, "the seed shifts every start position uniformly within +- this [m]", **NN),
+}
+KIND_SECTIONS["lane_change"] = {
+    "vehicles": Key(int, 15, "controlled vehicles, dealt to the lanes in turn (vehicle k starts in lane k mod lanes)", **P),
+    "speed": Key(float, 10.0, "cruise speed of every reference [m/s]", **P),
+    "spacing": Key(float, 24.0, "distance between consecutive vehicles of one lane; lane i is shifted by i*spacing/lanes [m]", **P),
+    "start_s": Key(float, 10.0, "arc length of the rearmost start (rear axle) along its lane [m]", **NN),
+    "start_jitter": Key(float, 1.0, "the seed shifts every start along its lane uniformly within +- this [m]", **NN),
+    "change_start": Key(float, 5.0, "a vehicle's lane change begins this far beyond its start [m]", **NN),
+    "change_length": Key(float, 40.0, "arc length over which the reference moves from start lane to target lane [m]", **P),
+    "finish_margin": Key(float, 20.0, "a vehicle has passed the cone zone when its rear axle is this far beyond the last cone [m]", **NN),
+    "lane_tolerance": Key(float, 0.5, "lateral distance to the target lane's centre line that counts as arrived in it [m]", **P),
+}
+SUMO_SECTION: dict[str, Key] = {
+    "net": Key(str, "", "SUMO .net.xml (empty: the bundled sumo_networks/lane_change network)"),
+    "routes": Key(str, "", "comma-separated SUMO route files with cones, pedestrians, other traffic (empty: the bundled ones with the bundled net, none otherwise)"),
+    "edges": Key(str, "", "space-separated edge ids of the road, in driving order (empty: the longest chain of car edges)"),
+    "cone_types": Key(str, "cone", "comma-separated vType ids whose vehicles are cones (static obstacles)"),
+    "gui": Key(bool, False, "show the run in sumo-gui (set by aac-sumo run --gui)"),
+    "fcd": Key(bool, False, "write SUMO's floating-car-data trajectories, fcd.xml, into sumo.output_dir"),
+    "output_dir": Key(str, "", "directory of SUMO's own output files (aac-sumo run sets it to --out; empty: out/<scenario name>)"),
+}
+#: Sections beyond COMMON and the kind's own that a kind uses.
+KIND_EXTRA_SECTIONS: dict[str, dict[str, dict[str, Key]]] = {"lane_change": {"sumo": SUMO_SECTION}}
 
 
 class Scenario:
@@ -180,7 +245,7 @@ class Scenario:
 
 def schema_for(kind: str) -> dict[str, dict[str, Key]]:
     """All sections a scenario of ``kind`` may hold."""
-    return COMMON | {kind: KIND_SECTIONS[kind]}
+    return COMMON | {kind: KIND_SECTIONS[kind]} | KIND_EXTRA_SECTIONS.get(kind, {})
 
 
 def parse_value(raw: str) -> Any:

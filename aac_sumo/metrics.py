@@ -13,7 +13,7 @@ METRIC_KEYS = (
     "compute_ms_mean", "compute_ms_median", "compute_ms_p95", "solves", "infeasible_solves",
     "infeasibility_rate", "min_distance_m", "min_clearance_m", "collisions", "sim_collisions", "ttc_mean_s",
     "aggressive_driving_rate", "tracking_error_m", "authority_jain", "delay_jain", "delay_max_s",
-    "realtime_factor",
+    "realtime_factor", "safety_stops", "deadlock",
 )
 ROBOT_KINDS = ("robot", "scripted")
 
@@ -65,6 +65,23 @@ def jain(values) -> float | None:
     return float(x.sum() ** 2 / (x.size * (x**2).sum()))
 
 
+def authority_jain(steps: pd.DataFrame) -> float | None:
+    """Jain's index over robots of received / fair authority, counted while robots are unfinished.
+
+    In each period the robots that have not yet arrived share one fair unit of authority
+    equally (1/m each of m); a robot's ratio is its authority periods over its summed fair
+    shares. Pure round robin over robots that stay unfinished gives 1. Without an ``arrived``
+    column every robot counts in every period.
+    """
+    rows = steps[~steps["arrived"].astype(bool)] if "arrived" in steps else steps
+    if rows.empty:
+        return None
+    share = 1.0 / rows.groupby("t")["robot"].transform("size")
+    fair = share.groupby(rows["robot"]).sum()
+    got = rows["authority"].astype(float).groupby(rows["robot"]).sum()
+    return jain(got / fair)
+
+
 def _finite(x) -> float | None:
     return None if x is None or not np.isfinite(x) else float(x)
 
@@ -74,7 +91,8 @@ def compute_metrics(steps: pd.DataFrame, periods: pd.DataFrame, info: dict) -> d
 
     ``info`` carries what ran (scenario, coordinator, barrier, horizon, seed, n_robots),
     ``completed``, ``task_duration_s``, ``collisions``, ``sim_collisions``, ``wall_s``, the
-    aggressive-driving thresholds and ``wheelbase`` per robot.
+    aggressive-driving thresholds, ``wheelbase`` per robot, and optionally ``delay_jain``,
+    ``delay_max_s``, ``safety_stops`` and ``deadlock``.
     """
     compute = periods["compute_ms"].to_numpy() if len(periods) else np.array([])
     solved = steps[steps["status"].notna() & (steps["status"] != "")]
@@ -98,10 +116,12 @@ def compute_metrics(steps: pd.DataFrame, periods: pd.DataFrame, info: dict) -> d
         ttc_mean_s=_finite(steps["ttc_s"].mean()) if steps["ttc_s"].notna().any() else None,
         aggressive_driving_rate=_aggressive_rate(steps, info) if len(steps) else None,
         tracking_error_m=_finite(np.hypot(steps["x"] - steps["ref_x"], steps["y"] - steps["ref_y"]).mean()) if len(steps) else None,
-        authority_jain=jain(steps.groupby("robot")["authority"].sum()) if len(steps) else None,
+        authority_jain=authority_jain(steps) if len(steps) else None,
         delay_jain=info.get("delay_jain"),
         delay_max_s=info.get("delay_max_s"),
         realtime_factor=_finite(sim_time / info["wall_s"]) if info.get("wall_s") else None,
+        safety_stops=int(info.get("safety_stops", 0)),
+        deadlock=bool(info.get("deadlock", False)),
     )
     return {k: m[k] for k in METRIC_KEYS} | {k: v for k, v in m.items() if k not in METRIC_KEYS}
 

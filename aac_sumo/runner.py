@@ -14,7 +14,7 @@ import pandas as pd
 
 from aac_sumo import experiments
 from aac_sumo.config import Scenario
-from aac_sumo.metrics import compute_metrics, nearest_robot_distance, time_to_collision
+from aac_sumo.metrics import compute_metrics, jain, nearest_robot_distance, time_to_collision
 
 
 @dataclass
@@ -38,15 +38,25 @@ def run(scenario: Scenario) -> RunResult:
     steps, periods, traj = [], [], []
     active_overlaps: set = set()
     collisions, sim_collisions = 0, None
-    completed, task_duration, error = False, None, None
+    completed, task_duration, error, deadlock = False, None, None, False
+    arrival = np.full(len(setup.tasks), np.nan)
+    stop, patience = scenario["metrics.stop_speed"], scenario["metrics.deadlock_time"]
+    last_motion = 0.0
     try:
         for k in range(int(round(duration / dt)) + 1):
             world = sim.observe()
             traj += [dict(t=round(world.t, 9), **a) for a in sim.agents()]
-            if setup.finished(world).all():
+            done = np.asarray(setup.finished(world), dtype=bool)
+            arrival[done & np.isnan(arrival)] = world.t
+            if done.all():
                 completed, task_duration = True, world.t
                 break
             if k * dt >= duration - 1e-9:
+                break
+            if np.any(np.abs(world.states[~done, 3]) > stop):
+                last_motion = world.t
+            elif world.t - last_motion >= patience - 1e-9:
+                deadlock = True
                 break
             decision = coord.decide(world)
             ttc = time_to_collision(world)
@@ -65,7 +75,8 @@ def run(scenario: Scenario) -> RunResult:
                     accel=decision.inputs[i, 0], steer=decision.inputs[i, 1],
                     ref_x=ref[0], ref_y=ref[1], ref_heading=ref[2], ref_v=ref[3],
                     status=rec.status, solver=rec.solver, solve_ms=rec.solve_ms, authority=rec.authority,
-                    clearance_m=contacts.clearance[i], nearest_robot_m=nearest[i], ttc_s=ttc[i],
+                    reason=rec.reason, mode=rec.mode, proximity_score=rec.score, proximity_progress=rec.progress,
+                    arrived=bool(done[i]), clearance_m=contacts.clearance[i], nearest_robot_m=nearest[i], ttc_s=ttc[i],
                 ))
     except Exception as exc:  # keep what was recorded; report the failure in metrics
         error = f"{type(exc).__name__}: {exc}".splitlines()[0]
@@ -83,20 +94,30 @@ def run(scenario: Scenario) -> RunResult:
         accel_threshold=scenario["metrics.accel_threshold"], lat_accel_threshold=scenario["metrics.lat_accel_threshold"],
         wheelbase={r.name: r.model.wheelbase for r in robots},
     )
+    if setup.free_flow_s is not None and completed:
+        delay = arrival - setup.free_flow_s
+        info.update(delay_jain=jain(np.maximum(delay, 0.0)), delay_max_s=float(delay.max()))
+    info.update(deadlock=deadlock, safety_stops=int(periods_df["safety_stops"].sum()) if "safety_stops" in periods_df else 0)
     metrics = compute_metrics(steps_df, periods_df, info)
+    reasons = []
     if error is not None:
         metrics["error"] = error
-    elif not completed:
-        metrics["incomplete_reason"] = f"time limit {duration} s reached"
-    elif collisions:
+    if collisions:
         metrics["completed"], metrics["task_duration_s"] = False, None
-        metrics["incomplete_reason"] = f"{collisions} collision(s); wrecked robots stop where they hit"
+        reasons.append(f"{collisions} collision(s); wrecked robots stop where they hit")
+    if deadlock:
+        reasons.append(f"deadlock: no unfinished robot moved faster than {stop} m/s for {patience} s (t = {len(periods) * dt:.1f} s)")
+    elif not completed and error is None:
+        reasons.append(f"time limit {duration} s reached")
+    if reasons:
+        metrics["incomplete_reason"] = "; ".join(reasons)
     return RunResult(metrics, steps_df, periods_df, pd.DataFrame(traj), scenario)
 
 
 STEP_COLUMNS = [
     "t", "robot", "x", "y", "heading", "v", "accel", "steer", "ref_x", "ref_y", "ref_heading", "ref_v",
-    "status", "solver", "solve_ms", "authority", "clearance_m", "nearest_robot_m", "ttc_s",
+    "status", "solver", "solve_ms", "authority", "reason", "mode", "proximity_score", "proximity_progress",
+    "arrived", "clearance_m", "nearest_robot_m", "ttc_s",
 ]
 
 

@@ -6,29 +6,46 @@ from __future__ import annotations
 import time
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
+from aac_sumo.barriers import ObstaclePrediction, RegionTrack
+from aac_sumo.coordination.regions import Fleet
 from aac_sumo.mpc.planner import MpcPlanner, Plan
 from aac_sumo.references import PathReference
 from aac_sumo.world import Obstacle, WorldState
 
+Finished = Callable[[WorldState], np.ndarray]
+
 
 @dataclass
 class RobotDecision:
-    """One robot's part of a decision. ``status`` is None when the robot did not solve."""
+    """One robot's part of a decision.
+
+    ``authority`` is true when the robot solved its MPC this period, and ``status`` is then the
+    solve status (None otherwise). ``reason`` says why it holds authority (``round_robin``,
+    ``proximity``, ``priority``, ``independent``) and ``mode`` what it applies (``mpc``,
+    ``plan``: the next input of its stored plan, ``tracking``: the tracking law, ``hold``:
+    braking at its goal, ``safety_stop``). ``score``/``progress`` are its proximity-decision
+    figures when it was a candidate.
+    """
 
     authority: bool
     status: str | None = None
     solve_ms: float = 0.0
     solver: str = ""
     reference: np.ndarray | None = None
+    reason: str = ""
+    mode: str = ""
+    score: float | None = None
+    progress: float | None = None
 
 
 @dataclass
 class Decision:
     """Inputs (n, 2) ``[accel, steer]`` for every controlled robot, per-robot records, the
-    coordinator's wall time for the period [ms] and free-form notes (e.g. authority reasons)."""
+    coordinator's wall time for the period [ms] and free-form notes."""
 
     inputs: np.ndarray
     robots: list[RobotDecision]
@@ -38,20 +55,26 @@ class Decision:
 
 class Coordinator(ABC):
     """Holds the planner, each robot's task (reference path), optional position box
-    (``[x_min, x_max, y_min, y_max]``, see :meth:`MpcPlanner.plan`), last plan and last input."""
+    (``[x_min, x_max, y_min, y_max]``, see :meth:`MpcPlanner.plan`), last plan and last input.
+    ``finished(world)`` tells which robots have finished their task (none, without it)."""
 
     name = "base"
 
-    def __init__(self, planner: MpcPlanner, tasks: list[PathReference], corridors: list[np.ndarray | None] | None = None):
+    def __init__(self, planner: MpcPlanner, tasks: list[PathReference], corridors: list[np.ndarray | None] | None = None,
+                 finished: Finished | None = None):
         self.planner = planner
         self.tasks = tasks
         self.corridors = corridors or [None] * len(tasks)
+        self.finished = finished or (lambda world: np.zeros(len(world.robots), dtype=bool))
         self.plans: list[Plan | None] = [None] * len(tasks)
         self.last_inputs = np.zeros((len(tasks), 2))
+        self.fleet: Fleet | None = None
 
     def decide(self, world: WorldState) -> Decision:
         """Inputs for this period; ``compute_ms`` is the wall time of the whole decision."""
         start = time.perf_counter()
+        if self.fleet is None:
+            self.fleet = Fleet(world.robots)
         decision = self._decide(world)
         decision.compute_ms = (time.perf_counter() - start) * 1e3
         self.last_inputs = decision.inputs.copy()
@@ -65,9 +88,13 @@ class Coordinator(ABC):
         cfg = self.planner.config
         return self.tasks[i].horizon(world.states[i], cfg.horizon, cfg.dt)
 
-    def solve(self, world: WorldState, i: int, obstacles: list[Obstacle]) -> RobotDecision:
+    def solve(self, world: WorldState, i: int, obstacles: list[Obstacle | ObstaclePrediction | RegionTrack], reason: str) -> RobotDecision:
         """Plan robot ``i`` around ``obstacles``, remember the plan, and report it."""
         ref = self.reference(world, i)
         plan = self.planner.plan(world.robots[i], world.states[i], ref, self.last_inputs[i], obstacles, self.plans[i], self.corridors[i])
         self.plans[i] = plan
-        return RobotDecision(True, plan.status, plan.solve_ms, plan.solver, ref)
+        return RobotDecision(True, plan.status, plan.solve_ms, plan.solver, ref, reason=reason, mode="mpc")
+
+    def hold_input(self, world: WorldState, i: int) -> np.ndarray:
+        """Braking input that brings robot ``i`` to a stop where it is."""
+        return world.robots[i].model.limits.braking_input(world.states[i, 3], self.planner.config.dt)

@@ -15,6 +15,6 @@ class IndependentCoordinator(Coordinator):
     def _decide(self, world: WorldState) -> Decision:
         n = len(world.robots)
         others = [world.robot_as_obstacle(j) for j in range(n)]
-        records = [self.solve(world, i, world.obstacles + others[:i] + others[i + 1 :]) for i in range(n)]
+        records = [self.solve(world, i, world.obstacles + others[:i] + others[i + 1 :], "independent") for i in range(n)]
         inputs = np.array([self.plans[i].inputs[0] for i in range(n)])
         return Decision(inputs, records)

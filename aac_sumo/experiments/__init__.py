@@ -12,4 +12,12 @@ def build(scenario: Scenario) -> Setup:
         from aac_sumo.experiments.braking import build_braking
 
         return build_braking(scenario)
+    if scenario.kind in ("swarm_rescue", "circle_swap"):
+        from aac_sumo.experiments import swarm
+
+        return getattr(swarm, f"build_{scenario.kind}")(scenario)
+    if scenario.kind == "lane_change":
+        from aac_sumo.experiments.lane_change import build_lane_change
+
+        return build_lane_change(scenario)
     raise ValueError(f"no builder for scenario kind {scenario.kind!r}")

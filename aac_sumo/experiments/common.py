@@ -9,8 +9,11 @@ import numpy as np
 
 from aac_sumo.barriers import FcbfParams
 from aac_sumo.config import Scenario, ScenarioError
-from aac_sumo.coordination.base import Coordinator
+from aac_sumo.coordination.aac import AacCoordinator, AacParams
+from aac_sumo.coordination.base import Coordinator, Finished
 from aac_sumo.coordination.independent import IndependentCoordinator
+from aac_sumo.coordination.lfc import LfcCoordinator
+from aac_sumo.coordination.proximity import ProximityParams
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.geometry import pairwise_rect_clearance
 from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
@@ -18,19 +21,21 @@ from aac_sumo.references import PathReference
 from aac_sumo.sim.base import Simulator
 from aac_sumo.world import RobotSpec, WorldState
 
-COORDINATORS: dict[str, type[Coordinator]] = {"independent": IndependentCoordinator}
+COORDINATORS: dict[str, type[Coordinator]] = {"aac": AacCoordinator, "lfc": LfcCoordinator, "independent": IndependentCoordinator}
 
 
 @dataclass
 class Setup:
     """A ready-to-run experiment. ``finished(world)`` tells, per controlled robot, whether it
-    has finished its task; the run completes when all have."""
+    has finished its task; the run completes when all have. ``free_flow_s`` is each robot's
+    task time without interaction [s] (path length at cruise speed), for the delay metrics."""
 
     scenario: Scenario
     sim: Simulator
     coordinator: Coordinator
     tasks: list[PathReference]
     finished: Callable[[WorldState], np.ndarray]
+    free_flow_s: np.ndarray | None = None
 
 
 def robot_spec(scenario: Scenario, name: str) -> RobotSpec:
@@ -55,9 +60,23 @@ def mpc_config(scenario: Scenario) -> MpcConfig:
     )
 
 
-def coordinator(scenario: Scenario, tasks: list[PathReference], corridors=None) -> Coordinator:
-    """The ``controller.coordinator`` with its own MPC planner."""
-    return COORDINATORS[scenario["controller.coordinator"]](MpcPlanner(mpc_config(scenario)), tasks, corridors)
+def aac_params(scenario: Scenario) -> AacParams:
+    """The AAC settings of ``[aac]``; the sampling trees are seeded by the scenario seed."""
+    a = scenario.data["aac"]
+    return AacParams(
+        close_distance=a["close_distance"],
+        proximity=ProximityParams(a["proximity_iterations"], a["alpha"], a["beta"], a["tree_step"], a["sample_radius"], a["collision_radius"]),
+        safety_stop=a["safety_stop"], safety_margin=a["safety_margin"], lookahead=a["lookahead"], speed_gain=a["speed_gain"],
+        seed=scenario["scenario.seed"],
+    )
+
+
+def coordinator(scenario: Scenario, tasks: list[PathReference], corridors=None, finished: Finished | None = None) -> Coordinator:
+    """The ``controller.coordinator`` with its own MPC planner; ``finished`` tells it which
+    robots have finished their task (they no longer take authority)."""
+    name = scenario["controller.coordinator"]
+    extra = dict(params=aac_params(scenario)) if name == "aac" else {}
+    return COORDINATORS[name](MpcPlanner(mpc_config(scenario)), tasks, corridors, finished, **extra)
 
 
 def check_start(scenario: Scenario, world: WorldState, key: str) -> None:

@@ -13,12 +13,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aac_sumo.barriers import FcbfParams, ObstaclePrediction, RegionTrack, inactive_slot, predict_constant_velocity, safety_ellipses, stage_parameters
+from aac_sumo.barriers import FcbfParams, ObstaclePrediction, RegionTrack, barrier_value, inactive_slot, predict_constant_velocity, safety_ellipses, stage_parameters
 from aac_sumo.dynamics import bicycle_step
 from aac_sumo.mpc.problem import ProblemShape, get_problem
 from aac_sumo.world import Obstacle, RobotSpec
 
 STATUSES = ("solved", "infeasible", "failed")
+#: Relative margin kept outside a region the ego already intrudes on (see MpcPlanner.hold_intrusions).
+INTRUSION_EPS = 1e-3
 
 
 @dataclass(frozen=True)
@@ -110,21 +112,73 @@ class MpcPlanner:
         retry = config.retry_with_ipopt and config.solver != "ipopt"
         self.retry_problem = get_problem(config.shape("ipopt")) if retry else None
 
-    def obstacle_parameters(self, robot: RobotSpec, state: np.ndarray, obstacles: list[Obstacle | ObstaclePrediction | RegionTrack]) -> np.ndarray:
-        """Stage parameters (N+1, slots, 7) of the nearest obstacles around ``state``."""
+    def nearest_regions(self, state: np.ndarray, obstacles: list[Obstacle | ObstaclePrediction | RegionTrack]) -> list[np.ndarray]:
+        """Safety ellipses (N+1, 5) per stage of the ``slots`` obstacles nearest to ``state``."""
         cfg = self.config
         regions = [o.ellipses[: cfg.horizon + 1] if isinstance(o, RegionTrack) else
                    safety_ellipses(o if isinstance(o, ObstaclePrediction) else predict(o, cfg.horizon, cfg.dt), cfg.barrier, cfg.fcbf)
                    for o in obstacles]
-        offsets, radius = ego_discs(robot, cfg.discs)
         if len(regions) > cfg.slots:
             gaps = [np.hypot(*(e[0, :2] - state[:2])) - max(e[0, 2], e[0, 3]) for e in regions]
             regions = [regions[i] for i in np.argsort(gaps, kind="stable")[: cfg.slots]]
-        d = radius + cfg.d_safe
+        return regions
+
+    def slot_parameters(self, robot: RobotSpec, state: np.ndarray, regions: list[np.ndarray], d: float) -> np.ndarray:
+        """Stage parameters (N+1, slots, 7) of ``regions`` grown for ego clearance ``d`` [m]."""
         centre = state[:2] + robot.centre_offset * np.array([np.cos(state[2]), np.sin(state[2])])
         slots = [stage_parameters(e, d, centre) for e in regions]
-        slots += [inactive_slot(cfg.horizon)] * (cfg.slots - len(slots))
+        slots += [inactive_slot(self.config.horizon)] * (self.config.slots - len(slots))
         return np.stack(slots, axis=1)
+
+    def obstacle_parameters(self, robot: RobotSpec, state: np.ndarray, obstacles: list[Obstacle | ObstaclePrediction | RegionTrack]) -> np.ndarray:
+        """Stage parameters (N+1, slots, 7) of the nearest obstacles around ``state``, each
+        region grown by the ego's disc radius plus ``d_safe``."""
+        _, radius = ego_discs(robot, self.config.discs)
+        return self.slot_parameters(robot, state, self.nearest_regions(state, obstacles), radius + self.config.d_safe)
+
+    def barrier_parameters(self, robot: RobotSpec, state: np.ndarray, u_prev: np.ndarray,
+                           obstacles: list[Obstacle | ObstaclePrediction | RegionTrack]) -> np.ndarray:
+        """The MPC's obstacle parameters (N+1, slots, 7): the nearest regions with intrusions
+        into the ``d_safe`` margin held (see :meth:`hold_intrusions`)."""
+        _, radius = ego_discs(robot, self.config.discs)
+        regions = self.nearest_regions(state, obstacles)
+        params = self.slot_parameters(robot, state, regions, radius + self.config.d_safe)
+        hard = self.slot_parameters(robot, state, regions, radius)
+        room = np.minimum(hard[:, :, 4] / params[:, :, 4], hard[:, :, 5] / params[:, :, 5]).min(axis=0)
+        return self.hold_intrusions(params, robot, state, u_prev, room)
+
+    def hold_intrusions(self, params: np.ndarray, robot: RobotSpec, state: np.ndarray, u_prev: np.ndarray,
+                        room: np.ndarray) -> np.ndarray:
+        """Keep the barrier conditions satisfiable where the current state already decides them.
+
+        In the Euler model the rear axle's stage-1 position is fixed by the current state and the
+        inputs only turn the discs about it. Where the stage-1 discs (heading predicted with the
+        previous steering) already break the first condition ``h1 >= (1 - gamma) h0`` of a slot,
+        that row is switched off for this solve. Where they lie inside the region (``q < 1``,
+        with ``q = h + 1`` the quadratic form) but not deeper than the ``d_safe`` margin, the
+        slot's ``1/A^2, 1/B^2`` are scaled at every stage by ``(1 + eps) / q`` (at most
+        ``room`` (slots,), which shrinks the region to the one grown by the bare disc radius):
+        the ego starts just outside the shrunk region and may not go deeper than it already is.
+        Deeper intrusions keep the full region, so the solve fails and the robot brakes. Other
+        slots keep the paper's conditions; a shrunk region grows back as the ego moves away.
+        """
+        cfg = self.config
+        offsets, _ = ego_discs(robot, cfg.discs)
+        x, y, heading, v = state
+        heading1 = heading + v * np.tan(u_prev[1]) / robot.model.wheelbase * cfg.dt
+        pos1 = np.array([x, y]) + v * cfg.dt * np.array([np.cos(heading), np.sin(heading)])
+        discs0 = np.array([x, y]) + offsets[:, None] * np.array([np.cos(heading), np.sin(heading)])  # (D, 2)
+        discs1 = pos1 + offsets[:, None] * np.array([np.cos(heading1), np.sin(heading1)])
+        q0 = 1.0 + barrier_value(discs0[:, None, 0], discs0[:, None, 1], *params[0][None, :, :6].transpose(2, 0, 1))
+        q1 = 1.0 + barrier_value(discs1[:, None, 0], discs1[:, None, 1], *params[1][None, :, :6].transpose(2, 0, 1))
+        active = params[1, :, 6] > 0
+        broken = active & np.any(q1 - 1.0 < (1.0 - cfg.gamma) * (q0 - 1.0), axis=0)
+        factor = (1.0 + INTRUSION_EPS) / np.maximum(q1.min(axis=0), 1e-9)
+        inside = active & (factor > 1.0) & (factor <= room)
+        params[1, broken | inside, 6] = 0.0
+        params[:, inside, 4] *= factor[inside]
+        params[:, inside, 5] *= factor[inside]
+        return params
 
     def plan(
         self,
@@ -152,7 +206,7 @@ class MpcPlanner:
             disc_offsets=offsets,
             weights=cfg.weights(),
             x_ref=reference,
-            obstacles=self.obstacle_parameters(robot, state, obstacles),
+            obstacles=self.barrier_parameters(robot, state, u_prev, obstacles),
         )
         if previous is not None and len(previous.inputs) == cfg.horizon:
             guess = previous.shifted(state)

@@ -1,0 +1,175 @@
+"""Alternative Authority Control (paper Algorithm 1, as DESIGN.md interprets it).
+
+Each control period exactly one unfinished robot holds authority and solves MPC-(F)CBF:
+
+1. **Close pairs** of unfinished robots (centre distance below ``close_distance``, KD-tree).
+2. With close pairs, the **proximity decision** picks the authority among the robots in them;
+   without, **round robin** gives it to the next unfinished robot after the last holder.
+3. Every other robot applies the next input of its stored plan, or the tracking law when its
+   plan is used up (finished robots brake to a stop).
+4. Optional **safety stop** (beyond the paper, ``safety_stop``): a non-authority robot whose
+   stored input would bring its footprint within ``safety_margin`` of another robot's or an
+   obstacle's footprint over the next two periods (the Euler model moves the position one
+   period after the input acts), while closing in, brakes instead and drops its stored plan.
+5. The authority robot plans around the obstacles and the swept **convex-hull regions** of the
+   others: at stage k, an ellipse containing the hull of a robot's footprints at k and k+1 along
+   its known motion (stored plan, else constant velocity; the authority's own current motion
+   is what the others assume).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from aac_sumo.coordination.base import Coordinator, Decision, Finished, RobotDecision
+from aac_sumo.coordination.proximity import ProximityParams, close_pairs, proximity_decision
+from aac_sumo.coordination.tracking import track
+from aac_sumo.geometry import pairwise_rect_clearance
+from aac_sumo.mpc.planner import MpcPlanner
+from aac_sumo.references import PathReference
+from aac_sumo.world import WorldState
+
+
+@dataclass(frozen=True)
+class AacParams:
+    """AAC settings: close-pair distance [m], proximity decision, safety stop (on/off, margin
+    [m]), tracking law (lookahead [m], speed gain [1/s]) and the seed of the sampling trees."""
+
+    close_distance: float = 2.0
+    proximity: ProximityParams = ProximityParams()
+    safety_stop: bool = True
+    safety_margin: float = 0.1
+    lookahead: float = 1.0
+    speed_gain: float = 1.0
+    seed: int = 0
+
+
+class AacCoordinator(Coordinator):
+    name = "aac"
+
+    def __init__(self, planner: MpcPlanner, tasks: list[PathReference], corridors=None, finished: Finished | None = None,
+                 params: AacParams = AacParams()):
+        super().__init__(planner, tasks, corridors, finished)
+        self.params = params
+        self.rng = np.random.default_rng(params.seed)
+        self.cursor = -1
+        self.used = np.zeros(len(tasks), dtype=int)  # inputs already applied from each stored plan
+
+    def _decide(self, world: WorldState) -> Decision:
+        n, cfg = len(world.robots), self.planner.config
+        done = np.asarray(self.finished(world), dtype=bool)
+        active = np.flatnonzero(~done)
+        records = [RobotDecision(False) for _ in range(n)]
+        inputs = np.zeros((n, 2))
+        notes: dict = {}
+        if active.size == 0:
+            for i in range(n):
+                inputs[i], records[i].mode = self.hold_input(world, i), "hold"
+            return Decision(inputs, records, notes=dict(authority="", reason="all finished"))
+
+        authority, reason = self.choose_authority(world, active, records)
+        others = np.array([j for j in range(n) if j != authority], dtype=int)
+        horizon_inputs = np.zeros((len(others), cfg.horizon + 2, 2))
+        for row, j in enumerate(others):
+            horizon_inputs[row], records[j].mode = self.intended_inputs(world, j, done[j], cfg.horizon + 2)
+        traj = self.fleet.rollout(others, world.states[others], horizon_inputs, cfg.dt)
+
+        stops = self.safety_stops(world, others, horizon_inputs[:, 0]) if self.params.safety_stop else np.zeros(len(others), bool)
+        for row in np.flatnonzero(stops):
+            j = others[row]
+            brake = world.robots[j].model.limits.braking_input(world.states[j, 3], cfg.dt)
+            horizon_inputs[row] = [brake[0], horizon_inputs[row, 0, 1]]
+            horizon_inputs[row, 1:, 1] = 0.0
+            records[j].mode = "safety_stop"
+            if self.plans[j] is not None:
+                self.used[j] = len(self.plans[j].inputs)
+        if stops.any():
+            traj[stops] = self.fleet.rollout(others[stops], world.states[others[stops]], horizon_inputs[stops], cfg.dt)
+        inputs[others] = horizon_inputs[:, 0]
+        self.used[others] += 1
+
+        regions = self.fleet.swept_regions(others, traj, cfg.horizon, cfg.barrier, cfg.fcbf)
+        decided = self.solve(world, authority, world.obstacles + regions, reason)
+        decided.score, decided.progress = records[authority].score, records[authority].progress
+        records[authority] = decided
+        inputs[authority] = self.plans[authority].inputs[0]
+        self.used[authority] = 1
+        notes.update(authority=world.robots[authority].name, reason=reason, safety_stops=int(stops.sum()))
+        return Decision(inputs, records, notes=notes)
+
+    def choose_authority(self, world: WorldState, active: np.ndarray, records: list[RobotDecision]) -> tuple[int, str]:
+        """The authority robot and why; candidates of a proximity decision get their scores recorded."""
+        centres = world.robot_centres()
+        pairs = close_pairs(centres[active], self.params.close_distance)
+        if len(pairs) == 0:
+            later = active[active > self.cursor]
+            self.cursor = int(later[0] if later.size else active[0])
+            return self.cursor, "round_robin"
+        candidates = active[np.unique(pairs)]
+        n = len(world.robots)
+        blockers = np.vstack([centres] + [o.centre[None, :] for o in world.obstacles])
+        radius = np.r_[np.full(n, self.params.proximity.collision_radius),
+                       [self.params.proximity.collision_radius + 0.5 * np.hypot(o.length, o.width) for o in world.obstacles]]
+        owner = np.full(len(blockers), -1)
+        owner[candidates] = np.arange(len(candidates))
+        goals = np.array([self.tasks[i].points[-1] for i in candidates])
+        result = proximity_decision(world.states[candidates, :2], goals, blockers, radius, owner, self.params.proximity, self.rng)
+        for row, i in enumerate(candidates):
+            records[i].score, records[i].progress = float(result.scores[row]), float(result.progress[row])
+        return int(candidates[result.winner]), "proximity"
+
+    def intended_inputs(self, world: WorldState, j: int, finished: bool, steps: int) -> tuple[np.ndarray, str]:
+        """Robot ``j``'s inputs (steps, 2) as far as they are known: the rest of its stored
+        plan, then zero (constant velocity); the tracking law now when the plan is used up;
+        braking when it has finished a task that stops at its end."""
+        out = np.zeros((steps, 2))
+        task = self.tasks[j]
+        if finished and task.stop_at_end:
+            out[:] = self.hold_input(world, j)  # speeds never drop below v_min in the rollout
+            return out, "hold"
+        plan = self.plans[j]
+        if plan is not None and self.used[j] < len(plan.inputs):
+            rest = plan.inputs[self.used[j]:][:steps]
+            out[: len(rest)] = rest
+            return out, "plan"
+        out[0] = track(world.robots[j], world.states[j], task, self.params.lookahead, self.params.speed_gain)
+        return out, "tracking"
+
+    def safety_stops(self, world: WorldState, others: np.ndarray, first: np.ndarray) -> np.ndarray:
+        """Which non-authority robots (rows of ``others``, about to apply ``first`` (m, 2)) must
+        brake instead.
+
+        Every robot is assumed to apply its intended input once (the authority: no input, its
+        stage-1 position is fixed anyway) and then brake to a stop with straight wheels. A robot
+        stops now when, on that course, its footprint comes within ``safety_margin`` of another
+        robot's footprint at the same stage, or of an obstacle moving at constant velocity,
+        closer than it is now.
+        """
+        cfg, fleet = self.planner.config, self.fleet
+        n = len(world.robots)
+        if len(others) == 0:
+            return np.zeros(0, dtype=bool)
+        inputs = np.zeros((n, 2))
+        inputs[others] = first
+        steps = int(np.ceil(np.max(np.abs(world.states[:, 3]) / -fleet.a_min) / cfg.dt)) + 1
+        course = np.empty((n, steps + 1, 4))
+        course[:, :2] = fleet.rollout(np.arange(n), world.states, inputs[:, None, :], cfg.dt)
+        for k in range(1, steps):
+            brake = np.column_stack([np.clip((fleet.v_min - course[:, k, 3]) / cfg.dt, fleet.a_min, 0.0), np.zeros(n)])
+            course[:, k + 1] = fleet.rollout(np.arange(n), course[:, k], brake[:, None, :], cfg.dt)[:, 1]
+        rows = fleet.footprints(np.arange(n), course)  # (n, K+1, 5)
+        obs = np.array([o.footprint() for o in world.obstacles]).reshape(-1, 5)
+        vel = np.array([o.velocity for o in world.obstacles]).reshape(-1, 2)
+        now = later = np.full(len(others), np.inf)
+        for k in range(steps + 1):
+            moved = obs.copy()
+            moved[:, :2] += k * cfg.dt * vel
+            gaps = pairwise_rect_clearance(rows[others, k], np.vstack([rows[:, k], moved]))
+            gaps[np.arange(len(others)), others] = np.inf
+            if k == 0:
+                now = gaps.min(axis=1)
+            else:
+                later = np.minimum(later, gaps.min(axis=1))
+        return (later < self.params.safety_margin) & (later < now)

@@ -1,0 +1,41 @@
+"""Leader-follower control (LFC), the paper's baseline: index priority, every robot plans.
+
+Robots are ranked by index (robot 0 leads). Each period every unfinished robot solves the same
+MPC in that order; robot i avoids the swept regions of the plans that robots 0..i-1 made this
+period, the current constant-velocity motion of the robots that have not planned yet (and of
+finished ones), and the obstacles. That is n solves per period. Other priority planners rank
+robots by distance to their goal or to a conflict; the paper ranks by index, and so do we.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from aac_sumo.coordination.base import Coordinator, Decision, RobotDecision
+from aac_sumo.world import WorldState
+
+
+class LfcCoordinator(Coordinator):
+    name = "lfc"
+
+    def _decide(self, world: WorldState) -> Decision:
+        n, cfg = len(world.robots), self.planner.config
+        done = np.asarray(self.finished(world), dtype=bool)
+        inputs = np.zeros((n, 2))
+        records: list[RobotDecision] = [RobotDecision(False) for _ in range(n)]
+        # Everyone's known motion this period: constant velocity until a robot has planned.
+        motion = self.fleet.rollout(np.arange(n), world.states, np.zeros((n, cfg.horizon + 1, 2)), cfg.dt)
+        for i in range(n):
+            if done[i] and self.tasks[i].stop_at_end:
+                inputs[i], records[i].mode = self.hold_input(world, i), "hold"
+                hold = np.repeat(inputs[i][None, :], cfg.horizon + 1, axis=0)
+                motion[i] = self.fleet.rollout(np.array([i]), world.states[[i]], hold[None], cfg.dt)[0]
+                continue
+            others = np.array([j for j in range(n) if j != i], dtype=int)
+            regions = self.fleet.swept_regions(others, motion[others], cfg.horizon, cfg.barrier, cfg.fcbf)
+            records[i] = self.solve(world, i, world.obstacles + regions, "priority")
+            plan = self.plans[i]
+            inputs[i] = plan.inputs[0]
+            motion[i, : cfg.horizon + 1] = plan.states
+            motion[i, -1] = self.fleet.rollout(np.array([i]), plan.states[None, -1], np.zeros((1, 1, 2)), cfg.dt)[0, -1]
+        return Decision(inputs, records, notes=dict(authority="", reason="priority"))

@@ -1,0 +1,88 @@
+"""Close pairs and the proximity decision of AAC (paper Algorithm 1, as DESIGN.md reads it).
+
+Positions are world-frame [m]. The decision grows one sampling tree per candidate robot, all
+trees at once with numpy: each iteration draws a seeded random sample within ``sample_radius``
+of every robot, finds each tree's nearest node and steps ``tree_step`` toward the sample. Every
+new node is scored ``alpha * progress - beta * collision_cost``, where progress is the reduction
+of the distance to the goal from the robot's position (the paper's ``alpha * d(s, g)`` rewards
+moving away from the goal, a sign slip) and the collision cost sums ``(1 - d / r)^2`` over the
+other robots and obstacles closer than ``r``. Each robot's best-scoring node ends its best path;
+the robot whose best path makes the most progress gets authority.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+
+def close_pairs(centres: np.ndarray, distance: float) -> np.ndarray:
+    """Index pairs ``(i, j)``, i < j, of points (n, 2) closer than ``distance`` [m], sorted (P, 2)."""
+    if len(centres) < 2:
+        return np.empty((0, 2), dtype=int)
+    pairs = cKDTree(centres).query_pairs(distance, output_type="ndarray")
+    if len(pairs):
+        gaps = np.hypot(*(centres[pairs[:, 0]] - centres[pairs[:, 1]]).T)
+        pairs = pairs[gaps < distance]
+    return pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))] if len(pairs) else np.empty((0, 2), dtype=int)
+
+
+@dataclass(frozen=True)
+class ProximityParams:
+    """Sampling-tree settings: iterations per robot, score weights alpha [1/m] and beta, step
+    length [m], sampling radius [m] and collision-cost radius [m]."""
+
+    iterations: int = 40
+    alpha: float = 1.0
+    beta: float = 2.0
+    step: float = 0.3
+    sample_radius: float = 3.0
+    collision_radius: float = 1.0
+
+
+@dataclass
+class ProximityResult:
+    """The chosen candidate's position in the candidate list, and per candidate its best
+    node's score, its best path's progress [m] and the best node (R, 2)."""
+
+    winner: int
+    scores: np.ndarray
+    progress: np.ndarray
+    best_nodes: np.ndarray
+
+
+def proximity_decision(starts: np.ndarray, goals: np.ndarray, blockers: np.ndarray, blocker_radius: np.ndarray,
+                       owner: np.ndarray, params: ProximityParams, rng: np.random.Generator) -> ProximityResult:
+    """Decide among candidates at ``starts`` (R, 2) heading to ``goals`` (R, 2).
+
+    ``blockers`` (M, 2) are the points that cost a collision (other robots, obstacles) with
+    cost radii ``blocker_radius`` (M,); ``owner`` (M,) gives the candidate index a blocker
+    belongs to (it costs nothing to that candidate) or -1.
+    """
+    r_count, k = len(starts), params.iterations
+    nodes = np.empty((r_count, k + 1, 2))
+    nodes[:, 0] = starts
+    radius = params.sample_radius * np.sqrt(rng.random((r_count, k)))
+    angle = 2.0 * np.pi * rng.random((r_count, k))
+    samples = starts[:, None, :] + radius[..., None] * np.stack([np.cos(angle), np.sin(angle)], axis=-1)
+    rows = np.arange(r_count)
+    for it in range(k):
+        rel = samples[:, it, None, :] - nodes[:, : it + 1]
+        near = np.argmin(np.einsum("rkc,rkc->rk", rel, rel), axis=1)
+        q_near = nodes[rows, near]
+        step = samples[:, it] - q_near
+        length = np.hypot(step[:, 0], step[:, 1])
+        scale = np.where(length > params.step, params.step / np.maximum(length, 1e-12), 1.0)
+        nodes[:, it + 1] = q_near + scale[:, None] * step
+
+    new = nodes[:, 1:]
+    progress = np.hypot(*(starts - goals).T)[:, None] - np.hypot(*(new - goals[:, None, :]).transpose(2, 0, 1))
+    gap = np.hypot(*(new[:, :, None, :] - blockers[None, None, :, :]).transpose(3, 0, 1, 2))  # (R, K, M)
+    cost = np.clip(1.0 - gap / blocker_radius, 0.0, None) ** 2
+    cost *= (owner[None, :] != rows[:, None])[:, None, :]
+    score = params.alpha * progress - params.beta * cost.sum(axis=2)
+    best = np.argmax(score, axis=1)
+    best_progress = progress[rows, best]
+    return ProximityResult(int(np.argmax(best_progress)), score[rows, best], best_progress, new[rows, best])

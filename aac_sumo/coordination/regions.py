@@ -1,0 +1,61 @@
+"""Predicted motion of controlled robots and the swept safety regions other robots avoid.
+
+A robot's region at MPC stage k contains the convex hull of its footprints at stages k and k+1
+(the area it sweeps during that period), grown as an F-CBF (or CBF) ellipse. Rollouts are
+vectorised over robots with the same Euler bicycle model the simulator uses.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from aac_sumo.barriers import FcbfParams, RegionTrack, hull_safety_ellipses
+from aac_sumo.dynamics import bicycle_step
+from aac_sumo.geometry import rect_corners
+from aac_sumo.world import RobotSpec
+
+
+class Fleet:
+    """Per-robot constants as arrays, for vectorised rollouts: wheelbase, strongest braking, speed limits,
+    rear-axle-to-centre offset, footprint length and width [m, m/s]."""
+
+    def __init__(self, robots: list[RobotSpec]):
+        self.names = [r.name for r in robots]
+        self.wheelbase = np.array([r.model.wheelbase for r in robots])
+        self.a_min = np.array([r.model.limits.a_min for r in robots])
+        self.v_min = np.array([r.model.limits.v_min for r in robots])
+        self.v_max = np.array([r.model.limits.v_max for r in robots])
+        self.offset = np.array([r.centre_offset for r in robots])
+        self.length = np.array([r.length for r in robots])
+        self.width = np.array([r.width for r in robots])
+
+    def rollout(self, idx: np.ndarray, states: np.ndarray, inputs: np.ndarray, dt: float) -> np.ndarray:
+        """States (m, K+1, 4) of robots ``idx`` from ``states`` (m, 4) under ``inputs`` (m, K, 2)."""
+        out = np.empty((len(idx), inputs.shape[1] + 1, 4))
+        out[:, 0] = states
+        for k in range(inputs.shape[1]):
+            nxt = bicycle_step(out[:, k], inputs[:, k], dt, self.wheelbase[idx])
+            nxt[:, 3] = np.clip(nxt[:, 3], self.v_min[idx], self.v_max[idx])
+            out[:, k + 1] = nxt
+        return out
+
+    def footprints(self, idx: np.ndarray, states: np.ndarray) -> np.ndarray:
+        """Footprint rows ``[cx, cy, length, width, heading]`` (m, ..., 5) of robots ``idx`` at
+        rear-axle ``states`` (m, ..., 4)."""
+        shape = states.shape[:-1]
+        extra = (slice(None),) + (None,) * (len(shape) - 1)
+        h = states[..., 2]
+        off = self.offset[idx][extra]
+        return np.stack([states[..., 0] + off * np.cos(h), states[..., 1] + off * np.sin(h),
+                         np.broadcast_to(self.length[idx][extra], shape), np.broadcast_to(self.width[idx][extra], shape), h], axis=-1)
+
+    def swept_regions(self, idx: np.ndarray, traj: np.ndarray, horizon: int, barrier: str, fcbf: FcbfParams) -> list[RegionTrack]:
+        """One region track per robot ``idx`` from its trajectory ``traj`` (m, >= horizon+2, 4):
+        stage k contains the hull of the footprints at k and k+1, shaped by the stage velocity."""
+        traj = traj[:, : horizon + 2]
+        corners = rect_corners(self.footprints(idx, traj))  # (m, N+2, 4, 2)
+        swept = np.concatenate([corners[:, :-1], corners[:, 1:]], axis=2)  # (m, N+1, 8, 2)
+        head = traj[:, :-1, 2]
+        vel = traj[:, :-1, 3:4] * np.stack([np.cos(head), np.sin(head)], axis=-1)
+        ellipses = hull_safety_ellipses(swept, vel, head, barrier, fcbf)
+        return [RegionTrack(self.names[j], e) for j, e in zip(idx, ellipses)]

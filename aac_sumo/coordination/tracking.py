@@ -1,0 +1,26 @@
+"""The simple tracking law of robots that hold no usable plan: pure pursuit on the reference
+path plus a proportional speed loop. No obstacle avoidance; it only keeps robots on their task."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from aac_sumo.references import PathReference
+from aac_sumo.world import RobotSpec
+
+
+def track(robot: RobotSpec, state: np.ndarray, task: PathReference, lookahead: float, speed_gain: float) -> np.ndarray:
+    """Input ``[accel, steer]`` steering the rear axle toward the path point ``lookahead`` [m]
+    ahead of its projection and driving the speed toward the reference speed there."""
+    s0, _ = task.project(state[:2])
+    target = task.pose_at(min(s0 + lookahead, task.length) if task.stop_at_end else s0 + lookahead)[0, :2]
+    rel = target - state[:2]
+    dist = float(np.hypot(*rel))
+    lim = robot.model.limits
+    if dist < 1e-6:
+        steer = 0.0
+    else:
+        alpha = np.arctan2(rel[1], rel[0]) - state[2]
+        steer = float(np.arctan2(2.0 * robot.model.wheelbase * np.sin(alpha), dist))
+    accel = speed_gain * (float(task.speed_at(s0)) - state[3])
+    return lim.clip_input(np.array([accel, steer]))

@@ -1,0 +1,70 @@
+"""Goal-reaching swarms on the internal simulator.
+
+* **S1 swarm rescue** (paper Table I): robots start on one side of an area and drive to goals
+  near the trapped individuals along straight reference paths that cross, among static debris.
+* **Circle swap**: ``n_robots`` evenly spaced on a circle drive to the antipodal points, the
+  symmetric head-on case known to deadlock decentralised CBF methods.
+
+Each robot's reference is the straight segment from its start to its goal at ``cruise_speed``,
+slowing to stop at the goal; it has arrived when its rear axle is within ``goal_tolerance`` of
+the goal. The seed shifts every start position uniformly within ``start_jitter``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from aac_sumo.config import Scenario, ScenarioError
+from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_spec
+from aac_sumo.geometry import point_rect_signed_distance, OrientedRect
+from aac_sumo.references import PathReference
+from aac_sumo.sim.internal import InternalSimulator
+from aac_sumo.world import Obstacle, WorldState
+
+
+def build_swarm_rescue(scenario: Scenario) -> Setup:
+    s = scenario.data["swarm_rescue"]
+    starts, goals = np.array(s["starts"], dtype=float).reshape(-1, 3), np.array(s["goals"], dtype=float).reshape(-1, 2)
+    if len(starts) == 0:
+        raise ScenarioError(scenario.source, "swarm_rescue.starts", "at least one [x, y, heading] row")
+    if len(goals) != len(starts):
+        raise ScenarioError(scenario.source, "swarm_rescue.goals", f"one [x, y] row per start ({len(starts)})", len(goals))
+    debris = [Obstacle(f"debris{k}", "static", np.array(row[:2], dtype=float), np.zeros(2), float(row[4]), float(row[2]), float(row[3]))
+              for k, row in enumerate(s["debris"])]
+    return _goal_setup(scenario, "swarm_rescue", starts, goals, debris)
+
+
+def build_circle_swap(scenario: Scenario) -> Setup:
+    c = scenario.data["circle_swap"]
+    angle = 2.0 * np.pi * np.arange(c["n_robots"]) / c["n_robots"]
+    ring = c["radius"] * np.column_stack([np.cos(angle), np.sin(angle)])
+    starts = np.column_stack([ring, angle + np.pi])
+    return _goal_setup(scenario, "circle_swap", starts, -ring, [])
+
+
+def _goal_setup(scenario: Scenario, section: str, starts: np.ndarray, goals: np.ndarray, statics: list[Obstacle]) -> Setup:
+    """Robots at ``starts`` (n, 3) rear-axle poses, each with a straight path to its goal (n, 2)."""
+    p = scenario.data[section]
+    rng = np.random.default_rng(scenario["scenario.seed"])
+    starts = starts.copy()
+    starts[:, :2] += rng.uniform(-p["start_jitter"], p["start_jitter"], size=(len(starts), 2))
+    for i, (start, goal) in enumerate(zip(starts, goals)):
+        if np.hypot(*(goal - start[:2])) <= p["goal_tolerance"]:
+            raise ScenarioError(scenario.source, f"{section}.goals", f"goal {i} farther than goal_tolerance from its start", goal.tolist())
+        for o in statics:
+            if point_rect_signed_distance(goal[None, :], OrientedRect(*o.footprint()))[0] <= 0:
+                raise ScenarioError(scenario.source, f"{section}.goals", f"goal {i} outside every debris footprint (it lies in {o.name})", goal.tolist())
+    robots = [robot_spec(scenario, f"robot{i}") for i in range(len(starts))]
+    state = np.column_stack([starts, np.zeros(len(starts))])
+    sim = InternalSimulator(robots, state, scenario["scenario.dt"], statics=statics)
+    check_start(scenario, sim.observe(), f"{section}.starts")
+    speed, tol = p["cruise_speed"], p["goal_tolerance"]
+    if speed > robots[0].model.limits.v_max:
+        raise ScenarioError(scenario.source, f"{section}.cruise_speed", f"at most robot.v_max ({robots[0].model.limits.v_max})", speed)
+    tasks = [PathReference([start[:2], goal], speed, decel=0.5 * robots[0].model.limits.a_max) for start, goal in zip(starts, goals)]
+
+    def finished(world: WorldState) -> np.ndarray:
+        return np.hypot(*(world.states[:, :2] - goals).T) <= tol
+
+    free_flow = np.array([t.length / speed for t in tasks])
+    return Setup(scenario, sim, coordinator(scenario, tasks, finished=finished), tasks, finished, free_flow)
