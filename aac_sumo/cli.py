@@ -205,14 +205,19 @@ def cmd_run(args) -> int:
     return 0
 
 
-def cmd_sweep(args) -> int:
-    from aac_sumo import config, sweep
+def _out_dir(args, folder: str) -> Path:
+    """``--out``, or ``out/<folder>/<scenario name>`` (which loads, so validates, the scenario)."""
+    from aac_sumo import config
 
-    if args.out is None:  # validate the scenario first, for the default name
-        out = Path("out") / "sweep" / config.load(args.scenario, list(args.sets))["scenario.name"]
-    else:
-        out = args.out
+    out = args.out if args.out is not None else Path("out") / folder / config.load(args.scenario, list(args.sets))["scenario.name"]
     _check_out(out)
+    return out
+
+
+def cmd_sweep(args) -> int:
+    from aac_sumo import sweep
+
+    out = _out_dir(args, "sweep")
     rows, text = sweep.sweep(args.scenario, args.grid, list(args.sets), args.seeds, args.workers, out,
                              progress=not args.no_progress, scheduler=args.scheduler, resume=args.resume)
     print(text, end="")
@@ -221,13 +226,9 @@ def cmd_sweep(args) -> int:
 
 
 def cmd_tune(args) -> int:
-    from aac_sumo import config, tune
+    from aac_sumo import tune
 
-    if args.out is None:  # validate the scenario first, for the default name
-        out = Path("out") / "tune" / config.load(args.scenario, list(args.sets))["scenario.name"]
-    else:
-        out = args.out
-    _check_out(out)
+    out = _out_dir(args, "tune")
     result = tune.tune(args.scenario, args.params, args.objective, args.constraints, args.trials, out,
                        sets=list(args.sets), seeds=args.seeds, sampler=args.sampler, seed=args.seed, init=args.init,
                        xi=args.xi, baseline=not args.no_baseline, workers=args.workers, scheduler=args.scheduler,

@@ -260,23 +260,12 @@ class Executor:
                 while queue and len(inflight) < self.workers:
                     i, item = queue.popleft()
                     inflight[pool.submit(fn, item)] = (i, item)
-                done, _ = wait(inflight, return_when=FIRST_COMPLETED)
-                suspects = []
-                for fut in done:
-                    i, item = inflight.pop(fut)
-                    if isinstance(fut.exception(), BrokenProcessPool):
-                        suspects.append((i, item))
-                    else:
-                        yield i, fut.exception() or fut.result()
+                suspects: list = []
+                yield from _settle(wait(inflight, return_when=FIRST_COMPLETED)[0], inflight, suspects)
                 if not suspects:
                     continue
-                rest, _ = wait(inflight)  # the broken pool fails every call in flight at once
-                for fut in rest:
-                    i, item = inflight.pop(fut)
-                    if isinstance(fut.exception(), BrokenProcessPool):
-                        suspects.append((i, item))
-                    else:
-                        yield i, fut.exception() or fut.result()
+                # a broken pool fails every call in flight at once
+                yield from _settle(wait(inflight)[0], inflight, suspects)
                 self._drop_pool(abort=True)
                 for i, item in sorted(suspects, key=lambda s: s[0]):
                     yield i, self._run_alone(fn, item)
@@ -311,6 +300,18 @@ class Executor:
             _terminate(pool)
         else:
             pool.shutdown()
+
+
+def _settle(done, inflight: dict, suspects: list) -> Iterator[tuple[int, Any]]:
+    """Yield the outcome of each finished future (removed from ``inflight``); calls lost to a
+    broken pool go to ``suspects`` instead."""
+    for fut in done:
+        i, item = inflight.pop(fut)
+        exc = fut.exception()
+        if isinstance(exc, BrokenProcessPool):
+            suspects.append((i, item))
+        else:
+            yield i, exc if exc is not None else fut.result()
 
 
 def _terminate(pool: ProcessPoolExecutor) -> None:
