@@ -1,0 +1,177 @@
+"""S2, lane change (paper Table II): ``lane_change.vehicles`` MPC-controlled cars on a multi-lane
+SUMO road change lanes among cones and crossing pedestrians, in SUMO co-simulation.
+
+Vehicle k starts in lane ``k mod lanes`` (lane 0 = rightmost), staggered along the road, at the
+cruise speed. The cone lane is the lane most cones stand on (lane 0 without cones). Every
+vehicle's target lane (see :func:`target_lane`): the cone lane's vehicles move to the
+neighbouring lane, the others one lane further away from the cones, the outermost lane's one lane
+back towards them (never into the cone lane; a vehicle with no such lane keeps its lane).
+
+Each reference is the vehicle's own pre-planned lane-change path, independent of the other
+vehicles and obstacles (as in the paper): at road fraction ``u`` the point
+``(1 - w) * start_lane(u) + w * target_lane(u)`` with ``w`` a quintic smoothstep over
+``change_length`` metres beginning ``change_start`` metres after the start; lane centre lines come
+from the network (sumolib), so curved roads work. A vehicle has finished when it is within
+``lane_tolerance`` of its target lane's centre line and its rear axle is ``finish_margin`` beyond
+the last cone (beyond the end of its lane change, without cones), or when SUMO removed it.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+from aac_sumo import network
+from aac_sumo.config import Scenario, ScenarioError
+from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_spec
+from aac_sumo.references import PathReference
+from aac_sumo.sim.sumo import SumoOptions, SumoSimulator
+from aac_sumo.world import WorldState
+
+BUNDLED_NET_DIR = Path(__file__).resolve().parents[2] / "sumo_networks" / "lane_change"
+BUNDLED_NET = BUNDLED_NET_DIR / "lane_change.net.xml"
+BUNDLED_ROUTES = [BUNDLED_NET_DIR / "cones.rou.xml", BUNDLED_NET_DIR / "pedestrians.rou.xml"]
+SAMPLE_STEP = 1.0  # reference path resolution along the road [m]
+
+
+def target_lane(lane: int, cone_lane: int, lanes: int) -> int:
+    """The lane a vehicle starting in ``lane`` changes to, given the cone lane."""
+    if lane == cone_lane:
+        return lane + 1 if lane + 1 < lanes else lane - 1
+    away = lane + 1 if lane > cone_lane else lane - 1
+    if 0 <= away < lanes:
+        return away
+    back = lane - 1 if lane > cone_lane else lane + 1
+    return lane if back == cone_lane else back
+
+
+def smoothstep(x) -> np.ndarray:
+    """Quintic 0 -> 1 on [0, 1] with zero first and second derivatives at both ends."""
+    x = np.clip(x, 0.0, 1.0)
+    return x**3 * (10.0 - 15.0 * x + 6.0 * x**2)
+
+
+def along(polyline: np.ndarray, s) -> tuple[np.ndarray, np.ndarray]:
+    """Points (K, 2) and headings (K,) [rad] at arc lengths ``s`` [m] of ``polyline`` (clamped)."""
+    seg = np.diff(polyline, axis=0)
+    seg_len = np.hypot(*seg.T)
+    keep = seg_len > 1e-9
+    seg, seg_len, start = seg[keep], seg_len[keep], polyline[:-1][keep]
+    cum = np.r_[0.0, np.cumsum(seg_len)]
+    s = np.clip(np.atleast_1d(np.asarray(s, dtype=float)), 0.0, cum[-1])
+    i = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(seg_len) - 1)
+    t = (s - cum[i]) / seg_len[i]
+    return start[i] + t[:, None] * seg[i], np.arctan2(seg[i, 1], seg[i, 0])
+
+
+def lane_change_path(rd: network.Road, start: int, target: int, s0: float, change_start: float, change_length: float) -> np.ndarray:
+    """Waypoints (M, 2) [m] of the rear axle from arc length ``s0`` of lane ``start`` to the road's
+    end, blending into lane ``target`` between ``s0 + change_start`` and ``+ change_length``."""
+    la, lb = rd.length(start), rd.length(target)
+    sa = np.r_[np.arange(s0, la, SAMPLE_STEP), la]
+    pa, _ = along(rd.lanes[start], sa)
+    pb, _ = along(rd.lanes[target], sa * lb / la)
+    w = smoothstep((sa - s0 - change_start) / change_length)[:, None]
+    return (1.0 - w) * pa + w * pb
+
+
+def network_files(scenario: Scenario) -> tuple[Path, list[Path]]:
+    """The network and route files of ``[sumo]``; relative paths against the current directory,
+    then the scenario file's directory."""
+    su = scenario.data["sumo"]
+
+    def resolve(text: str, key: str) -> Path:
+        path = Path(text.strip()).expanduser()
+        if not path.is_absolute() and not path.exists():
+            beside = Path(scenario.source).parent / path
+            path = beside if beside.exists() else path
+        if not path.is_file():
+            raise ScenarioError(scenario.source, key, "an existing file", text)
+        return path
+
+    if not su["net"].strip():
+        return BUNDLED_NET, BUNDLED_ROUTES if not su["routes"].strip() else [resolve(r, "sumo.routes") for r in su["routes"].split(",")]
+    routes = [resolve(r, "sumo.routes") for r in su["routes"].split(",") if r.strip()]
+    return resolve(su["net"], "sumo.net"), routes
+
+
+def build_lane_change(scenario: Scenario) -> Setup:
+    lc, su = scenario.data["lane_change"], scenario.data["sumo"]
+    src = scenario.source
+    net_path, routes = network_files(scenario)
+    net = network.read(net_path, "sumo.net", src)
+    rd = network.road(net, su["edges"], src)
+    network.require_lanes(net, rd, 2, src)
+    n, lanes = lc["vehicles"], rd.n_lanes
+    robots = [robot_spec(scenario, f"veh{k}") for k in range(n)]
+    if lc["speed"] > robots[0].model.limits.v_max:
+        raise ScenarioError(src, "lane_change.speed", f"at most robot.v_max ({robots[0].model.limits.v_max})", lc["speed"])
+
+    rng = np.random.default_rng(scenario["scenario.seed"])
+    start_lane = np.arange(n) % lanes
+    s0 = (lc["start_s"] + (np.arange(n) // lanes) * lc["spacing"] + start_lane * lc["spacing"] / lanes
+          + rng.uniform(-lc["start_jitter"], lc["start_jitter"], n))
+    s0 = np.maximum(s0, 0.0)
+    change_end = s0 + lc["change_start"] + lc["change_length"]
+    for k in range(n):
+        if change_end[k] > rd.length(start_lane[k]):
+            raise ScenarioError(src, "sumo.net", f"a road long enough for lane_change: lane {start_lane[k]} of edges "
+                                f"{' '.join(rd.edges)} is {rd.length(start_lane[k]):.0f} m, vehicle veh{k} needs {change_end[k]:.0f} m")
+    states = np.zeros((n, 4))
+    for k in range(n):
+        point, heading = along(rd.lanes[start_lane[k]], s0[k])
+        states[k] = [point[0, 0], point[0, 1], heading[0], lc["speed"]]
+
+    fcd = None
+    if su["fcd"]:
+        out = Path(su["output_dir"]) if su["output_dir"].strip() else Path("out") / scenario["scenario.name"]
+        out.mkdir(parents=True, exist_ok=True)
+        fcd = out / "fcd.xml"
+    options = SumoOptions(net_path, routes, tuple(t.strip() for t in su["cone_types"].split(",") if t.strip()),
+                          su["gui"], fcd, scenario["scenario.seed"])
+    sim = SumoSimulator(robots, states, scenario["scenario.dt"], rd.edges, options)
+    try:
+        world = sim.observe()
+        check_start(scenario, world, "lane_change.spacing")
+        cones = [o for o in world.obstacles if o.kind == "cone"]
+        centre_lines = [PathReference(line, 1.0, stop_at_end=False) for line in rd.lanes]
+        cone_lane = _cone_lane(rd, centre_lines, cones)
+        targets = [target_lane(int(a), cone_lane, lanes) for a in start_lane]
+        tasks = [PathReference(lane_change_path(rd, int(a), b, s0[k], lc["change_start"], lc["change_length"]),
+                               lc["speed"], stop_at_end=False) for k, (a, b) in enumerate(zip(start_lane, targets))]
+        finish_s = []
+        for k, b in enumerate(targets):
+            line = centre_lines[b]
+            done = change_end[k] * rd.length(b) / rd.length(start_lane[k])
+            beyond_cones = max((line.project(c.centre)[0] for c in cones), default=-np.inf) + lc["finish_margin"]
+            finish_s.append(max(done, beyond_cones))
+            if finish_s[-1] > rd.length(b):
+                raise ScenarioError(src, "lane_change.finish_margin", f"a finish within the road: lane {b} is {rd.length(b):.0f} m, "
+                                    f"veh{k} finishes at {finish_s[-1]:.0f} m")
+        done = np.zeros(n, dtype=bool)
+
+        def finished(w: WorldState) -> np.ndarray:
+            for k in np.flatnonzero(~done):
+                s, lateral = centre_lines[targets[k]].project(w.states[k, :2])
+                done[k] = (s >= finish_s[k] and lateral <= lc["lane_tolerance"]) or robots[k].name in sim.removed
+            return done.copy()
+
+        finish_points = [along(rd.lanes[b], finish_s[k])[0][0] for k, b in enumerate(targets)]
+        free_flow = np.array([task.project(p)[0] for task, p in zip(tasks, finish_points)]) / lc["speed"]
+        return Setup(scenario, sim, coordinator(scenario, tasks, None, finished), tasks, finished, free_flow)
+    except BaseException:
+        sim.close()
+        raise
+
+
+def _cone_lane(rd: network.Road, centre_lines: list[PathReference], cones) -> int:
+    """The lane most cones stand on (within half a lane width of its centre line); 0 without cones."""
+    votes = Counter()
+    for cone in cones:
+        gaps = [line.project(cone.centre)[1] for line in centre_lines]
+        lane = int(np.argmin(gaps))
+        if gaps[lane] <= 0.5 * rd.widths[lane]:
+            votes[lane] += 1
+    return votes.most_common(1)[0][0] if votes else 0

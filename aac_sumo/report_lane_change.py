@@ -1,0 +1,62 @@
+"""``trajectories.png`` of a lane-change run: road, lanes, cones, pedestrians' and vehicles' paths."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+
+def _offset(line: np.ndarray, d: float) -> np.ndarray:
+    """``line`` (M, 2) shifted by ``d`` [m] to its left (negative: right), vertex by vertex."""
+    tangent = np.gradient(line, axis=0)
+    tangent /= np.maximum(np.hypot(*tangent.T), 1e-12)[:, None]
+    return line + d * np.column_stack([-tangent[:, 1], tangent[:, 0]])
+
+
+def plot_lane_change(result, path: Path) -> None:
+    """Draw the run's road (from its SUMO network), every controlled vehicle's path (solid) and
+    reference (dotted), the pedestrians' paths and the cones, with the headline metrics."""
+    from aac_sumo import network
+    from aac_sumo.experiments.lane_change import network_files
+
+    scenario, traj = result.scenario, result.trajectories
+    net_path, _ = network_files(scenario)
+    rd = network.road(network.read(net_path, "sumo.net", scenario.source), scenario["sumo.edges"], scenario.source)
+    fig, ax = plt.subplots(figsize=(14, 5))
+    for line, width in zip(rd.lanes, rd.widths):
+        ax.fill(*np.vstack([_offset(line, 0.5 * width), _offset(line, -0.5 * width)[::-1]]).T, color="0.88", lw=0)
+        for side in (-0.5, 0.5):
+            ax.plot(*_offset(line, side * width).T, color="0.55", lw=0.6, ls="--")
+    steps = result.steps
+    for name, group in traj[traj["kind"] == "controlled"].groupby("name", sort=False):
+        (line,) = ax.plot(group["x"], group["y"], lw=1.2)
+        ref = steps[steps["robot"] == name]
+        ax.plot(ref["ref_x"], ref["ref_y"], ls=":", lw=0.8, color=line.get_color())
+        ax.annotate(name, (group["x"].iloc[0], group["y"].iloc[0]), fontsize=6, ha="right", va="center")
+    for i, (_, group) in enumerate(traj[traj["kind"] == "pedestrian"].groupby("name", sort=False)):
+        ax.plot(group["x"], group["y"], color="tab:red", lw=2, label="pedestrians" if i == 0 else None)
+        ax.plot(group["x"].iloc[-1], group["y"].iloc[-1], "v", color="tab:red", ms=5)
+    cones = traj[traj["kind"] == "cone"].drop_duplicates("name")
+    ax.plot(cones["x"], cones["y"], "^", color="tab:orange", ms=7, ls="none", label="cones")
+    ax.plot([], [], color="0.3", lw=1.2, label="vehicles (footprint centre)")
+    ax.plot([], [], color="0.3", lw=0.8, ls=":", label="references (rear axle)")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.legend(fontsize="small", loc="upper left", ncol=4)
+    m = result.metrics
+    ax.set_title(f"{m['scenario']}: {m['coordinator']}, N={m['horizon']}; task {_fmt(m['task_duration_s'])} s, "
+                 f"collisions {m['collisions']} (SUMO {m['sim_collisions']}), min clearance {_fmt(m['min_clearance_m'])} m, "
+                 f"tracking error {_fmt(m['tracking_error_m'])} m", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
+def _fmt(x) -> str:
+    return "—" if x is None else f"{x:.2f}"

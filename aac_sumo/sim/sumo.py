@@ -1,0 +1,240 @@
+"""SUMO co-simulation through libsumo (traci when the GUI is shown).
+
+SUMO hosts the world: the network, cones (stopped vehicles of a cone vType), pedestrians and any
+other traffic, which SUMO moves itself. Our controlled vehicles are inserted with speed mode and
+lane-change mode 0 and, every step, placed at the pose our bicycle model reached with
+``vehicle.moveToXY(..., keepRoute=2)``; their poses are then read back from SUMO. Their speed is
+our model's: after ``moveToXY`` SUMO only knows the distance travelled in the step.
+
+Every step SUMO's own collision check (``simulation.getCollisions``) is read beside our footprint
+check. A controlled vehicle SUMO removes (say, it left the network) is frozen at its last pose with
+speed 0, counts as finished, is left out of the collision checks, and the event is reported on
+stderr and in :attr:`SumoSimulator.events`.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from aac_sumo.network import sumo_binary
+from aac_sumo.sim.base import ContactReport, Simulator, agent_rows, footprint_contacts
+from aac_sumo.sim.sumo_frames import state_from_sumo, sumo_from_state
+from aac_sumo.world import Obstacle, RobotSpec, WorldState
+
+ROUTE_ID = "aac_road"
+
+
+class SumoError(RuntimeError):
+    """SUMO failed (start-up or mid-run); the message says what SUMO said and when."""
+
+
+@dataclass
+class SumoOptions:
+    """How to start SUMO: network, route files (cones, pedestrians, other traffic), the vTypes
+    that are cones, GUI, FCD output file (None for none) and SUMO's random seed."""
+
+    net: Path
+    routes: list[Path] = field(default_factory=list)
+    cone_types: tuple[str, ...] = ("cone",)
+    gui: bool = False
+    fcd: Path | None = None
+    seed: int = 0
+
+    def command(self, dt: float) -> list[str]:
+        cmd = [sumo_binary("sumo-gui" if self.gui else "sumo"), "-n", str(self.net),
+               "--step-length", repr(dt), "--seed", str(self.seed),
+               "--collision.action", "warn", "--collision.mingap-factor", "0", "--collision.check-junctions",
+               "--intermodal-collision.action", "warn", "--time-to-teleport", "-1", "--lateral-resolution", "0.4",
+               "--no-step-log", "--no-warnings"]
+        if self.routes:
+            cmd += ["-r", ",".join(str(p) for p in self.routes)]
+        if self.fcd is not None:
+            cmd += ["--fcd-output", str(self.fcd)]
+        if self.gui:
+            cmd += ["--start", "--quit-on-end"]
+        return cmd
+
+
+def _api(gui: bool):
+    """libsumo (fast, in-process, no GUI) or traci (socket, drives sumo-gui)."""
+    if gui:
+        import traci
+
+        return traci
+    import libsumo
+
+    return libsumo
+
+
+class SumoSimulator(Simulator):
+    """The :class:`Simulator` interface over a running SUMO: starts it, inserts ``robots`` at
+    rear-axle ``states`` (n, 4) on the route ``edges``, and steps one period ``dt`` [s] at a time.
+    World time 0 is the first SUMO step after insertion."""
+
+    def __init__(self, robots: list[RobotSpec], states: np.ndarray, dt: float, edges: list[str], options: SumoOptions):
+        self.robots = list(robots)
+        self.states = np.array(states, dtype=float)
+        self.dt = dt
+        self.options = options
+        self.api = _api(options.gui)
+        self.removed: set[str] = set()
+        self.wrecked: set[str] = set()
+        self.events: list[str] = []
+        self._sim_pairs: set[tuple[str, str]] = set()
+        self._obstacle_dims: dict[str, tuple[float, float, str]] = {}
+        self.t = 0.0
+        try:
+            self.api.start(options.command(dt))
+        except Exception as exc:
+            raise SumoError(f"SUMO did not start ({_first_line(exc)}); command: {' '.join(options.command(dt))}") from None
+        self._running = True
+        try:
+            with self._sumo_errors("inserting the controlled vehicles"):
+                self._insert(edges)
+                self.api.simulationStep()
+                self.t0 = self.api.simulation.getTime()
+                missing = [r.name for r in self.robots if r.name not in set(self.api.vehicle.getIDList())]
+                if missing:
+                    raise SumoError(f"SUMO did not insert {', '.join(missing)} at its start pose")
+                self._read_robots()
+                self._obstacles = self._read_obstacles()
+        except BaseException:
+            self.close()
+            raise
+
+    def _insert(self, edges: list[str]) -> None:
+        v = self.api.vehicle
+        self.api.route.add(ROUTE_ID, edges)
+        for i, robot in enumerate(self.robots):
+            vtype = f"aac_{robot.length:g}x{robot.width:g}"
+            if vtype not in self.api.vehicletype.getIDList():
+                self.api.vehicletype.copy("DEFAULT_VEHTYPE", vtype)
+                self.api.vehicletype.setLength(vtype, robot.length)
+                self.api.vehicletype.setWidth(vtype, robot.width)
+                self.api.vehicletype.setMinGap(vtype, 0.0)
+                self.api.vehicletype.setColor(vtype, (30, 120, 255, 255))
+            v.add(robot.name, ROUTE_ID, vtype, depart="now", departSpeed="0")
+            v.setSpeedMode(robot.name, 0)
+            v.setLaneChangeMode(robot.name, 0)
+            x, y, angle = sumo_from_state(self.states[i], robot.length, robot.model.wheelbase)
+            v.moveToXY(robot.name, "", -1, x, y, angle, keepRoute=2)
+
+    # -- reading -----------------------------------------------------------------------------
+
+    def _read_robots(self) -> None:
+        """Poses of the controlled vehicles after the last SUMO step; notice removed ones."""
+        v = self.api.vehicle
+        present = set(v.getIDList())
+        for i, robot in enumerate(self.robots):
+            if robot.name in self.removed:
+                continue
+            if robot.name not in present:
+                self.removed.add(robot.name)
+                self.states[i, 3] = 0.0
+                event = f"t={self.t:.2f} s: SUMO removed controlled vehicle {robot.name}; frozen at its last pose, counted finished"
+                self.events.append(event)
+                print(f"aac-sumo: warning: {event}", file=sys.stderr)
+                continue
+            x, y = v.getPosition(robot.name)
+            angle = v.getAngle(robot.name)
+            self.states[i, :3] = state_from_sumo(x, y, angle, 0.0, robot.length, robot.model.wheelbase)[:3]
+
+    def _dims(self, domain, oid: str) -> tuple[float, float, str]:
+        if oid not in self._obstacle_dims:
+            self._obstacle_dims[oid] = (domain.getLength(oid), domain.getWidth(oid), domain.getTypeID(oid))
+        return self._obstacle_dims[oid]
+
+    def _read_obstacles(self) -> list[Obstacle]:
+        """Every SUMO agent that is not ours: cones (vType in ``cone_types``), other vehicles
+        (kind ``scripted``) and pedestrians. Positions become footprint centres."""
+        out = []
+        ours = {r.name for r in self.robots}
+        for domain, kind in ((self.api.vehicle, None), (self.api.person, "pedestrian")):
+            for oid in domain.getIDList():
+                if oid in ours:
+                    continue
+                length, width, vtype = self._dims(domain, oid)
+                x, y = domain.getPosition(oid)
+                heading = math.radians(90.0 - domain.getAngle(oid))
+                speed = domain.getSpeed(oid)
+                direction = np.array([math.cos(heading), math.sin(heading)])
+                obstacle_kind = kind or ("cone" if vtype in self.options.cone_types else "scripted")
+                centre = np.array([x, y]) - 0.5 * length * direction  # SUMO reports the front
+                out.append(Obstacle(oid, obstacle_kind, centre, speed * direction, heading, length, width))
+        return out
+
+    # -- the Simulator interface -------------------------------------------------------------
+
+    def observe(self) -> WorldState:
+        return WorldState(self.t, self.states.copy(), self.robots, list(self._obstacles))
+
+    def step(self, inputs: np.ndarray) -> ContactReport:
+        inputs = np.asarray(inputs, dtype=float)
+        with self._sumo_errors("stepping"):
+            for i, robot in enumerate(self.robots):
+                if robot.name in self.removed:
+                    continue
+                if robot.name not in self.wrecked:
+                    self.states[i] = robot.model.step(self.states[i], inputs[i], self.dt)
+                x, y, angle = sumo_from_state(self.states[i], robot.length, robot.model.wheelbase)
+                self.api.vehicle.moveToXY(robot.name, "", -1, x, y, angle, keepRoute=2)
+            self.api.simulationStep()
+            self.t = self.api.simulation.getTime() - self.t0
+            self._read_robots()
+            self._obstacles = self._read_obstacles()
+            sim_pairs = self._sim_collision_pairs()
+        report = self._contacts()
+        self.wrecked.update(name for pair in report.overlaps for name in pair if name in {r.name for r in self.robots})
+        for i, robot in enumerate(self.robots):
+            if robot.name in self.wrecked:
+                self.states[i, 3] = 0.0
+        report.sim_collisions = len(sim_pairs - self._sim_pairs)
+        self._sim_pairs = sim_pairs
+        return report
+
+    def _sim_collision_pairs(self) -> set[tuple[str, str]]:
+        """SUMO's collisions this step that involve a controlled vehicle, as sorted name pairs."""
+        ours = {r.name for r in self.robots}
+        return {tuple(sorted((c.collider, c.victim))) for c in self.api.simulation.getCollisions()
+                if c.collider in ours or c.victim in ours}
+
+    def _contacts(self) -> ContactReport:
+        """Our footprint check, leaving out removed vehicles (their clearance is inf)."""
+        keep = [i for i, r in enumerate(self.robots) if r.name not in self.removed]
+        world = WorldState(self.t, self.states[keep], [self.robots[i] for i in keep], self._obstacles)
+        partial = footprint_contacts(world)
+        clearance = np.full(len(self.robots), np.inf)
+        clearance[keep] = partial.clearance
+        return ContactReport(clearance, partial.overlaps)
+
+    def agents(self) -> list[dict]:
+        return agent_rows(self.observe())
+
+    def close(self) -> None:
+        if getattr(self, "_running", False):
+            self._running = False
+            try:
+                self.api.close()
+            except Exception:  # SUMO already gone; nothing left to release
+                pass
+
+    @contextmanager
+    def _sumo_errors(self, doing: str):
+        """Turn any libsumo/traci exception into one ``SumoError`` line naming the world time."""
+        try:
+            yield
+        except SumoError:
+            raise
+        except Exception as exc:
+            raise SumoError(f"SUMO failed while {doing} at t={self.t:.2f} s: {_first_line(exc)}") from exc
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
