@@ -9,6 +9,7 @@ with failed runs) still writes its outputs and exits with status 1.
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import sys
 from pathlib import Path
@@ -48,7 +49,7 @@ def _int_list(text: str) -> list[int]:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog=PROG, description="AAC + MPC-FCBF experiments: run, sweep, reproduce the paper's tables, benchmark.")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="{run,sweep,tune,table,bench}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="{run,sweep,tune,table,bench,net}")
 
     def add_set(p):
         p.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
@@ -113,21 +114,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--samples", type=_positive_int, default=100, metavar="S", help="timed solves per configuration (default 100)")
     p.add_argument("--horizons", type=_int_list, default=None, metavar="N1,N2,...", help="MPC horizons (default 5,10,15)")
     p.add_argument("--solvers", default=None, metavar="S1,S2,...", help="solver configurations (default fatrop-c,fatrop,ipopt,sqp)")
+
+    p = sub.add_parser("net", help="SUMO networks: net build DIR runs netconvert on DIR's plain-XML sources")
+    p.add_argument("action", choices=("build",), metavar="{build}")
+    p.add_argument("directory", type=Path, metavar="DIR", help="folder with *.netccfg, or *.nod.xml/*.edg.xml/*.con.xml sources")
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
     from aac_sumo.config import ScenarioError
+    from aac_sumo.sim.sumo import SumoError
     from aac_sumo.sweep import SweepError
     from aac_sumo.tables import TableUnavailable
 
     args = None
     try:
         args = build_parser().parse_args(argv)
-        return {"run": cmd_run, "sweep": cmd_sweep, "tune": cmd_tune, "table": cmd_table, "bench": cmd_bench}[args.command](args)
+        return {"run": cmd_run, "sweep": cmd_sweep, "tune": cmd_tune, "table": cmd_table, "bench": cmd_bench,
+                "net": cmd_net}[args.command](args)
     except SystemExit as exc:  # --help
         return exc.code if isinstance(exc.code, int) else 0
-    except (UsageError, ScenarioError, SweepError, TableUnavailable, FileNotFoundError) as exc:
+    except (UsageError, ScenarioError, SweepError, TableUnavailable, SumoError, FileNotFoundError) as exc:
         return _fail(exc)
     except UnicodeDecodeError as exc:  # a scenario file that is not UTF-8 text
         name = getattr(args, "scenario", None) or "scenario file"
@@ -194,6 +201,8 @@ def cmd_run(args) -> int:
             scenario = scenario.with_overrides(gui)
     out = args.out if args.out is not None else Path("out") / scenario["scenario.name"]
     _check_out(out)
+    if "output_dir" in scenario.schema().get("sumo", {}):  # SUMO's own files (fcd.xml) go beside ours
+        scenario = scenario.with_overrides([f"sumo.output_dir={json.dumps(str(out))}"])
     result = runner.run(scenario)
     runner.write_outputs(result, out)
     print(f"{scenario['scenario.name']} ({scenario.source})")
@@ -202,6 +211,14 @@ def cmd_run(args) -> int:
     if result.metrics.get("error"):
         print(f"{PROG}: run failed: {result.metrics['error']}", file=sys.stderr)
         return 1
+    return 0
+
+
+def cmd_net(args) -> int:
+    from aac_sumo import network
+
+    for path in network.build(args.directory):
+        print(f"built {path}")
     return 0
 
 

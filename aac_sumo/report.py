@@ -13,6 +13,10 @@ import numpy as np  # noqa: E402
 
 def plot_run(result, path: Path) -> None:
     """``trajectories.png`` for the run's scenario kind."""
+    if result.scenario.kind == "lane_change":
+        from aac_sumo.report_lane_change import plot_lane_change
+
+        return plot_lane_change(result, path)
     if result.scenario.kind == "braking":
         _plot_braking(result, path)
     else:

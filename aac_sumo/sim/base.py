@@ -43,6 +43,21 @@ def footprint_contacts(world: WorldState) -> ContactReport:
     return ContactReport(gaps.min(axis=1) if gaps.shape[1] else np.full(n, np.inf), overlaps)
 
 
+def agent_rows(world: WorldState) -> list[dict]:
+    """``trajectories.csv`` rows of every agent in ``world``: controlled robots (kind
+    ``controlled``) then obstacles (their own kind), footprint centre, heading, speed, size."""
+    rows = [
+        dict(name=r.name, kind="controlled", x=fp[0], y=fp[1], heading=fp[4], v=s[3], length=r.length, width=r.width)
+        for r, fp, s in zip(world.robots, world.robot_footprints(), world.states)
+    ]
+    rows += [
+        dict(name=o.name, kind=o.kind, x=o.centre[0], y=o.centre[1], heading=o.heading,
+             v=float(np.hypot(*o.velocity)), length=o.length, width=o.width)
+        for o in world.obstacles
+    ]
+    return rows
+
+
 class Simulator(ABC):
     """Small common step interface of every world (internal, SUMO)."""
 

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aac_sumo.sim.base import ContactReport, Simulator, footprint_contacts
+from aac_sumo.sim.base import ContactReport, Simulator, agent_rows, footprint_contacts
 from aac_sumo.world import Obstacle, RobotSpec, WorldState
 
 
@@ -81,14 +81,4 @@ class InternalSimulator(Simulator):
         return report
 
     def agents(self) -> list[dict]:
-        world = self.observe()
-        rows = [
-            dict(name=r.name, kind="controlled", x=fp[0], y=fp[1], heading=fp[4], v=s[3], length=r.length, width=r.width)
-            for r, fp, s in zip(self.robots, world.robot_footprints(), self.states)
-        ]
-        rows += [
-            dict(name=o.name, kind=o.kind, x=o.centre[0], y=o.centre[1], heading=o.heading,
-                 v=float(np.hypot(*o.velocity)), length=o.length, width=o.width)
-            for o in world.obstacles
-        ]
-        return rows
+        return agent_rows(self.observe())
