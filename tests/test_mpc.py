@@ -172,9 +172,9 @@ def test_tracks_straight_reference_from_lateral_offset():
 )
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.filter_too_much])
 def test_solved_plans_never_enter_safety_ellipses(barrier, cone_xy, walker_xy, walker_v, speed, gamma):
-    """From a safe start, a solved plan keeps every ego disc centre at exact distance
-    >= radius + d_safe from each obstacle's safety ellipse at every stage the inputs can move
-    (from stage 2 on: the start fixes the stage-1 rear axle, and with it the first condition)."""
+    """From a safe start (discs outside every region now and at stage 1, whose rear-axle
+    position the start fixes), a solved plan keeps every ego disc centre at exact distance
+    >= radius + d_safe from each obstacle's safety ellipse at every later stage."""
     pl = planner(barrier=barrier, gamma=gamma)
     state = np.array([0.0, 0.0, 0.0, speed])
     obstacles = [cone(*cone_xy, heading=0.4), walker(*walker_xy, *walker_v)]
@@ -183,7 +183,10 @@ def test_solved_plans_never_enter_safety_ellipses(barrier, cone_xy, walker_xy, w
     offsets, _ = ego_discs(ROBOT, pl.config.discs)
     centres = disc_centres(state[None], offsets)[0]
     h0 = [barrier_value(c[0], c[1], *params[0, s, :6]) for s in range(SLOTS) for c in centres]
-    assume(min(h0) >= 0.0)
+    state1 = ROBOT.model.step(state, np.zeros(2), DT)
+    centres1 = disc_centres(state1[None], offsets)[0]
+    h1 = [barrier_value(c[0], c[1], *params[1, s, :6]) for s in range(SLOTS) for c in centres1]
+    assume(min(h0) >= 0.0 and min(h1) >= 0.0)
     plan = pl.plan(ROBOT, state, straight_reference(0.0, speed), np.zeros(2), obstacles)
     note(f"status={plan.status} solver={plan.solver}")
     event(f"{plan.status} ({plan.solver})")

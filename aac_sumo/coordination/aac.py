@@ -8,9 +8,9 @@ Each control period exactly one unfinished robot holds authority and solves MPC-
 3. Every other robot applies the next input of its stored plan, or the tracking law when its
    plan is used up (finished robots brake to a stop).
 4. Optional **safety stop** (beyond the paper, ``safety_stop``): a non-authority robot whose
-   stored input would bring its footprint within ``safety_margin`` of another robot's or an
-   obstacle's footprint over the next two periods (the Euler model moves the position one
-   period after the input acts), while closing in, brakes instead and drops its stored plan.
+   stored input, followed by braking to a stop, would bring its footprint within
+   ``safety_margin`` of another robot's or an obstacle's footprint, closer than it is now,
+   brakes instead with straight wheels and drops its stored plan.
 5. The authority robot plans around the obstacles and the swept **convex-hull regions** of the
    others: at stage k, an ellipse containing the hull of a robot's footprints at k and k+1 along
    its known motion (stored plan, else constant velocity; the authority's own current motion
@@ -79,9 +79,7 @@ class AacCoordinator(Coordinator):
         stops = self.safety_stops(world, others, horizon_inputs[:, 0]) if self.params.safety_stop else np.zeros(len(others), bool)
         for row in np.flatnonzero(stops):
             j = others[row]
-            brake = world.robots[j].model.limits.braking_input(world.states[j, 3], cfg.dt)
-            horizon_inputs[row] = [brake[0], horizon_inputs[row, 0, 1]]
-            horizon_inputs[row, 1:, 1] = 0.0
+            horizon_inputs[row] = world.robots[j].model.limits.braking_input(world.states[j, 3], cfg.dt)  # straight wheels
             records[j].mode = "safety_stop"
             if self.plans[j] is not None:
                 self.used[j] = len(self.plans[j].inputs)
@@ -153,7 +151,7 @@ class AacCoordinator(Coordinator):
             return np.zeros(0, dtype=bool)
         inputs = np.zeros((n, 2))
         inputs[others] = first
-        steps = int(np.ceil(np.max(np.abs(world.states[:, 3]) / -fleet.a_min) / cfg.dt)) + 1
+        steps = int(np.ceil(np.max(np.abs(world.states[:, 3]) / -fleet.a_min) / cfg.dt)) + 2  # input acts at stage 2
         course = np.empty((n, steps + 1, 4))
         course[:, :2] = fleet.rollout(np.arange(n), world.states, inputs[:, None, :], cfg.dt)
         for k in range(1, steps):

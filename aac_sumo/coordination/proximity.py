@@ -6,7 +6,7 @@ of every robot, finds each tree's nearest node and steps ``tree_step`` toward th
 new node is scored ``alpha * progress - beta * collision_cost``, where progress is the reduction
 of the distance to the goal from the robot's position (the paper's ``alpha * d(s, g)`` rewards
 moving away from the goal, a sign slip) and the collision cost sums ``(1 - d / r)^2`` over the
-other robots and obstacles closer than ``r``. Each robot's best-scoring node ends its best path;
+other robots and obstacles closer than ``r``, along the node's path from the root. Each robot's best-scoring node ends its best path;
 the robot whose best path makes the most progress gets authority.
 """
 
@@ -32,7 +32,8 @@ def close_pairs(centres: np.ndarray, distance: float) -> np.ndarray:
 @dataclass(frozen=True)
 class ProximityParams:
     """Sampling-tree settings: iterations per robot, score weights alpha [1/m] and beta, step
-    length [m], sampling radius [m] and collision-cost radius [m]."""
+    length [m], sampling radius [m], collision-cost radius [m] and the share of samples drawn
+    at the goal (the usual RRT goal bias)."""
 
     iterations: int = 40
     alpha: float = 1.0
@@ -40,6 +41,7 @@ class ProximityParams:
     step: float = 0.3
     sample_radius: float = 3.0
     collision_radius: float = 1.0
+    goal_bias: float = 0.1
 
 
 @dataclass
@@ -59,15 +61,21 @@ def proximity_decision(starts: np.ndarray, goals: np.ndarray, blockers: np.ndarr
 
     ``blockers`` (M, 2) are the points that cost a collision (other robots, obstacles) with
     cost radii ``blocker_radius`` (M,); ``owner`` (M,) gives the candidate index a blocker
-    belongs to (it costs nothing to that candidate) or -1.
+    belongs to (it costs nothing to that candidate) or -1. A node's collision cost is summed
+    along its path from the root, so a path cannot slip through a blocker between two nodes
+    without paying for it. A share ``goal_bias`` of the samples is the goal itself.
     """
     r_count, k = len(starts), params.iterations
+    rows = np.arange(r_count)
     nodes = np.empty((r_count, k + 1, 2))
+    path_cost = np.zeros((r_count, k + 1))
     nodes[:, 0] = starts
     radius = params.sample_radius * np.sqrt(rng.random((r_count, k)))
     angle = 2.0 * np.pi * rng.random((r_count, k))
     samples = starts[:, None, :] + radius[..., None] * np.stack([np.cos(angle), np.sin(angle)], axis=-1)
-    rows = np.arange(r_count)
+    to_goal = rng.random((r_count, k)) < params.goal_bias
+    samples[to_goal] = np.broadcast_to(goals[:, None, :], samples.shape)[to_goal]
+    foreign = owner[None, :] != rows[:, None]  # (R, M): blockers that cost candidate r
     for it in range(k):
         rel = samples[:, it, None, :] - nodes[:, : it + 1]
         near = np.argmin(np.einsum("rkc,rkc->rk", rel, rel), axis=1)
@@ -75,14 +83,15 @@ def proximity_decision(starts: np.ndarray, goals: np.ndarray, blockers: np.ndarr
         step = samples[:, it] - q_near
         length = np.hypot(step[:, 0], step[:, 1])
         scale = np.where(length > params.step, params.step / np.maximum(length, 1e-12), 1.0)
-        nodes[:, it + 1] = q_near + scale[:, None] * step
+        q_new = q_near + scale[:, None] * step
+        gap = np.hypot(*(q_new[:, None, :] - blockers[None, :, :]).transpose(2, 0, 1))  # (R, M)
+        cost = (np.clip(1.0 - gap / blocker_radius, 0.0, None) ** 2 * foreign).sum(axis=1)
+        nodes[:, it + 1] = q_new
+        path_cost[:, it + 1] = path_cost[rows, near] + cost
 
     new = nodes[:, 1:]
     progress = np.hypot(*(starts - goals).T)[:, None] - np.hypot(*(new - goals[:, None, :]).transpose(2, 0, 1))
-    gap = np.hypot(*(new[:, :, None, :] - blockers[None, None, :, :]).transpose(3, 0, 1, 2))  # (R, K, M)
-    cost = np.clip(1.0 - gap / blocker_radius, 0.0, None) ** 2
-    cost *= (owner[None, :] != rows[:, None])[:, None, :]
-    score = params.alpha * progress - params.beta * cost.sum(axis=2)
+    score = params.alpha * progress - params.beta * path_cost[:, 1:]
     best = np.argmax(score, axis=1)
     best_progress = progress[rows, best]
     return ProximityResult(int(np.argmax(best_progress)), score[rows, best], best_progress, new[rows, best])

@@ -138,13 +138,13 @@ class MpcPlanner:
 
     def barrier_parameters(self, robot: RobotSpec, state: np.ndarray, u_prev: np.ndarray,
                            obstacles: list[Obstacle | ObstaclePrediction | RegionTrack]) -> np.ndarray:
-        """The MPC's obstacle parameters (N+1, slots, 7): the nearest regions with intrusions
-        into the ``d_safe`` margin held (see :meth:`hold_intrusions`)."""
+        """The MPC's obstacle parameters (N+1, slots, 7): the nearest regions, grown for the ego's
+        discs, with intrusions held (see :meth:`hold_intrusions`)."""
         _, radius = ego_discs(robot, self.config.discs)
         regions = self.nearest_regions(state, obstacles)
         params = self.slot_parameters(robot, state, regions, radius + self.config.d_safe)
-        hard = self.slot_parameters(robot, state, regions, radius)
-        room = np.minimum(hard[:, :, 4] / params[:, :, 4], hard[:, :, 5] / params[:, :, 5]).min(axis=0)
+        bare = self.slot_parameters(robot, state, regions, 0.0)
+        room = np.minimum(bare[:, :, 4] / params[:, :, 4], bare[:, :, 5] / params[:, :, 5]).min(axis=0)
         return self.hold_intrusions(params, robot, state, u_prev, room)
 
     def hold_intrusions(self, params: np.ndarray, robot: RobotSpec, state: np.ndarray, u_prev: np.ndarray,
@@ -155,12 +155,12 @@ class MpcPlanner:
         inputs only turn the discs about it. Where the stage-1 discs (heading predicted with the
         previous steering) already break the first condition ``h1 >= (1 - gamma) h0`` of a slot,
         that row is switched off for this solve. Where they lie inside the region (``q < 1``,
-        with ``q = h + 1`` the quadratic form) but not deeper than the ``d_safe`` margin, the
-        slot's ``1/A^2, 1/B^2`` are scaled at every stage by ``(1 + eps) / q`` (at most
-        ``room`` (slots,), which shrinks the region to the one grown by the bare disc radius):
-        the ego starts just outside the shrunk region and may not go deeper than it already is.
-        Deeper intrusions keep the full region, so the solve fails and the robot brakes. Other
-        slots keep the paper's conditions; a shrunk region grows back as the ego moves away.
+        with ``q = h + 1`` the quadratic form) but outside the bare safety ellipse, the slot's
+        ``1/A^2, 1/B^2`` are scaled at every stage by ``(1 + eps) / q`` (at most ``room``
+        (slots,), which shrinks the grown region to the bare ellipse): the ego starts just outside
+        the shrunk region and may not go deeper than it already is. A disc centre inside the bare
+        ellipse keeps the full region, so the solve fails and the robot brakes. Other slots keep
+        the paper's conditions; a shrunk region grows back as the ego moves away.
         """
         cfg = self.config
         offsets, _ = ego_discs(robot, cfg.discs)

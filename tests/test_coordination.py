@@ -1,0 +1,251 @@
+"""AAC and LFC coordinators: close pairs, swept hull regions, proximity decision, round robin,
+priority order, safety stops, and the fairness metric."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pandas as pd
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from aac_sumo.barriers import FcbfParams, barrier_value
+from aac_sumo.coordination.aac import AacCoordinator, AacParams
+from aac_sumo.coordination.lfc import LfcCoordinator
+from aac_sumo.coordination.proximity import ProximityParams, close_pairs, proximity_decision
+from aac_sumo.coordination.regions import Fleet
+from aac_sumo.dynamics import BicycleModel, VehicleLimits
+from aac_sumo.geometry import containing_ellipse, convex_hull, ellipse_signed_distance, rect_corners
+from aac_sumo.metrics import authority_jain
+from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
+from aac_sumo.references import PathReference
+from aac_sumo.world import RobotSpec, WorldState
+
+DT = 0.1
+LIMITS = VehicleLimits(a_min=-2.0, a_max=1.0, steer_max=0.6, v_min=0.0, v_max=1.5)
+coord = st.floats(-20.0, 20.0, allow_nan=False)
+
+
+def robot(i: int) -> RobotSpec:
+    return RobotSpec(f"robot{i}", 0.6, 0.4, BicycleModel(0.45, LIMITS))
+
+
+def planner(horizon: int = 5) -> MpcPlanner:
+    return MpcPlanner(MpcConfig(horizon=horizon, dt=DT, slots=4, d_safe=0.1, fcbf=FcbfParams(v0=0.5), q_heading=0.5))
+
+
+def straight_tasks(states: np.ndarray, goals: np.ndarray) -> list[PathReference]:
+    return [PathReference([s[:2], g], 1.0) for s, g in zip(states, goals)]
+
+
+# --- close pairs -------------------------------------------------------------------------------
+
+
+@settings(max_examples=60, deadline=None)
+@given(points=st.lists(st.tuples(coord, coord), min_size=0, max_size=25), distance=st.floats(0.1, 15.0))
+def test_close_pairs_match_brute_force(points, distance):
+    pts = np.array(points, dtype=float).reshape(-1, 2)
+    brute = {(i, j) for i, j in itertools.combinations(range(len(pts)), 2) if np.hypot(*(pts[i] - pts[j])) < distance}
+    found = close_pairs(pts, distance)
+    assert {tuple(p) for p in found.tolist()} == brute
+    assert len(found) == len(brute)  # no duplicates
+    assert np.all(found[:, 0] < found[:, 1]) if len(found) else True
+
+
+# --- swept convex-hull regions ----------------------------------------------------------------
+
+
+@settings(max_examples=80, deadline=None)
+@given(
+    x=coord, y=coord, heading=st.floats(-np.pi, np.pi), speed=st.floats(0.0, 1.5),
+    accel=st.floats(-2.0, 1.0), steer=st.floats(-0.6, 0.6), barrier=st.sampled_from(["fcbf", "cbf"]),
+)
+def test_hull_region_contains_current_and_next_footprints(x, y, heading, speed, accel, steer, barrier):
+    """Stage 0 of a robot's region contains the convex hull of its footprints now and after one
+    period of its input: every hull vertex is inside the ellipse (exact signed distance <= 0)."""
+    fleet = Fleet([robot(0)])
+    idx = np.array([0])
+    inputs = np.tile([accel, steer], (1, 3, 1))
+    traj = fleet.rollout(idx, np.array([[x, y, heading, speed]]), inputs, DT)
+    region = fleet.swept_regions(idx, traj, 1, barrier, FcbfParams(v0=0.5))[0].ellipses
+    corners = rect_corners(fleet.footprints(idx, traj[:, :2]))[0].reshape(-1, 2)
+    hull = convex_hull(corners)
+    cx, cy, a, b, phi = region[0]
+    assert np.all(ellipse_signed_distance(hull, cx, cy, a, b, phi) <= 1e-9)
+    assert np.all(barrier_value(hull[:, 0], hull[:, 1], cx, cy, np.cos(phi), np.sin(phi), a**-2, b**-2) <= 1e-9)
+
+
+@settings(max_examples=60, deadline=None)
+@given(points=st.lists(st.tuples(coord, coord), min_size=3, max_size=12), theta=st.floats(-np.pi, np.pi))
+def test_containing_ellipse_contains_every_point_and_is_tight(points, theta):
+    pts = np.array(points)
+    cx, cy, a, b, phi = containing_ellipse(pts, theta)
+    q = barrier_value(pts[:, 0], pts[:, 1], cx, cy, np.cos(phi), np.sin(phi), a**-2, b**-2) + 1.0
+    assert np.all(q <= 1.0)
+    spread = np.ptp(pts @ np.array([[np.cos(theta), -np.sin(theta)], [np.sin(theta), np.cos(theta)]]), axis=0)
+    if np.all(spread > 1e-6):
+        assert q.max() == pytest.approx(1.0, rel=1e-6)  # scaled until the farthest point is on it
+
+
+# --- proximity decision -----------------------------------------------------------------------
+
+PROX = ProximityParams(iterations=40, alpha=1.0, beta=3.0, step=0.3, sample_radius=3.0, collision_radius=1.0)
+
+
+def boxed_in_case():
+    """Two robots queue for the same way north: robot 0 in front has open ground ahead; robot 1,
+    1 m behind it, has robot 0 in front and debris on both sides."""
+    starts = np.array([[0.0, 0.0], [0.0, -1.0]])
+    goals = np.array([[0.0, 5.0], [0.0, 4.0]])
+    blockers = np.vstack([starts, [[-1.0, -1.0], [1.0, -1.0]]])
+    radius = np.array([1.0, 1.0, 1.2, 1.2])
+    owner = np.array([0, 1, -1, -1])
+    return starts, goals, blockers, radius, owner
+
+
+def test_proximity_decision_picks_the_unobstructed_robot():
+    for seed in range(5):
+        result = proximity_decision(*boxed_in_case(), PROX, np.random.default_rng(seed))
+        assert result.winner == 0
+        assert result.progress[0] > result.progress[1] + 0.5
+
+
+def test_proximity_decision_is_deterministic_for_a_seed():
+    a = proximity_decision(*boxed_in_case(), PROX, np.random.default_rng(7))
+    b = proximity_decision(*boxed_in_case(), PROX, np.random.default_rng(7))
+    c = proximity_decision(*boxed_in_case(), PROX, np.random.default_rng(8))
+    np.testing.assert_array_equal(a.scores, b.scores)
+    np.testing.assert_array_equal(a.best_nodes, b.best_nodes)
+    assert not np.array_equal(a.best_nodes, c.best_nodes)
+
+
+def test_tree_steps_never_exceed_the_step_length_from_the_start():
+    result = proximity_decision(*boxed_in_case(), PROX, np.random.default_rng(0))
+    starts = boxed_in_case()[0]
+    assert np.all(np.hypot(*(result.best_nodes - starts).T) <= PROX.iterations * PROX.step + 1e-9)
+
+
+# --- AAC: round robin, candidates, safety stop ------------------------------------------------
+
+
+def far_apart_world(n: int = 4) -> tuple[WorldState, list[PathReference]]:
+    states = np.array([[0.0, 6.0 * i, 0.0, 0.5] for i in range(n)])
+    goals = np.array([[30.0, 6.0 * i] for i in range(n)])
+    return WorldState(0.0, states, [robot(i) for i in range(n)]), straight_tasks(states, goals)
+
+
+def step_world(world: WorldState, inputs: np.ndarray) -> WorldState:
+    states = np.array([r.model.step(s, u, DT) for r, s, u in zip(world.robots, world.states, inputs)])
+    return WorldState(world.t + DT, states, world.robots, world.obstacles)
+
+
+def test_round_robin_gives_every_unfinished_robot_authority_in_turn():
+    world, tasks = far_apart_world(4)
+    finished = lambda w: np.array([False, False, True, False])  # robot 2 has arrived
+    aac = AacCoordinator(planner(), tasks, finished=finished, params=AacParams(close_distance=2.0))
+    holders = []
+    for _ in range(6):
+        decision = aac.decide(world)
+        holders.append([i for i, r in enumerate(decision.robots) if r.authority])
+        assert all(r.reason == "round_robin" for r in decision.robots if r.authority)
+        assert decision.robots[2].mode == "hold"
+        world = step_world(world, decision.inputs)
+    assert holders == [[0], [1], [3], [0], [1], [3]]
+
+
+def test_close_pair_candidates_get_scores_and_one_wins():
+    states = np.array([[0.0, 0.0, 0.0, 0.5], [0.0, 1.0, -np.pi / 2, 0.5], [0.0, 20.0, 0.0, 0.5]])
+    goals = np.array([[5.0, 0.0], [0.0, -4.0], [30.0, 20.0]])
+    world = WorldState(0.0, states, [robot(i) for i in range(3)])
+    aac = AacCoordinator(planner(), straight_tasks(states, goals), params=AacParams(close_distance=1.5, proximity=PROX))
+    decision = aac.decide(world)
+    holders = [i for i, r in enumerate(decision.robots) if r.authority]
+    assert holders == [0] and decision.robots[0].reason == "proximity"
+    assert decision.robots[0].score is not None and decision.robots[1].score is not None
+    assert decision.robots[2].score is None  # not in a close pair
+    assert decision.notes["authority"] == "robot0"
+
+
+@pytest.mark.parametrize("enabled", [True, False])
+def test_safety_stop_brakes_a_robot_heading_into_another(enabled):
+    """Robot 2 drives at 1 m/s on its tracking law toward robot 1, which stands 0.3 m ahead
+    (bumper to bumper): one more period at speed plus 0.25 m of braking would hit it. Robot 0,
+    far away, holds authority. With the safety stop, robot 2 brakes and it is counted."""
+    states = np.array([[0.0, 20.0, 0.0, 0.0], [0.9, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
+    goals = np.array([[10.0, 20.0], [10.0, 0.5], [10.0, 0.0]])
+    world = WorldState(0.0, states, [robot(i) for i in range(3)])
+    aac = AacCoordinator(planner(), straight_tasks(states, goals), params=AacParams(close_distance=0.5, safety_stop=enabled, safety_margin=0.05))
+    decision = aac.decide(world)
+    assert decision.robots[0].authority
+    if enabled:
+        assert decision.robots[2].mode == "safety_stop"
+        assert decision.notes["safety_stops"] == sum(r.mode == "safety_stop" for r in decision.robots)
+        assert decision.inputs[2, 0] == pytest.approx(LIMITS.a_min)
+    else:
+        assert decision.robots[2].mode == "tracking" and decision.notes["safety_stops"] == 0
+        assert decision.inputs[2, 0] > LIMITS.a_min
+
+
+# --- LFC --------------------------------------------------------------------------------------
+
+
+class RecordingPlanner(MpcPlanner):
+    """The real planner, remembering the order of its calls and the regions it was given."""
+
+    def __init__(self, config):
+        super().__init__(config)
+        self.calls = []
+
+    def plan(self, robot, state, reference, u_prev, obstacles, previous=None, corridor=None):
+        self.calls.append((robot.name, {getattr(o, "name", None): o for o in obstacles}))
+        return super().plan(robot, state, reference, u_prev, obstacles, previous, corridor)
+
+
+def test_lfc_plans_in_index_order_around_the_plans_made_before():
+    states = np.array([[0.0, 0.0, 0.0, 1.0], [2.0, -1.5, np.pi / 2, 1.0], [4.0, 1.5, -np.pi / 2, 1.0]])
+    goals = np.array([[8.0, 0.0], [2.0, 4.0], [4.0, -4.0]])
+    world = WorldState(0.0, states, [robot(i) for i in range(3)])
+    pl = RecordingPlanner(planner().config)
+    lfc = LfcCoordinator(pl, straight_tasks(states, goals))
+    decision = lfc.decide(world)
+    assert [name for name, _ in pl.calls] == ["robot0", "robot1", "robot2"]
+    assert all(r.authority and r.reason == "priority" for r in decision.robots)
+    fleet = Fleet(world.robots)
+    for i, (_, seen) in enumerate(pl.calls):
+        for j in range(i):  # leaders: their plan of this period, swept
+            plan = lfc.plans[j].states
+            traj = np.vstack([plan, fleet.rollout(np.array([j]), plan[None, -1], np.zeros((1, 1, 2)), DT)[0, -1:]])
+            expected = fleet.swept_regions(np.array([j]), traj[None], 5, "fcbf", FcbfParams(v0=0.5))[0].ellipses
+            np.testing.assert_allclose(seen[f"robot{j}"].ellipses, expected)
+        for j in range(i + 1, 3):  # followers: their current motion
+            cv = fleet.rollout(np.array([j]), states[[j]], np.zeros((1, 6, 2)), DT)
+            expected = fleet.swept_regions(np.array([j]), cv, 5, "fcbf", FcbfParams(v0=0.5))[0].ellipses
+            np.testing.assert_allclose(seen[f"robot{j}"].ellipses, expected)
+
+
+# --- fairness metric --------------------------------------------------------------------------
+
+
+def test_authority_jain_is_one_for_pure_round_robin():
+    world, tasks = far_apart_world(4)
+    aac = AacCoordinator(planner(), tasks, params=AacParams(close_distance=2.0))
+    rows = []
+    for _ in range(12):
+        decision = aac.decide(world)
+        rows += [dict(t=world.t, robot=r.name, authority=d.authority, arrived=False) for r, d in zip(world.robots, decision.robots)]
+        world = step_world(world, decision.inputs)
+    assert authority_jain(pd.DataFrame(rows)) == pytest.approx(1.0)
+
+
+def test_authority_jain_counts_only_unfinished_robots():
+    """Robot b arrives after two periods; from then on a alone is due all authority."""
+    rows = [dict(t=0, robot="a", authority=True, arrived=False), dict(t=0, robot="b", authority=False, arrived=False),
+            dict(t=1, robot="a", authority=False, arrived=False), dict(t=1, robot="b", authority=True, arrived=False),
+            dict(t=2, robot="a", authority=True, arrived=False), dict(t=2, robot="b", authority=False, arrived=True),
+            dict(t=3, robot="a", authority=True, arrived=False), dict(t=3, robot="b", authority=False, arrived=True)]
+    assert authority_jain(pd.DataFrame(rows)) == pytest.approx(1.0)
+    rows[1]["authority"], rows[3]["authority"] = False, False  # b never got its turns
+    rows[2]["authority"] = True
+    assert authority_jain(pd.DataFrame(rows)) < 0.6
