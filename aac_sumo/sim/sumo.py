@@ -127,19 +127,23 @@ class SumoSimulator(Simulator):
 
     # -- reading -----------------------------------------------------------------------------
 
-    def _read_robots(self) -> None:
-        """Poses of the controlled vehicles after the last SUMO step; notice removed ones."""
-        v = self.api.vehicle
-        present = set(v.getIDList())
+    def _note_removed(self) -> None:
+        """Freeze every controlled vehicle SUMO no longer has, and report it once."""
+        present = set(self.api.vehicle.getIDList())
         for i, robot in enumerate(self.robots):
-            if robot.name in self.removed:
-                continue
-            if robot.name not in present:
+            if robot.name not in self.removed and robot.name not in present:
                 self.removed.add(robot.name)
                 self.states[i, 3] = 0.0
                 event = f"t={self.t:.2f} s: SUMO removed controlled vehicle {robot.name}; frozen at its last pose, counted finished"
                 self.events.append(event)
                 print(f"aac-sumo: warning: {event}", file=sys.stderr)
+
+    def _read_robots(self) -> None:
+        """Poses of the controlled vehicles after the last SUMO step; notice removed ones."""
+        v = self.api.vehicle
+        self._note_removed()
+        for i, robot in enumerate(self.robots):
+            if robot.name in self.removed:
                 continue
             x, y = v.getPosition(robot.name)
             angle = v.getAngle(robot.name)
@@ -177,6 +181,7 @@ class SumoSimulator(Simulator):
     def step(self, inputs: np.ndarray) -> ContactReport:
         inputs = np.asarray(inputs, dtype=float)
         with self._sumo_errors("stepping"):
+            self._note_removed()  # removed since the last step (by another TraCI client, say)
             for i, robot in enumerate(self.robots):
                 if robot.name in self.removed:
                     continue

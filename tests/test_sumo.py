@@ -1,0 +1,205 @@
+"""SUMO co-simulation: real libsumo runs on the bundled and on generated networks (no mock of SUMO)."""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+import sumolib
+
+from aac_sumo import config, network, runner
+from aac_sumo.cli import main
+from aac_sumo.config import ScenarioError
+from aac_sumo.experiments import build
+from aac_sumo.experiments.common import COORDINATORS, robot_spec
+from aac_sumo.experiments.lane_change import BUNDLED_NET, BUNDLED_NET_DIR, target_lane
+from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
+from aac_sumo.sim.sumo import SumoOptions, SumoSimulator
+
+CONES = BUNDLED_NET_DIR / "cones.rou.xml"
+PEDESTRIANS = BUNDLED_NET_DIR / "pedestrians.rou.xml"
+LANE_Y = {0: -8.0, 1: -4.8, 2: -1.6}  # bundled road, lane centre lines (x from 0 to 236.5 m)
+SMALL = ["controller.coordinator=independent", "controller.horizon=5"]
+
+
+def cars(*names: str):
+    scenario = config.load("lane_change")
+    return [robot_spec(scenario, n) for n in names]
+
+
+def sim_with(states, routes=(), names=None) -> SumoSimulator:
+    """A SUMO world on the bundled road with cars at rear-axle ``states`` (n, 4)."""
+    robots = cars(*(names or [f"car{i}" for i in range(len(states))]))
+    return SumoSimulator(robots, np.array(states, dtype=float), 0.1, ["E0", "E1"], SumoOptions(BUNDLED_NET, list(routes)))
+
+
+def test_written_poses_read_back_one_step_later():
+    """Each step our model's pose goes to SUMO with moveToXY; SUMO's getters (previous step's
+    values, so read after the step) return it within 1 cm and 0.1 degree."""
+    sim = sim_with([[20.0, LANE_Y[0], 0.0, 10.0], [20.0, LANE_Y[2], 0.05, 8.0]])
+    try:
+        inputs = np.array([[1.0, 0.05], [-1.0, -0.1]])
+        for _ in range(10):
+            expected = [r.model.step(s, u, sim.dt) for r, s, u in zip(sim.robots, sim.states.copy(), inputs)]
+            sim.step(inputs)
+            assert np.abs(sim.states[:, :2] - np.array(expected)[:, :2]).max() < 0.01
+            assert np.degrees(np.abs(np.angle(np.exp(1j * (sim.states[:, 2] - np.array(expected)[:, 2]))))).max() < 0.1
+    finally:
+        sim.close()
+
+
+def test_two_vehicles_twenty_steps_move_without_collision():
+    scenario = config.load("lane_change", SMALL + ["lane_change.vehicles=2", "scenario.duration=2.0"])
+    result = runner.run(scenario)
+    m, steps = result.metrics, result.steps
+    assert "error" not in m
+    assert len(steps) == 2 * 20
+    travelled = steps.groupby("robot")["x"].agg(lambda x: x.iloc[-1] - x.iloc[0])
+    assert (travelled > 15.0).all()  # ~10 m/s for 1.9 s
+    assert m["collisions"] == 0 and m["sim_collisions"] == 0
+
+
+def test_same_seed_same_run():
+    sets = SMALL + ["lane_change.vehicles=3", "scenario.duration=1.0", "scenario.seed=4"]
+    a, b = (runner.run(config.load("lane_change", sets)).trajectories for _ in range(2))
+    assert a[["x", "y", "heading"]].equals(b[["x", "y", "heading"]])
+
+
+def test_rear_end_overlap_is_counted_by_us_and_by_sumo():
+    """A car at 10 m/s drives blindly into a stopped one 2 m ahead (bumper to bumper)."""
+    sim = sim_with([[20.0, LANE_Y[1], 0.0, 10.0], [26.0, LANE_Y[1], 0.0, 0.0]])
+    try:
+        reports = [sim.step(np.zeros((2, 2))) for _ in range(5)]
+    finally:
+        sim.close()
+    assert any(("car0", "car1") in r.overlaps for r in reports)
+    assert sum(r.sim_collisions for r in reports) >= 1
+    assert min(r.clearance.min() for r in reports) < 0
+
+
+def test_cones_are_static_obstacles_sumo_also_collides_with():
+    sim = sim_with([[150.0, LANE_Y[0], 0.0, 10.0]], routes=[CONES])
+    try:
+        cones = [o for o in sim.observe().obstacles if o.kind == "cone"]
+        assert len(cones) == 5
+        assert all(np.allclose(c.velocity, 0.0) and abs(c.centre[1] - LANE_Y[0]) < 1e-6 for c in cones)
+        assert sorted(c.centre[0] for c in cones) == pytest.approx([189.8, 199.8, 209.8, 219.8, 229.8])
+        sim.states[0, :2] = [187.0, LANE_Y[0]]  # the next step puts its front bumper at 191.3 m, over cone0
+        report = sim.step(np.zeros((1, 2)))
+    finally:
+        sim.close()
+    assert ("car0", "cone0") in report.overlaps
+    assert report.sim_collisions == 1
+
+
+def test_pedestrian_reaches_the_mpc_obstacle_list():
+    sim = sim_with([[200.0, LANE_Y[1], 0.0, 0.0]], routes=[PEDESTRIANS])
+    try:
+        for _ in range(20):
+            sim.step(np.zeros((1, 2)))
+        world = sim.observe()
+        peds = [o for o in world.obstacles if o.kind == "pedestrian"]
+        assert {p.name for p in peds} == {"p0", "p1"}
+        p1 = next(p for p in peds if p.name == "p1")
+        x, y = sim.api.person.getPosition("p1")  # SUMO: front of the walker, walking north
+        assert p1.centre == pytest.approx([x, y - 0.5 * p1.length], abs=1e-6)
+        assert p1.velocity[1] > 0.5 and abs(p1.velocity[0]) < 1e-6
+    finally:
+        sim.close()
+    cfg = MpcConfig(horizon=5, slots=4)
+    params = MpcPlanner(cfg).obstacle_parameters(world.robots[0], world.states[0], world.obstacles)
+    active = params[0, params[0, :, 6] == 1.0]
+    assert any(np.allclose(row[:2], p1.centre) for row in active)
+
+
+def test_a_vehicle_sumo_removes_is_frozen_finished_and_the_run_goes_on(capsys):
+    setup = build(config.load("lane_change", SMALL + ["lane_change.vehicles=2"]))
+    sim = setup.sim
+    try:
+        for k in range(10):
+            if k == 3:
+                sim.api.vehicle.remove("veh1")
+            world = sim.observe()
+            report = sim.step(setup.coordinator.decide(world).inputs)
+        frozen = sim.states[1].copy()
+        sim.step(np.zeros((2, 2)))
+        assert "veh1" in sim.removed and np.array_equal(sim.states[1], frozen) and frozen[3] == 0.0
+        assert report.clearance[1] == np.inf
+        assert setup.finished(sim.observe()).tolist() == [False, True]
+        assert sim.events and "veh1" in sim.events[0]
+    finally:
+        sim.close()
+    assert "SUMO removed controlled vehicle veh1" in capsys.readouterr().err
+
+
+def test_target_lanes_move_away_from_the_cone_lane():
+    assert [target_lane(i, 0, 3) for i in range(3)] == [1, 2, 1]
+    assert [target_lane(i, 2, 3) for i in range(3)] == [1, 0, 1]
+    assert [target_lane(i, 0, 2) for i in range(2)] == [1, 1]  # nowhere to go but the cone lane: keep lane
+
+
+def test_net_build_reproduces_the_bundled_lanes(tmp_path):
+    src = tmp_path / "lane_change"
+    shutil.copytree(BUNDLED_NET_DIR, src, ignore=shutil.ignore_patterns("*.net.xml"))
+    assert main(["net", "build", str(src)]) == 0
+    built, bundled = (sumolib.net.readNet(str(p)) for p in (src / "lane_change.net.xml", BUNDLED_NET))
+    lanes = {lane.getID(): lane.getShape() for e in bundled.getEdges() for lane in e.getLanes()}
+    assert {lane.getID(): lane.getShape() for e in built.getEdges() for lane in e.getLanes()} == lanes
+
+
+def write_curved_net(folder: Path, lanes: int) -> Path:
+    """A curved road (arc of radius 150 m, ~340 m long) with ``lanes`` lanes, built by netconvert."""
+    folder.mkdir()
+    arc = [(150 * np.sin(t), 150 * (1 - np.cos(t))) for t in np.linspace(0, 2.3, 40)]
+    shape = " ".join(f"{x:.2f},{y:.2f}" for x, y in arc)
+    (folder / "curve.nod.xml").write_text(
+        f'<nodes><node id="A" x="0" y="0"/><node id="B" x="{arc[-1][0]:.2f}" y="{arc[-1][1]:.2f}"/></nodes>')
+    (folder / "curve.edg.xml").write_text(
+        f'<edges><edge id="R" from="A" to="B" numLanes="{lanes}" speed="13.9" width="3.5" shape="{shape}"/></edges>')
+    built = network.build(folder)
+    assert built == [folder / f"{folder.name}.net.xml"]
+    return built[0]
+
+
+def test_one_lane_network_is_rejected_with_one_line(tmp_path, capsys):
+    net = write_curved_net(tmp_path / "narrow", 1)
+    assert main(["run", "lane_change", "--set", f"sumo.net={net}", "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert "sumo.net" in err and "edge R has 1 lane; lane_change needs at least 2" in err
+
+
+def test_scenario_runs_to_completion_on_a_curved_four_lane_network(tmp_path):
+    net = write_curved_net(tmp_path / "curve", 4)
+    cones = tmp_path / "cones.rou.xml"
+    cones.write_text(
+        '<routes><vType id="cone" length="0.4" width="0.4" minGap="0"/>'
+        + "".join(f'<vehicle id="c{i}" type="cone" depart="0" departLane="0" departPos="{p}" departSpeed="0"><route edges="R"/>'
+                  f'<stop lane="R_0" startPos="{p - 0.4}" endPos="{p}" duration="1000"/></vehicle>' for i, p in enumerate((120, 130)))
+        + "</routes>")
+    scenario = config.load("lane_change", SMALL + ["lane_change.vehicles=4", f"sumo.net={net}", f"sumo.routes={cones}",
+                                                   "scenario.duration=25.0"])
+    m = runner.run(scenario).metrics
+    assert "error" not in m
+    assert m["completed"] is True and m["collisions"] == 0
+    assert m["tracking_error_m"] < 0.5  # the references follow the curved lanes
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["aac", "lfc"])
+def test_fifteen_vehicles_change_lanes_without_collision(name):
+    if name not in COORDINATORS:
+        pytest.skip(f"coordinator {name!r} is not registered in aac_sumo.experiments.common.COORDINATORS yet")
+    m = runner.run(config.load("lane_change", [f"controller.coordinator={name}", "controller.horizon=10"])).metrics
+    assert "error" not in m
+    assert m["n_robots"] == 15
+    assert m["collisions"] == 0
+    assert m["completed"] is True
+
+
+def test_sumo_binaries_come_from_the_wheel():
+    done = subprocess.run([network.sumo_binary("sumo"), "--version"], capture_output=True, text=True)
+    assert done.returncode == 0 and "Eclipse SUMO" in done.stdout
