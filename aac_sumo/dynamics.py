@@ -54,8 +54,19 @@ class VehicleLimits:
         return np.clip(control, lo, hi)
 
     def braking_input(self, speed: float, dt: float) -> np.ndarray:
-        """Hardest admissible braking that does not go below ``v_min`` within ``dt``, zero steer."""
-        return np.array([max(self.a_min, min(0.0, (self.v_min - speed) / dt)), 0.0])
+        """Hardest admissible braking within ``dt`` toward the admissible speed nearest to
+        standstill (0, or ``v_min`` when that is positive), zero steer; it never drives a robot
+        through zero speed into the other direction."""
+        target = min(max(0.0, self.v_min), self.v_max)
+        return np.array([float(np.clip((target - speed) / dt, self.a_min, self.a_max)), 0.0])
+
+    def stopping_inputs(self, speed: float, dt: float, steps: int) -> np.ndarray:
+        """Inputs (steps, 2) of :meth:`braking_input` applied period after period until standstill."""
+        out = np.zeros((steps, 2))
+        for k in range(steps):
+            out[k] = self.braking_input(speed, dt)
+            speed += out[k, 0] * dt
+        return out
 
 
 @dataclass(frozen=True)

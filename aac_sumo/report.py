@@ -19,6 +19,8 @@ def plot_run(result, path: Path) -> None:
         return plot_lane_change(result, path)
     if result.scenario.kind == "braking":
         _plot_braking(result, path)
+    elif result.scenario.kind in ("swarm_rescue", "circle_swap"):
+        _plot_swarm(result, path)
     else:
         _plot_paths(result, path)
 
@@ -47,6 +49,57 @@ def _plot_braking(result, path: Path) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+def _plot_swarm(result, path: Path) -> None:
+    """Robots' paths coloured by robot with starts, goals, debris and final footprints; below,
+    a strip of which robot held authority (and where safety stops happened) over time."""
+    traj, steps, m = result.trajectories, result.steps, result.metrics
+    robots = list(dict.fromkeys(traj.loc[traj["kind"] == "controlled", "name"]))
+    colours = plt.get_cmap("tab10")
+    fig, (ax, strip) = plt.subplots(2, 1, figsize=(8, 8.5), gridspec_kw=dict(height_ratios=[3.2, 1]))
+    for _, row in traj[traj["kind"] != "controlled"].drop_duplicates("name").iterrows():
+        _rectangle(ax, row, facecolor="0.6", edgecolor="0.3")
+    for i, name in enumerate(robots):
+        group = traj[traj["name"] == name]
+        colour = colours(i % 10)
+        ax.plot(group["x"], group["y"], color=colour, lw=1.5, label=name)
+        ax.plot(group["x"].iloc[0], group["y"].iloc[0], "o", color=colour, ms=5)
+        _rectangle(ax, group.iloc[-1], facecolor="none", edgecolor=colour)
+        if result.goals is not None:
+            ax.plot(*result.goals[i], "*", color=colour, ms=13, markeredgecolor="k")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.legend(fontsize="small", loc="best")
+    done = "completed in " + _fmt(m["task_duration_s"]) + " s" if m["completed"] else m.get("incomplete_reason", "not completed")
+    ax.set_title(f"{m['scenario']}: {m['coordinator'].upper()}, {m['barrier']}, N={m['horizon']}, seed {m['seed']}; {done}\n"
+                 f"min distance {_fmt(m['min_distance_m'])} m, collisions {m['collisions']}, "
+                 f"compute median {_fmt(m['compute_ms_median'])} ms/period", fontsize="medium")
+    index = {name: i for i, name in enumerate(robots)}
+    held = steps[steps["authority"].astype(bool)]
+    strip.scatter(held["t"], held["robot"].map(index), c=[colours(index[r] % 10) for r in held["robot"]], marker="|", s=60)
+    stops = steps[steps["mode"] == "safety_stop"]
+    if len(stops):
+        strip.scatter(stops["t"], stops["robot"].map(index), color="red", marker="x", s=18, label="safety stop")
+        strip.legend(fontsize="small", loc="upper right")
+    strip.set_yticks(range(len(robots)), robots)
+    strip.set_ylim(-0.5, len(robots) - 0.5)
+    strip.set_xlabel("time [s]")
+    strip.set_title("authority (who solved the MPC each period)", fontsize="medium")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def _rectangle(ax, row, **style) -> None:
+    """Draw the footprint of a trajectories.csv row (centre, heading, length, width)."""
+    c, s = np.cos(row["heading"]), np.sin(row["heading"])
+    u = 0.5 * row["length"] * np.array([c, s])
+    v = 0.5 * row["width"] * np.array([-s, c])
+    centre = np.array([row["x"], row["y"]])
+    corners = np.array([centre + u + v, centre - u + v, centre - u - v, centre + u - v])
+    ax.add_patch(plt.Polygon(corners, closed=True, lw=1.0, **style))
 
 
 def _plot_paths(result, path: Path) -> None:

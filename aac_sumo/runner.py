@@ -19,13 +19,15 @@ from aac_sumo.metrics import compute_metrics, jain, nearest_robot_distance, time
 
 @dataclass
 class RunResult:
-    """Metrics, the per-robot step table, the per-period table and every agent's trajectory."""
+    """Metrics, the per-robot step table, the per-period table, every agent's trajectory, and
+    each robot's goal (the end of its reference path, rear axle [m])."""
 
     metrics: dict
     steps: pd.DataFrame
     periods: pd.DataFrame
     trajectories: pd.DataFrame
     scenario: Scenario
+    goals: np.ndarray | None = None
 
 
 def run(scenario: Scenario) -> RunResult:
@@ -111,7 +113,8 @@ def run(scenario: Scenario) -> RunResult:
         reasons.append(f"time limit {duration} s reached")
     if reasons:
         metrics["incomplete_reason"] = "; ".join(reasons)
-    return RunResult(metrics, steps_df, periods_df, pd.DataFrame(traj), scenario)
+    goals = np.array([task.points[-1] for task in setup.tasks])
+    return RunResult(metrics, steps_df, periods_df, pd.DataFrame(traj), scenario, goals)
 
 
 STEP_COLUMNS = [

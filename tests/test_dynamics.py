@@ -278,3 +278,19 @@ def test_braking_input_never_below_v_min(v_min, extra, a_min, dt):
     # through the raw (unclipped) dynamics as well
     state = bicycle_step(np.array([0.0, 0.0, 0.0, speed]), np.array([accel, steer]), dt, 1.0)
     assert state[3] >= v_min - 1e-12
+
+
+@given(speed=st.floats(-5.0, 5.0), a_min=st.floats(-10.0, -0.5), a_max=st.floats(0.5, 5.0), dt=dt_st)
+@settings(max_examples=100)
+def test_braking_with_reverse_allowed_stops_at_zero(speed, a_min, a_max, dt):
+    """With reversing allowed (v_min < 0) braking heads for standstill from either direction and
+    never crosses it; stopping_inputs reaches standstill and stays there."""
+    limits = VehicleLimits(a_min=a_min, a_max=a_max, steer_max=0.6, v_min=-5.0, v_max=5.0)
+    accel, _ = limits.braking_input(speed, dt)
+    nxt = speed + accel * dt
+    assert nxt * speed >= -1e-12  # same sign as before, or zero
+    assert abs(nxt) <= abs(speed) + 1e-12
+    steps = int(np.ceil(abs(speed) / min(-a_min, a_max) / dt)) + 2
+    speeds = speed + np.cumsum(limits.stopping_inputs(speed, dt, steps)[:, 0]) * dt
+    assert speeds[-1] == pytest.approx(0.0, abs=1e-9)
+    assert np.all(speeds * speed >= -1e-9)

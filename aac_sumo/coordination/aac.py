@@ -79,7 +79,7 @@ class AacCoordinator(Coordinator):
         stops = self.safety_stops(world, others, horizon_inputs[:, 0]) if self.params.safety_stop else np.zeros(len(others), bool)
         for row in np.flatnonzero(stops):
             j = others[row]
-            horizon_inputs[row] = world.robots[j].model.limits.braking_input(world.states[j, 3], cfg.dt)  # straight wheels
+            horizon_inputs[row] = world.robots[j].model.limits.stopping_inputs(world.states[j, 3], cfg.dt, cfg.horizon + 2)
             records[j].mode = "safety_stop"
             if self.plans[j] is not None:
                 self.used[j] = len(self.plans[j].inputs)
@@ -125,8 +125,7 @@ class AacCoordinator(Coordinator):
         out = np.zeros((steps, 2))
         task = self.tasks[j]
         if finished and task.stop_at_end:
-            out[:] = self.hold_input(world, j)  # speeds never drop below v_min in the rollout
-            return out, "hold"
+            return world.robots[j].model.limits.stopping_inputs(world.states[j, 3], self.planner.config.dt, steps), "hold"
         plan = self.plans[j]
         if plan is not None and self.used[j] < len(plan.inputs):
             rest = plan.inputs[self.used[j]:][:steps]
@@ -155,7 +154,7 @@ class AacCoordinator(Coordinator):
         course = np.empty((n, steps + 1, 4))
         course[:, :2] = fleet.rollout(np.arange(n), world.states, inputs[:, None, :], cfg.dt)
         for k in range(1, steps):
-            brake = np.column_stack([np.clip((fleet.v_min - course[:, k, 3]) / cfg.dt, fleet.a_min, 0.0), np.zeros(n)])
+            brake = np.column_stack([np.clip(-course[:, k, 3] / cfg.dt, fleet.a_min, fleet.a_max), np.zeros(n)])
             course[:, k + 1] = fleet.rollout(np.arange(n), course[:, k], brake[:, None, :], cfg.dt)[:, 1]
         rows = fleet.footprints(np.arange(n), course)  # (n, K+1, 5)
         obs = np.array([o.footprint() for o in world.obstacles]).reshape(-1, 5)

@@ -27,8 +27,8 @@ class LfcCoordinator(Coordinator):
         motion = self.fleet.rollout(np.arange(n), world.states, np.zeros((n, cfg.horizon + 1, 2)), cfg.dt)
         for i in range(n):
             if done[i] and self.tasks[i].stop_at_end:
-                inputs[i], records[i].mode = self.hold_input(world, i), "hold"
-                hold = np.repeat(inputs[i][None, :], cfg.horizon + 1, axis=0)
+                hold = world.robots[i].model.limits.stopping_inputs(world.states[i, 3], cfg.dt, cfg.horizon + 1)
+                inputs[i], records[i].mode = hold[0], "hold"
                 motion[i] = self.fleet.rollout(np.array([i]), world.states[[i]], hold[None], cfg.dt)[0]
                 continue
             others = np.array([j for j in range(n) if j != i], dtype=int)

@@ -16,13 +16,14 @@ from aac_sumo.world import RobotSpec
 
 
 class Fleet:
-    """Per-robot constants as arrays, for vectorised rollouts: wheelbase, strongest braking, speed limits,
+    """Per-robot constants as arrays, for vectorised rollouts: wheelbase, acceleration and speed limits,
     rear-axle-to-centre offset, footprint length and width [m, m/s]."""
 
     def __init__(self, robots: list[RobotSpec]):
         self.names = [r.name for r in robots]
         self.wheelbase = np.array([r.model.wheelbase for r in robots])
         self.a_min = np.array([r.model.limits.a_min for r in robots])
+        self.a_max = np.array([r.model.limits.a_max for r in robots])
         self.v_min = np.array([r.model.limits.v_min for r in robots])
         self.v_max = np.array([r.model.limits.v_max for r in robots])
         self.offset = np.array([r.centre_offset for r in robots])
