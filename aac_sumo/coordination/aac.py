@@ -76,7 +76,8 @@ class AacCoordinator(Coordinator):
             horizon_inputs[row], records[j].mode = self.intended_inputs(world, j, done[j], cfg.horizon + 2)
         traj = self.fleet.rollout(others, world.states[others], horizon_inputs, cfg.dt)
 
-        stops = self.safety_stops(world, others, horizon_inputs[:, 0]) if self.params.safety_stop else np.zeros(len(others), bool)
+        planned = np.array([records[j].mode == "plan" for j in others], dtype=bool)
+        stops = self.safety_stops(world, others, horizon_inputs[:, 0], planned) if self.params.safety_stop else np.zeros(len(others), bool)
         for row in np.flatnonzero(stops):
             j = others[row]
             horizon_inputs[row] = world.robots[j].model.limits.stopping_inputs(world.states[j, 3], cfg.dt, cfg.horizon + 2)
@@ -134,7 +135,7 @@ class AacCoordinator(Coordinator):
         out[0] = track(world.robots[j], world.states[j], task, self.params.lookahead, self.params.speed_gain)
         return out, "tracking"
 
-    def safety_stops(self, world: WorldState, others: np.ndarray, first: np.ndarray) -> np.ndarray:
+    def safety_stops(self, world: WorldState, others: np.ndarray, first: np.ndarray, planned: np.ndarray) -> np.ndarray:
         """Which non-authority robots (rows of ``others``, about to apply ``first`` (m, 2)) must
         brake instead.
 
@@ -142,7 +143,8 @@ class AacCoordinator(Coordinator):
         stage-1 position is fixed anyway) and then brake to a stop with straight wheels. A robot
         stops now when, on that course, its footprint comes within ``safety_margin`` of another
         robot's footprint at the same stage, or of an obstacle moving at constant velocity,
-        closer than it is now.
+        closer than it is now. Robots following an MPC plan (``planned`` rows) are not checked
+        against standing obstacles, which their plan already avoids.
         """
         cfg, fleet = self.planner.config, self.fleet
         n = len(world.robots)
@@ -159,12 +161,15 @@ class AacCoordinator(Coordinator):
         rows = fleet.footprints(np.arange(n), course)  # (n, K+1, 5)
         obs = np.array([o.footprint() for o in world.obstacles]).reshape(-1, 5)
         vel = np.array([o.velocity for o in world.obstacles]).reshape(-1, 2)
+        standing = np.hypot(vel[:, 0], vel[:, 1]) == 0.0
+        ignore = planned[:, None] & standing[None, :]  # (m, obstacles)
         now = later = np.full(len(others), np.inf)
         for k in range(steps + 1):
             moved = obs.copy()
             moved[:, :2] += k * cfg.dt * vel
             gaps = pairwise_rect_clearance(rows[others, k], np.vstack([rows[:, k], moved]))
             gaps[np.arange(len(others)), others] = np.inf
+            gaps[:, n:][ignore] = np.inf
             if k == 0:
                 now = gaps.min(axis=1)
             else:
