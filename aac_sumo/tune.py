@@ -369,10 +369,8 @@ class Search:
         std = scores.std()
         target = -(scores - scores.mean()) / (std if std > 0 else 1.0)  # bayes_opt maximises
         rng = np.random.RandomState(_seed(self.seed, 2, n))
-        from threadpoolctl import threadpool_limits  # installed with scikit-learn, bayes_opt's GP
-
         # one BLAS thread: the matrices are tiny, and threads only fight the simulations for cores
-        with warnings.catch_warnings(), threadpool_limits(1):
+        with warnings.catch_warnings(), _one_blas_thread():
             # bayes_opt calls integer parameters experimental; sklearn notes GP fits that hit a bound
             warnings.simplefilter("ignore")
             opt = BayesianOptimization(
@@ -407,6 +405,16 @@ class Search:
         if on_trial is not None:
             on_trial(trial)
         return trial
+
+
+def _one_blas_thread():
+    try:
+        from threadpoolctl import threadpool_limits  # comes with scikit-learn, bayes_opt's GP
+    except ImportError:  # pragma: no cover
+        import contextlib
+
+        return contextlib.nullcontext()
+    return threadpool_limits(1)
 
 
 def _seed(*parts: int) -> int:
