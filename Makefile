@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test test-fast bench clean
+.PHONY: demo demo-sumo test test-fast bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -15,6 +15,9 @@ $(STAMP): pyproject.toml
 
 demo: $(STAMP)
 	$(BIN)/aac-sumo table braking --out out/table_braking
+
+demo-sumo: $(STAMP)
+	$(BIN)/aac-sumo run lane_change --out out/lane_change
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

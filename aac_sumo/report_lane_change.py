@@ -45,9 +45,12 @@ def plot_lane_change(result, path: Path) -> None:
     ax.plot(cones["x"], cones["y"], "^", color="tab:orange", ms=7, ls="none", label="cones")
     ax.plot([], [], color="0.3", lw=1.2, label="vehicles (footprint centre)")
     ax.plot([], [], color="0.3", lw=0.8, ls=":", label="references (rear axle)")
-    ax.set_aspect("equal")
+    ax.autoscale()
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    stretch = max(1.0, round(0.3 * (x1 - x0) / max(y1 - y0, 1e-9), 1))  # a long straight road stays readable
+    ax.set_aspect(stretch)
     ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
+    ax.set_ylabel("y [m]" if stretch == 1.0 else f"y [m] (stretched x{stretch:g})")
     ax.legend(fontsize="small", loc="upper left", ncol=4)
     m = result.metrics
     ax.set_title(f"{m['scenario']}: {m['coordinator']}, N={m['horizon']}; task {_fmt(m['task_duration_s'])} s, "
