@@ -349,6 +349,8 @@ def read_results(path: Path, grid_keys: list[str]) -> list[dict]:
         got = ", ".join(c for c in found if c not in columns([])) or "none"
         raise SweepError(f"--resume {path}: columns: expected the grid keys of this sweep "
                          f"({', '.join(grid_keys)}) and the metric columns, got grid keys {got}")
+    # a row cut short by a hard kill while it was written is not a finished run
+    rows = [r for r in rows if None not in r and None not in r.values() and r.get("status") in ("ok", "error")]
     return [{k: (v if k in ("status", "error") else _parse_cell(v)) for k, v in r.items()} for r in rows]
 
 

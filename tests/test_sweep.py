@@ -168,7 +168,7 @@ def test_resume_skips_finished_runs_and_retries_errors(capsys, tmp_path):
     path = tmp_path / "results.csv"
     cols, rows = read_rows(path)
     # an interrupted sweep: speed 5 finished (marked so we can tell it is not run again), speed 6
-    # failed, speed 7 never finished
+    # failed, speed 7 was cut off while its row was written
     original = [r["min_distance_m"] for r in rows]
     rows[0]["min_distance_m"] = "123.0"
     rows[1].update(status="error", error="RuntimeError: boom", min_distance_m="")
@@ -176,6 +176,7 @@ def test_resume_skips_finished_runs_and_retries_errors(capsys, tmp_path):
         writer = csv.DictWriter(fh, fieldnames=cols, lineterminator="\n")
         writer.writeheader()
         writer.writerows(rows[:2])
+        fh.write("7.0,0,braking,indep")  # the row being written when the sweep was killed
     capsys.readouterr()
     assert main(argv + ["--grid", "braking.speed=5,6,7", "--resume"]) == 0
     assert "resuming: 1 of 3 runs already in" in capsys.readouterr().err
