@@ -57,12 +57,14 @@ class BenchRecord:
     mean_ms: float = 0.0
     ratio_to: str | None = None
     ratio: float | None = None
+    proximity_median_ms: float | None = None
+    realtime_factor: float | None = None
 
     def as_json(self) -> dict:
         out = dict(self.__dict__)
         if self.ratio_to is None:
             del out["ratio_to"], out["ratio"]
-        return out
+        return {k: v for k, v in out.items() if v is not None or k in ("ratio_to", "ratio")}
 
 
 @dataclass
@@ -164,15 +166,93 @@ def markdown(report: BenchReport) -> str:
     return text
 
 
-def write(report: BenchReport, out: Path) -> None:
-    """``bench.json`` (a list of records) and ``bench.md`` in ``out``."""
+def write(out: Path, mpc: BenchReport | None = None, aac: BenchReport | None = None) -> str:
+    """``bench.json`` (a list of every record) and ``bench.md`` in ``out``; returns the markdown."""
     out.mkdir(parents=True, exist_ok=True)
-    (out / "bench.json").write_text(json.dumps([r.as_json() for r in report.records], indent=2) + "\n")
-    header = (
-        "# MPC-FCBF solve time\n\n"
-        f"One warm-started solve per control period in a closed loop (ego 1.0 m x 0.6 m at {SPEED:g} m/s "
-        f"past {len(_COURSE)} obstacles, {SLOTS} slots, dt {DT} s, barrier fcbf); each solver alone "
-        f"(no ipopt retry); {WARMUP} untimed warm-up solves. Each configuration drives its own closed loop, "
-        "so the problems it solves differ slightly from the others'. Speed-up = baseline median / median.\n\n"
-    )
-    (out / "bench.md").write_text(header + markdown(report))
+    records = (mpc.records if mpc else []) + (aac.records if aac else [])
+    (out / "bench.json").write_text(json.dumps([r.as_json() for r in records], indent=2) + "\n")
+    text = ""
+    if mpc is not None:
+        text += (
+            "# MPC-FCBF solve time\n\n"
+            f"One warm-started solve per control period in a closed loop (ego 1.0 m x 0.6 m at {SPEED:g} m/s "
+            f"past {len(_COURSE)} obstacles, {SLOTS} slots, dt {DT} s, barrier fcbf); each solver alone "
+            f"(no ipopt retry); {WARMUP} untimed warm-up solves. Each configuration drives its own closed loop, "
+            "so the problems it solves differ slightly from the others'. Speed-up = baseline median / median.\n\n"
+            + markdown(mpc)
+        )
+    if aac is not None:
+        text += ("\n" if text else "") + (
+            "# Coordinator time per control period: AAC against LFC\n\n"
+            "Full runs of each bundled scenario with its own settings, AAC then LFC, in this process. The time is the "
+            "coordinator's wall time per period: authority choice, predictions and every MPC solve (LFC solves once per "
+            "unfinished robot). AAC speed-up = LFC median / AAC median.\n\n" + markdown_aac(aac)
+        )
+    (out / "bench.md").write_text(text)
+    return text
+
+
+# --- coordinators: AAC against LFC per control period ------------------------------------------
+
+AAC_SCENARIOS = ("swarm_rescue", "lane_change")
+
+
+def bench_aac(horizons=HORIZONS, scenarios=AAC_SCENARIOS, progress=None) -> BenchReport:
+    """Coordinator wall time per control period, AAC and LFC, in full runs of each bundled
+    scenario at each horizon, one after the other in this process. ``failures`` counts
+    infeasible or failed MPC solves; ``ratio`` on the AAC record is LFC's median over AAC's
+    (AAC's speed-up); ``proximity_median_ms`` is the median time of the proximity decision
+    over the periods that ran one; ``realtime_factor`` is simulated time over the run's wall
+    time (simulator included)."""
+    from aac_sumo import config, runner
+
+    report = BenchReport()
+    for scenario in scenarios:
+        try:
+            config.resolve(scenario)
+        except config.ScenarioError:
+            report.notes.append(f"{scenario}: no such bundled scenario; skipped")
+            continue
+        for horizon in horizons:
+            records = {}
+            for name in ("aac", "lfc"):
+                if progress:
+                    progress(f"{name}/{scenario} N={horizon}")
+                result = runner.run(config.load(scenario, [f"controller.coordinator={name}", f"controller.horizon={horizon}"]))
+                m, times = result.metrics, result.periods["compute_ms"].to_numpy()
+                if m.get("error"):
+                    report.notes.append(f"{name}/{scenario} N={horizon}: run failed: {m['error']}")
+                elif not m["completed"]:
+                    report.notes.append(f"{name}/{scenario} N={horizon}: {m.get('incomplete_reason', 'not completed')}")
+                prox = result.periods.get("proximity_ms")
+                prox = prox[prox > 0].to_numpy() if prox is not None else np.array([])
+                records[name] = BenchRecord(
+                    name=f"{name}/{scenario}", horizon=horizon, samples=len(times), median_ms=float(np.median(times)),
+                    p95_ms=float(np.percentile(times, 95)), failures=int(m["infeasible_solves"]),
+                    solver=result.scenario["controller.solver"] + ("-c" if result.scenario["controller.codegen"] else ""),
+                    slots=result.scenario["controller.obstacle_slots"], mean_ms=float(np.mean(times)),
+                    proximity_median_ms=float(np.median(prox)) if prox.size else None,
+                    realtime_factor=m["realtime_factor"],
+                )
+            aac, lfc = records["aac"], records["lfc"]
+            aac.ratio_to, aac.ratio = lfc.name, lfc.median_ms / aac.median_ms if aac.median_ms > 0 else None
+            report.records += [aac, lfc]
+    return report
+
+
+def markdown_aac(report: BenchReport) -> str:
+    """The coordinator records as a markdown table, plus notes."""
+    lines = [
+        "| name | N | periods | median [ms] | p95 [ms] | mean [ms] | proximity median [ms] | infeasible solves | real-time factor | AAC speed-up |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---|",
+    ]
+    for r in report.records:
+        prox = f"{r.proximity_median_ms:.2f}" if r.proximity_median_ms is not None else "—"
+        ratio = f"{r.ratio:.2f}x vs {r.ratio_to}" if r.ratio is not None else ""
+        rtf = f"{r.realtime_factor:.1f}" if r.realtime_factor is not None else "—"
+        lines.append(f"| {r.name} | {r.horizon} | {r.samples} | {r.median_ms:.2f} | {r.p95_ms:.2f} | {r.mean_ms:.2f} | {prox} | "
+                     f"{r.failures} | {rtf} | {ratio} |")
+    text = "\n".join(lines) + "\n"
+    if report.notes:
+        text += "\n" + "\n".join(f"- {n}" for n in report.notes) + "\n"
+    return text

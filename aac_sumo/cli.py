@@ -125,7 +125,6 @@ def main(argv: list[str] | None = None) -> int:
     from aac_sumo.config import ScenarioError
     from aac_sumo.sim.sumo import SumoError
     from aac_sumo.sweep import SweepError
-    from aac_sumo.tables import TableUnavailable
 
     args = None
     try:
@@ -134,7 +133,7 @@ def main(argv: list[str] | None = None) -> int:
                 "net": cmd_net}[args.command](args)
     except SystemExit as exc:  # --help
         return exc.code if isinstance(exc.code, int) else 0
-    except (UsageError, ScenarioError, SweepError, TableUnavailable, SumoError, FileNotFoundError) as exc:
+    except (UsageError, ScenarioError, SweepError, SumoError, FileNotFoundError) as exc:
         return _fail(exc)
     except UnicodeDecodeError as exc:  # a scenario file that is not UTF-8 text
         name = getattr(args, "scenario", None) or "scenario file"
@@ -270,10 +269,9 @@ def _report_failures(rows: list[dict]) -> int:
 def cmd_table(args) -> int:
     from aac_sumo import tables
 
-    tables.check_available(args.name)
     out = args.out if args.out is not None else Path("out") / "table" / args.name
     _check_out(out)
-    _, text, runs = tables.braking_table(args.seeds, args.workers, out, list(args.sets), progress=not args.no_progress)
+    _, text, runs = tables.BUILDERS[args.name](args.seeds, args.workers, out, list(args.sets), progress=not args.no_progress)
     print(text, end="")
     print(f"outputs: {out / 'table.csv'}, {out / 'table.md'}, {out / 'results.csv'}")
     return _report_failures(runs)
@@ -289,8 +287,6 @@ def cmd_bench(args) -> int:
         print(tune.benchmark(args.samples, args.out), end="")
         print(f"outputs: {args.out / 'tune_bench.json'}, {args.out / 'tune_bench.md'}, {args.out / 'tune_bench.png'}")
         return 0
-    if args.target == "aac":
-        raise UsageError("bench aac: that benchmark is not available yet (a later issue adds it); available: mpc, all")
     solvers = bench.SOLVERS
     if args.solvers is not None:
         solvers = tuple(s.strip() for s in args.solvers.split(","))
@@ -299,10 +295,10 @@ def cmd_bench(args) -> int:
             raise UsageError(f"bench: --solvers {args.solvers!r}: expected names among {', '.join(bench.SOLVERS)}")
     horizons = tuple(args.horizons) if args.horizons else bench.HORIZONS
     _check_out(args.out)
-    report = bench.bench_mpc(args.samples, horizons, solvers,
-                             progress=lambda what: print(f"timing {what} ...", file=sys.stderr, flush=True))
-    bench.write(report, args.out)
-    print(bench.markdown(report), end="")
+    progress = lambda what: print(f"timing {what} ...", file=sys.stderr, flush=True)  # noqa: E731
+    mpc = bench.bench_mpc(args.samples, horizons, solvers, progress=progress) if args.target in ("mpc", "all") else None
+    aac = bench.bench_aac(horizons, progress=progress) if args.target in ("aac", "all") else None
+    print(bench.write(args.out, mpc, aac), end="")
     print(f"outputs: {args.out / 'bench.json'}, {args.out / 'bench.md'}")
     return 0
 

@@ -231,6 +231,12 @@ def rect_clearance(a: OrientedRect, b: OrientedRect) -> float:
     return float(_clearance(a.as_row(), b.as_row()))
 
 
+def rect_clearance_rows(rects_a, rects_b) -> np.ndarray:
+    """Clearance [m] between rectangle rows ``[cx, cy, length, width, heading]`` (..., 5),
+    broadcasting the leading axes; each entry equals :func:`rect_clearance` of its pair."""
+    return _clearance(np.asarray(rects_a, dtype=float), np.asarray(rects_b, dtype=float))
+
+
 def pairwise_rect_clearance(rects_a, rects_b) -> np.ndarray:
     """Clearance matrix (n, m) [m] between rows (n, 5) and (m, 5) of
     ``[cx, cy, length, width, heading]``; entry (i, j) equals ``rect_clearance(a_i, b_j)``."""

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from aac_sumo.geometry import pairwise_rect_clearance
 from aac_sumo.world import WorldState
 
 #: metrics.json keys, in the order they are written.
@@ -13,7 +14,7 @@ METRIC_KEYS = (
     "compute_ms_mean", "compute_ms_median", "compute_ms_p95", "solves", "infeasible_solves",
     "infeasibility_rate", "min_distance_m", "min_clearance_m", "collisions", "sim_collisions", "ttc_mean_s",
     "aggressive_driving_rate", "tracking_error_m", "authority_jain", "delay_jain", "delay_max_s",
-    "realtime_factor", "safety_stops", "deadlock",
+    "realtime_factor", "safety_stops", "deadlock", "min_pedestrian_clearance_m",
 )
 ROBOT_KINDS = ("robot", "scripted")
 
@@ -55,6 +56,14 @@ def nearest_robot_distance(world: WorldState) -> np.ndarray:
     d = np.hypot(*(centres[:, None, :] - pts[None, :, :]).transpose(2, 0, 1))
     d[np.arange(len(centres)), np.arange(len(centres))] = np.inf
     return d.min(axis=1) if d.size else np.full(len(centres), np.inf)
+
+
+def pedestrian_clearance(world: WorldState) -> np.ndarray:
+    """Per controlled robot, the smallest footprint gap [m] to a pedestrian, inf without any."""
+    peds = [o.footprint() for o in world.obstacles if o.kind == "pedestrian"]
+    if not peds:
+        return np.full(len(world.robots), np.inf)
+    return pairwise_rect_clearance(world.robot_footprints(), np.array(peds)).min(axis=1)
 
 
 def jain(values) -> float | None:
@@ -122,6 +131,7 @@ def compute_metrics(steps: pd.DataFrame, periods: pd.DataFrame, info: dict) -> d
         realtime_factor=_finite(sim_time / info["wall_s"]) if info.get("wall_s") else None,
         safety_stops=int(info.get("safety_stops", 0)),
         deadlock=bool(info.get("deadlock", False)),
+        min_pedestrian_clearance_m=_finite(steps["pedestrian_clearance_m"].min()) if "pedestrian_clearance_m" in steps and len(steps) else None,
     )
     return {k: m[k] for k in METRIC_KEYS} | {k: v for k, v in m.items() if k not in METRIC_KEYS}
 

@@ -14,7 +14,7 @@ import pandas as pd
 
 from aac_sumo import experiments
 from aac_sumo.config import Scenario
-from aac_sumo.metrics import compute_metrics, jain, nearest_robot_distance, time_to_collision
+from aac_sumo.metrics import compute_metrics, jain, nearest_robot_distance, pedestrian_clearance, time_to_collision
 
 
 @dataclass
@@ -63,6 +63,7 @@ def run(scenario: Scenario) -> RunResult:
             decision = coord.decide(world)
             ttc = time_to_collision(world)
             nearest = nearest_robot_distance(world)
+            to_pedestrians = pedestrian_clearance(world)
             contacts = sim.step(decision.inputs)
             collisions += len(contacts.overlaps - active_overlaps)
             active_overlaps = contacts.overlaps
@@ -79,6 +80,7 @@ def run(scenario: Scenario) -> RunResult:
                     status=rec.status, solver=rec.solver, solve_ms=rec.solve_ms, authority=rec.authority,
                     reason=rec.reason, mode=rec.mode, proximity_score=rec.score, proximity_progress=rec.progress,
                     arrived=bool(done[i]), clearance_m=contacts.clearance[i], nearest_robot_m=nearest[i], ttc_s=ttc[i],
+                    pedestrian_clearance_m=to_pedestrians[i],
                 ))
     except Exception as exc:  # keep what was recorded; report the failure in metrics
         error = f"{type(exc).__name__}: {exc}".splitlines()[0]
@@ -120,7 +122,7 @@ def run(scenario: Scenario) -> RunResult:
 STEP_COLUMNS = [
     "t", "robot", "x", "y", "heading", "v", "accel", "steer", "ref_x", "ref_y", "ref_heading", "ref_v",
     "status", "solver", "solve_ms", "authority", "reason", "mode", "proximity_score", "proximity_progress",
-    "arrived", "clearance_m", "nearest_robot_m", "ttc_s",
+    "arrived", "clearance_m", "nearest_robot_m", "ttc_s", "pedestrian_clearance_m",
 ]
 
 

@@ -87,9 +87,8 @@ def test_overlapping_start(capsys):
     ["frobnicate"],
     [],
     ["table", "nonsense"],
-    ["table", "swarm"],
-    ["table", "lane-change"],
-    ["bench", "aac"],
+    ["table", "swarm", "--seeds", "0"],
+    ["bench", "aac", "--horizons", "0"],
     ["sweep", "braking", "--grid", "braking.speed"],
     ["sweep", "braking", "--grid", "braking.speed=5,,6"],
     ["sweep", "braking", "--seeds", "0", "--grid", "braking.speed=5"],
@@ -98,11 +97,6 @@ def test_overlapping_start(capsys):
 def test_usage_errors_are_one_line(capsys, argv):
     assert main(argv) == 2
     error_line(capsys)
-
-
-def test_table_not_available_message(capsys):
-    assert main(["table", "swarm"]) == 2
-    assert "not available yet" in error_line(capsys)
 
 
 def test_out_is_a_file(capsys, tmp_path):

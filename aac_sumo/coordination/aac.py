@@ -19,6 +19,7 @@ Each control period exactly one unfinished robot holds authority and solves MPC-
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,7 +27,7 @@ import numpy as np
 from aac_sumo.coordination.base import Coordinator, Decision, Finished, RobotDecision
 from aac_sumo.coordination.proximity import ProximityParams, close_pairs, proximity_decision
 from aac_sumo.coordination.tracking import track
-from aac_sumo.geometry import pairwise_rect_clearance
+from aac_sumo.geometry import rect_clearance_rows
 from aac_sumo.mpc.planner import MpcPlanner
 from aac_sumo.references import PathReference
 from aac_sumo.world import WorldState
@@ -69,7 +70,9 @@ class AacCoordinator(Coordinator):
                 inputs[i], records[i].mode = self.hold_input(world, i), "hold"
             return Decision(inputs, records, notes=dict(authority="", reason="all finished"))
 
+        start = time.perf_counter()
         authority, reason = self.choose_authority(world, active, records)
+        proximity_ms = (time.perf_counter() - start) * 1e3 if reason == "proximity" else 0.0
         others = np.array([j for j in range(n) if j != authority], dtype=int)
         horizon_inputs = np.zeros((len(others), cfg.horizon + 2, 2))
         for row, j in enumerate(others):
@@ -95,7 +98,7 @@ class AacCoordinator(Coordinator):
         records[authority] = decided
         inputs[authority] = self.plans[authority].inputs[0]
         self.used[authority] = 1
-        notes.update(authority=world.robots[authority].name, reason=reason, safety_stops=int(stops.sum()))
+        notes.update(authority=world.robots[authority].name, reason=reason, safety_stops=int(stops.sum()), proximity_ms=proximity_ms)
         return Decision(inputs, records, notes=notes)
 
     def choose_authority(self, world: WorldState, active: np.ndarray, records: list[RobotDecision]) -> tuple[int, str]:
@@ -161,17 +164,12 @@ class AacCoordinator(Coordinator):
         rows = fleet.footprints(np.arange(n), course)  # (n, K+1, 5)
         obs = np.array([o.footprint() for o in world.obstacles]).reshape(-1, 5)
         vel = np.array([o.velocity for o in world.obstacles]).reshape(-1, 2)
+        moving = np.repeat(obs[:, None, :], steps + 1, axis=1)
+        moving[:, :, :2] += np.arange(steps + 1)[None, :, None] * cfg.dt * vel[:, None, :]
+        targets = np.concatenate([rows, moving])  # (n + obstacles, K+1, 5)
+        gaps = rect_clearance_rows(rows[others][:, None], targets[None])  # (m, targets, K+1)
+        gaps[np.arange(len(others)), others] = np.inf
         standing = np.hypot(vel[:, 0], vel[:, 1]) == 0.0
-        ignore = planned[:, None] & standing[None, :]  # (m, obstacles)
-        now = later = np.full(len(others), np.inf)
-        for k in range(steps + 1):
-            moved = obs.copy()
-            moved[:, :2] += k * cfg.dt * vel
-            gaps = pairwise_rect_clearance(rows[others, k], np.vstack([rows[:, k], moved]))
-            gaps[np.arange(len(others)), others] = np.inf
-            gaps[:, n:][ignore] = np.inf
-            if k == 0:
-                now = gaps.min(axis=1)
-            else:
-                later = np.minimum(later, gaps.min(axis=1))
+        gaps[:, n:][planned[:, None] & standing[None, :]] = np.inf
+        now, later = gaps[:, :, 0].min(axis=1), gaps[:, :, 1:].min(axis=(1, 2))
         return (later < self.params.safety_margin) & (later < now)

@@ -143,8 +143,9 @@ class MpcPlanner:
         _, radius = ego_discs(robot, self.config.discs)
         regions = self.nearest_regions(state, obstacles)
         params = self.slot_parameters(robot, state, regions, radius + self.config.d_safe)
-        bare = self.slot_parameters(robot, state, regions, 0.0)
-        room = np.minimum(bare[:, :, 4] / params[:, :, 4], bare[:, :, 5] / params[:, :, 5]).min(axis=0)
+        room = np.ones(self.config.slots)  # how far each region may shrink: to its bare ellipse
+        for k, e in enumerate(regions):
+            room[k] = np.minimum(e[:, 2] ** -2 / params[:, k, 4], e[:, 3] ** -2 / params[:, k, 5]).min()
         return self.hold_intrusions(params, robot, state, u_prev, room)
 
     def hold_intrusions(self, params: np.ndarray, robot: RobotSpec, state: np.ndarray, u_prev: np.ndarray,
