@@ -288,3 +288,21 @@ def containing_ellipse(points, theta) -> np.ndarray:
     cx = np.cos(theta) * uc - np.sin(theta) * vc
     cy = np.sin(theta) * uc + np.cos(theta) * vc
     return np.stack([cx, cy, scale * hu, scale * hv, theta], axis=-1)
+
+
+def polyline_offset(points, polyline) -> np.ndarray:
+    """Signed distance [m] from each of ``points`` (K, 2) to the polyline (M, 2), M >= 2:
+    positive to the left of its direction of travel, negative to the right (side of the
+    nearest segment)."""
+    p = np.asarray(points, dtype=float)[:, None, :]
+    a, b = np.asarray(polyline, dtype=float)[:-1], np.asarray(polyline, dtype=float)[1:]
+    d = b - a
+    length2 = np.maximum(np.einsum("ij,ij->i", d, d), 1e-18)
+    t = np.clip(np.einsum("kij,ij->ki", p - a, d) / length2, 0.0, 1.0)
+    gap = p - (a + t[..., None] * d)
+    dist = np.sqrt(np.einsum("kij,kij->ki", gap, gap))
+    nearest = np.argmin(dist, axis=1)
+    rows = np.arange(len(dist))
+    rel = p[:, 0, :] - a[nearest]
+    side = np.sign(d[nearest, 0] * rel[:, 1] - d[nearest, 1] * rel[:, 0])
+    return np.where(side < 0, -1.0, 1.0) * dist[rows, nearest]

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from aac_sumo.geometry import polyline_offset
+
 
 class PathReference:
     """Path ``waypoints`` (M, 2) [m] driven at ``speed`` [m/s]; decelerates at ``decel`` [m/s^2]
@@ -79,3 +81,23 @@ class PathReference:
     def finished(self, state, tolerance: float) -> bool:
         """True when the robot is within ``tolerance`` [m] of the path's end."""
         return bool(np.hypot(*(np.asarray(state[:2]) - self.points[-1])) <= tolerance)
+
+
+class LateralBand:
+    """Where a robot's rear axle may be across its reference: between the ``right`` and ``left``
+    boundary polylines (M, 2) of its road [m], at least ``margin`` [m] inside each."""
+
+    def __init__(self, right, left, margin: float):
+        self.right = np.asarray(right, dtype=float)
+        self.left = np.asarray(left, dtype=float)
+        self.margin = float(margin)
+
+    def limits(self, reference: np.ndarray) -> np.ndarray:
+        """Rows ``[nx, ny, lo, hi]`` (N, 4) for stages 1..N of ``reference`` (N+1, 4): the
+        reference's left normal and the bounds on ``nx * x + ny * y`` of the rear axle."""
+        pts, heading = reference[1:, :2], reference[1:, 2]
+        normal = np.column_stack([-np.sin(heading), np.cos(heading)])
+        across = np.einsum("ij,ij->i", normal, pts)
+        lo = across - polyline_offset(pts, self.right) + self.margin  # offsets: positive to the left
+        hi = across - polyline_offset(pts, self.left) - self.margin
+        return np.column_stack([normal, lo, np.maximum(lo, hi)])

@@ -357,3 +357,27 @@ def test_pairwise_self_diagonal_negative():
     assert m.shape == (50, 50)
     np.testing.assert_allclose(np.diag(m), -np.minimum(rows[:, 2], rows[:, 3]))
     np.testing.assert_allclose(m, m.T, atol=1e-12)
+
+
+@settings(max_examples=60, deadline=None)
+@given(points=st.lists(st.tuples(st.floats(-20, 20), st.floats(-20, 20)), min_size=1, max_size=6),
+       line=st.lists(st.tuples(st.floats(-20, 20), st.floats(-20, 20)), min_size=2, max_size=6))
+def test_polyline_offset_matches_dense_sampling(points, line):
+    """|offset| is the distance to the polyline; its sign tells the side of the nearest segment."""
+    from aac_sumo.geometry import polyline_offset
+
+    pts, poly = np.array(points), np.array(line)
+    t = np.linspace(0.0, 1.0, 2001)[:, None]
+    dense = np.vstack([a + t * (b - a) for a, b in zip(poly[:-1], poly[1:])])
+    brute = np.hypot(*(pts[:, None, :] - dense[None]).transpose(2, 0, 1)).min(axis=1)
+    got = np.abs(polyline_offset(pts, poly))
+    assert np.all(got <= brute + 1e-9)
+    seg = np.hypot(*np.diff(poly, axis=0).T).max()
+    assert np.all(brute - got <= seg / 2000 + 1e-9)
+
+
+def test_polyline_offset_sign_is_left_positive():
+    from aac_sumo.geometry import polyline_offset
+
+    line = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0]])  # east, then north
+    np.testing.assert_allclose(polyline_offset([[5.0, 2.0], [5.0, -3.0], [12.0, 5.0], [8.0, 5.0]], line), [2.0, -3.0, -2.0, 2.0])

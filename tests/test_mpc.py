@@ -324,3 +324,33 @@ def test_fatrop_and_ipopt_agree(obstacles):
     assert (slow.status, slow.solver) == ("solved", "ipopt")
     np.testing.assert_allclose(fast.inputs[0], slow.inputs[0], atol=1e-3)
     np.testing.assert_allclose(fast.states, slow.states, atol=1e-3)
+
+
+def test_plans_stay_inside_a_lateral_band():
+    """A reference 3 m to the left of a road whose edges are 2 m either side: the plan follows
+    it only as far as the band allows (rear axle 0.5 m inside the left edge)."""
+    from aac_sumo.references import LateralBand
+
+    pl = planner(barrier="fcbf", gamma=0.3)
+    band = LateralBand(right=[[-10.0, -2.0], [100.0, -2.0]], left=[[-10.0, 2.0], [100.0, 2.0]], margin=0.5)
+    state = np.array([0.0, 0.0, 0.0, 3.0])
+    reference = straight_reference(0.0, 3.0, y=3.0)
+    rows = band.limits(reference)
+    np.testing.assert_allclose(rows[:, 2:], np.tile([-1.5, 1.5], (HORIZON, 1)))
+    free = pl.plan(ROBOT, state, reference, np.zeros(2), [])
+    banded = pl.plan(ROBOT, state, reference, np.zeros(2), [], corridor=band)
+    assert free.status == banded.status == "solved"
+    assert free.states[:, 1].max() > 1.6  # without the band it heads for the reference
+    assert banded.states[:, 1].max() <= 1.5 + 1e-6
+
+
+def test_a_band_the_robot_is_already_outside_of_holds_it_where_it_is():
+    """Starting 1 m beyond the band's left limit, the plan may not drift further out."""
+    from aac_sumo.references import LateralBand
+
+    pl = planner(barrier="fcbf", gamma=0.3)
+    band = LateralBand(right=[[-10.0, -2.0], [100.0, -2.0]], left=[[-10.0, 2.0], [100.0, 2.0]], margin=0.5)
+    state = np.array([0.0, 2.5, 0.0, 3.0])
+    plan = pl.plan(ROBOT, state, straight_reference(0.0, 3.0, y=4.0), np.zeros(2), [], corridor=band)
+    assert plan.status == "solved"
+    assert plan.states[:, 1].max() <= 2.5 + 1e-6

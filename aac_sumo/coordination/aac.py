@@ -10,7 +10,7 @@ Each control period exactly one unfinished robot holds authority and solves MPC-
 4. Optional **safety stop** (beyond the paper, ``safety_stop``): a non-authority robot whose
    stored input, followed by braking to a stop, would bring its footprint within
    ``safety_margin`` of another robot's or an obstacle's footprint, closer than it is now,
-   brakes instead with straight wheels and drops its stored plan.
+   brakes instead (as gently as passes the same check, straight wheels) and drops its plan.
 5. The authority robot plans around the obstacles and the swept **convex-hull regions** of the
    others: at stage k, an ellipse containing the hull of a robot's footprints at k and k+1 along
    its known motion (stored plan, else constant velocity; the authority's own current motion
@@ -80,10 +80,13 @@ class AacCoordinator(Coordinator):
         traj = self.fleet.rollout(others, world.states[others], horizon_inputs, cfg.dt)
 
         planned = np.array([records[j].mode == "plan" for j in others], dtype=bool)
-        stops = self.safety_stops(world, others, horizon_inputs[:, 0], planned) if self.params.safety_stop else np.zeros(len(others), bool)
+        first = self.safe_inputs(world, others, horizon_inputs[:, 0], planned) if self.params.safety_stop else horizon_inputs[:, 0]
+        stops = np.any(first != horizon_inputs[:, 0], axis=1)
         for row in np.flatnonzero(stops):
             j = others[row]
-            horizon_inputs[row] = world.robots[j].model.limits.stopping_inputs(world.states[j, 3], cfg.dt, cfg.horizon + 2)
+            limits = world.robots[j].model.limits
+            after = limits.stopping_inputs(world.states[j, 3] + first[row, 0] * cfg.dt, cfg.dt, cfg.horizon + 1)
+            horizon_inputs[row] = np.vstack([first[row], after])
             records[j].mode = "safety_stop"
             if self.plans[j] is not None:
                 self.used[j] = len(self.plans[j].inputs)
@@ -138,16 +141,33 @@ class AacCoordinator(Coordinator):
         out[0] = track(world.robots[j], world.states[j], task, self.params.lookahead, self.params.speed_gain)
         return out, "tracking"
 
-    def safety_stops(self, world: WorldState, others: np.ndarray, first: np.ndarray, planned: np.ndarray) -> np.ndarray:
+    def safe_inputs(self, world: WorldState, others: np.ndarray, first: np.ndarray, planned: np.ndarray) -> np.ndarray:
+        """The non-authority robots' inputs (m, 2) after the safety check: a robot whose intended
+        input fails :meth:`unsafe` gets the gentlest braking (coasting, then a third, two
+        thirds and all of its strongest braking, straight wheels) that passes, or full braking."""
+        chosen = first.copy()
+        flagged = self.unsafe(world, others, chosen, planned)
+        a_min = self.fleet.a_min[others]
+        for share in (0.0, 1 / 3, 2 / 3):
+            if not flagged.any():
+                break
+            chosen[flagged] = np.column_stack([np.minimum(first[flagged, 0], share * a_min[flagged]), np.zeros(flagged.sum())])
+            flagged &= self.unsafe(world, others, chosen, planned)
+        for row in np.flatnonzero(flagged):
+            chosen[row] = world.robots[others[row]].model.limits.braking_input(world.states[others[row], 3], self.planner.config.dt)
+        return chosen
+
+    def unsafe(self, world: WorldState, others: np.ndarray, first: np.ndarray, planned: np.ndarray) -> np.ndarray:
         """Which non-authority robots (rows of ``others``, about to apply ``first`` (m, 2)) must
         brake instead.
 
-        Every robot is assumed to apply its intended input once (the authority: no input, its
-        stage-1 position is fixed anyway) and then brake to a stop with straight wheels. A robot
-        stops now when, on that course, its footprint comes within ``safety_margin`` of another
-        robot's footprint at the same stage, or of an obstacle moving at constant velocity,
-        closer than it is now. Robots following an MPC plan (``planned`` rows) are not checked
-        against standing obstacles, which their plan already avoids.
+        A robot's course is its intended input once, then braking to a stop with straight
+        wheels. It stops now when, on that course, its footprint comes within ``safety_margin``
+        of another robot's footprint at the same stage, or of an obstacle moving at constant
+        velocity, closer than it is now. The other robots are taken both on their own such
+        course (the authority's intended input counts as zero) and braking at once, since
+        either may happen. Robots following an MPC plan (``planned`` rows), which already keeps
+        its margin from standing obstacles, stop for those only before an actual contact.
         """
         cfg, fleet = self.planner.config, self.fleet
         n = len(world.robots)
@@ -156,20 +176,32 @@ class AacCoordinator(Coordinator):
         inputs = np.zeros((n, 2))
         inputs[others] = first
         steps = int(np.ceil(np.max(np.abs(world.states[:, 3]) / -fleet.a_min) / cfg.dt)) + 2  # input acts at stage 2
-        course = np.empty((n, steps + 1, 4))
-        course[:, :2] = fleet.rollout(np.arange(n), world.states, inputs[:, None, :], cfg.dt)
-        for k in range(1, steps):
-            brake = np.column_stack([np.clip(-course[:, k, 3] / cfg.dt, fleet.a_min, fleet.a_max), np.zeros(n)])
-            course[:, k + 1] = fleet.rollout(np.arange(n), course[:, k], brake[:, None, :], cfg.dt)[:, 1]
-        rows = fleet.footprints(np.arange(n), course)  # (n, K+1, 5)
+        go_on = self._stopping_course(world, inputs, steps)
+        rows = fleet.footprints(np.arange(n), go_on)  # (n, K+1, 5)
+        halt = fleet.footprints(np.arange(n), self._stopping_course(world, None, steps))
         obs = np.array([o.footprint() for o in world.obstacles]).reshape(-1, 5)
         vel = np.array([o.velocity for o in world.obstacles]).reshape(-1, 2)
         moving = np.repeat(obs[:, None, :], steps + 1, axis=1)
         moving[:, :, :2] += np.arange(steps + 1)[None, :, None] * cfg.dt * vel[:, None, :]
-        targets = np.concatenate([rows, moving])  # (n + obstacles, K+1, 5)
+        targets = np.concatenate([rows, halt, moving])  # (2 n + obstacles, K+1, 5)
         gaps = rect_clearance_rows(rows[others][:, None], targets[None])  # (m, targets, K+1)
         gaps[np.arange(len(others)), others] = np.inf
+        gaps[np.arange(len(others)), n + others] = np.inf
         standing = np.hypot(vel[:, 0], vel[:, 1]) == 0.0
-        gaps[:, n:][planned[:, None] & standing[None, :]] = np.inf
+        gaps[:, 2 * n:][planned[:, None] & standing[None, :]] = np.inf
         now, later = gaps[:, :, 0].min(axis=1), gaps[:, :, 1:].min(axis=(1, 2))
         return (later < self.params.safety_margin) & (later < now)
+
+    def _stopping_course(self, world: WorldState, first: np.ndarray | None, steps: int) -> np.ndarray:
+        """States (n, steps+1, 4) of every robot applying ``first`` (n, 2) once (None: braking
+        at once), then braking to a stop with straight wheels."""
+        cfg, fleet, n = self.planner.config, self.fleet, len(world.robots)
+        course = np.empty((n, steps + 1, 4))
+        course[:, 0] = world.states
+        for k in range(steps):
+            if k == 0 and first is not None:
+                u = first
+            else:
+                u = np.column_stack([np.clip(-course[:, k, 3] / cfg.dt, fleet.a_min, fleet.a_max), np.zeros(n)])
+            course[:, k + 1] = fleet.rollout(np.arange(n), course[:, k], u[:, None, :], cfg.dt)[:, 1]
+        return course

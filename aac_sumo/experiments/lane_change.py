@@ -26,7 +26,7 @@ import numpy as np
 from aac_sumo import network
 from aac_sumo.config import Scenario, ScenarioError
 from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_spec
-from aac_sumo.references import PathReference
+from aac_sumo.references import LateralBand, PathReference
 from aac_sumo.sim.sumo import SumoOptions, SumoSimulator
 from aac_sumo.world import WorldState
 
@@ -34,6 +34,7 @@ BUNDLED_NET_DIR = Path(__file__).resolve().parents[2] / "sumo_networks" / "lane_
 BUNDLED_NET = BUNDLED_NET_DIR / "lane_change.net.xml"
 BUNDLED_ROUTES = [BUNDLED_NET_DIR / "cones.rou.xml", BUNDLED_NET_DIR / "pedestrians.rou.xml"]
 SAMPLE_STEP = 1.0  # reference path resolution along the road [m]
+ROAD_MARGIN = 0.1  # the rear axle keeps half a car width plus this from the road edges [m]
 
 
 def target_lane(lane: int, cone_lane: int, lanes: int) -> int:
@@ -75,6 +76,23 @@ def lane_change_path(rd: network.Road, start: int, target: int, s0: float, chang
     pb, _ = along(rd.lanes[target], sa * lb / la)
     w = smoothstep((sa - s0 - change_start) / change_length)[:, None]
     return (1.0 - w) * pa + w * pb
+
+
+def offset_polyline(line: np.ndarray, offset: float) -> np.ndarray:
+    """``line`` (M, 2) shifted ``offset`` [m] to its left (negative: right), vertex by vertex
+    along the mean of the adjacent segments' normals."""
+    seg = np.diff(line, axis=0)
+    seg = seg / np.maximum(np.hypot(*seg.T), 1e-12)[:, None]
+    normal = np.column_stack([-seg[:, 1], seg[:, 0]])
+    vertex = np.vstack([normal[:1], normal[:-1] + normal[1:], normal[-1:]])
+    vertex /= np.maximum(np.hypot(*vertex.T), 1e-12)[:, None]
+    return line + offset * vertex
+
+
+def road_edges(rd: network.Road) -> tuple[np.ndarray, np.ndarray]:
+    """The road's right and left edges (polylines [m]): the outer lanes' centre lines shifted
+    out by half their width (SUMO numbers lanes from the right)."""
+    return offset_polyline(rd.lanes[0], -0.5 * rd.widths[0]), offset_polyline(rd.lanes[-1], 0.5 * rd.widths[-1])
 
 
 def network_files(scenario: Scenario) -> tuple[Path, list[Path]]:
@@ -160,7 +178,9 @@ def build_lane_change(scenario: Scenario) -> Setup:
 
         finish_points = [along(rd.lanes[b], finish_s[k])[0][0] for k, b in enumerate(targets)]
         free_flow = np.array([task.project(p)[0] for task, p in zip(tasks, finish_points)]) / lc["speed"]
-        return Setup(scenario, sim, coordinator(scenario, tasks, None, finished), tasks, finished, free_flow)
+        right, left = road_edges(rd)
+        band = LateralBand(right, left, 0.5 * robots[0].width + ROAD_MARGIN)
+        return Setup(scenario, sim, coordinator(scenario, tasks, [band] * n, finished), tasks, finished, free_flow)
     except BaseException:
         sim.close()
         raise

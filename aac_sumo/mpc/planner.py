@@ -15,7 +15,8 @@ import numpy as np
 
 from aac_sumo.barriers import FcbfParams, ObstaclePrediction, RegionTrack, barrier_value, inactive_slot, predict_constant_velocity, safety_ellipses, stage_parameters
 from aac_sumo.dynamics import bicycle_step
-from aac_sumo.mpc.problem import ProblemShape, get_problem
+from aac_sumo.mpc.problem import OPEN_BAND, ProblemShape, get_problem
+from aac_sumo.references import LateralBand
 from aac_sumo.world import Obstacle, RobotSpec
 
 STATUSES = ("solved", "infeasible", "failed")
@@ -181,6 +182,19 @@ class MpcPlanner:
         params[:, inside, 5] *= factor[inside]
         return params
 
+    def band_rows(self, corridor, reference: np.ndarray, state: np.ndarray) -> np.ndarray:
+        """The MPC's lateral-band rows (N, 4) for stages 1..N; open unless ``corridor`` is a band."""
+        n = self.config.horizon
+        if not isinstance(corridor, LateralBand):
+            return np.tile(OPEN_BAND, (n, 1))
+        rows = corridor.limits(reference)
+        x, y, heading, v = state
+        stage1 = np.array([x, y]) + v * self.config.dt * np.array([np.cos(heading), np.sin(heading)])
+        now = rows[:, :2] @ stage1  # the stage-1 rear axle is fixed by the current state
+        rows[:, 2] = np.minimum(rows[:, 2], now)
+        rows[:, 3] = np.maximum(rows[:, 3], now)
+        return rows
+
     def plan(
         self,
         robot: RobotSpec,
@@ -189,12 +203,14 @@ class MpcPlanner:
         u_prev: np.ndarray,
         obstacles: list[Obstacle | ObstaclePrediction | RegionTrack],
         previous: Plan | None = None,
-        corridor: np.ndarray | None = None,
+        corridor: np.ndarray | LateralBand | None = None,
     ) -> Plan:
         """Plan for ``robot`` at ``state`` tracking ``reference`` (N+1, 4) around ``obstacles``.
 
-        ``corridor`` optionally bounds the planned rear-axle positions to the world-frame box
-        ``[x_min, x_max, y_min, y_max]`` [m] (a straight lane, say)."""
+        ``corridor`` optionally bounds the planned rear-axle positions: to the world-frame box
+        ``[x_min, x_max, y_min, y_max]`` [m] (a straight lane, say), or across the reference
+        to a :class:`~aac_sumo.references.LateralBand` (a road of any shape); a band the robot
+        is already outside of is widened so that it may not go further out than now."""
         cfg = self.config
         lim = robot.model.limits
         state = np.asarray(state, dtype=float).copy()
@@ -208,12 +224,13 @@ class MpcPlanner:
             weights=cfg.weights(),
             x_ref=reference,
             obstacles=self.barrier_parameters(robot, state, u_prev, obstacles),
+            band=self.band_rows(corridor, reference, state),
         )
         if previous is not None and len(previous.inputs) == cfg.horizon:
             guess = previous.shifted(state)
         else:
             guess = self.rollout(robot, state, np.zeros((cfg.horizon, 2)))
-        box = np.array([-np.inf, np.inf, -np.inf, np.inf]) if corridor is None else np.asarray(corridor, dtype=float)
+        box = np.array([-np.inf, np.inf, -np.inf, np.inf]) if corridor is None or isinstance(corridor, LateralBand) else np.asarray(corridor, dtype=float)
         bounds = ([box[0], box[2], -np.inf, lim.v_min], [box[1], box[3], np.inf, lim.v_max], [lim.a_min, -lim.steer_max], [lim.a_max, lim.steer_max])
 
         total_ms, outcome, used = 0.0, None, cfg.solver

@@ -4,7 +4,8 @@ Decision variables are ordered stage by stage, ``[X0, U0, X1, U1, ..., X_N]``, a
 likewise, so structure-exploiting solvers (fatrop) see an optimal-control problem. The measured
 initial state pins ``X0`` through the variable bounds. Everything else that changes between
 solves (reference, previous input, weights, wheelbase,
-gamma, ego disc offsets, obstacle ellipses per stage) is a parameter.
+gamma, ego disc offsets, obstacle ellipses per stage, the lateral band of the rear axle per
+stage) is a parameter.
 """
 
 from __future__ import annotations
@@ -54,6 +55,12 @@ class SolveOutcome:
     detail: str
 
 
+#: Per-stage lateral band layout: unit normal (nx, ny) and bounds (lo, hi) on nx*x + ny*y [m].
+BAND_FIELDS = 4
+#: Band row that constrains nothing.
+OPEN_BAND = (0.0, 0.0, -1e9, 1e9)
+
+
 class MpcProblem:
     """One compiled MPC-FCBF problem. Build with :func:`get_problem` so each shape is built once."""
 
@@ -69,6 +76,7 @@ class MpcProblem:
             "weights": N_WEIGHTS,
             "x_ref": (n + 1) * NX,
             "obstacles": (n + 1) * slots * N_STAGE_FIELDS,
+            "band": n * BAND_FIELDS,
         }
         p = ca.SX.sym("p", sum(self.param_sizes.values()))
         par = self._split(p)
@@ -79,6 +87,7 @@ class MpcProblem:
         q, r, s, pw = weights[0:4], weights[4:6], weights[6:8], weights[8:12]
         x_ref = ca.reshape(par["x_ref"], NX, n + 1)
         obstacles = ca.reshape(par["obstacles"], N_STAGE_FIELDS, (n + 1) * slots)
+        band = ca.reshape(par["band"], BAND_FIELDS, n)
 
         cost = 0
         g, equality = [], []
@@ -101,6 +110,10 @@ class MpcProblem:
                     active = ob_next[6]
                     g.append(active * (h_next - (1 - par["gamma"]) * h_now) + (1 - active))
                     equality.append(False)
+            # lateral band of the rear axle at stage k+1: lo <= n . p <= hi
+            across = band[0, k] * x_next[0] + band[1, k] * x_next[1]
+            g += [across - band[2, k], band[3, k] - across]
+            equality += [False, False]
         err = xs[n] - x_ref[:, n]
         cost += ca.dot(pw, err**2)
         g = ca.cse(ca.vertcat(*g))
