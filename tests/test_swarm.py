@@ -1,0 +1,79 @@
+"""S1 swarm rescue and the circle swap: seeded closed-loop runs with AAC and LFC, scenario
+errors, reproducibility and the outputs of a run."""
+
+from __future__ import annotations
+
+import json
+
+import pandas as pd
+import pytest
+
+from aac_sumo import config, runner
+from aac_sumo.cli import main
+from aac_sumo.config import ScenarioError
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("coordinator", ["aac", "lfc"])
+def test_s1_at_horizon_10_completes_without_collisions(coordinator):
+    m = runner.run(config.load("swarm_rescue", [f"controller.coordinator={coordinator}", "controller.horizon=10"])).metrics
+    assert m["completed"] is True, m.get("incomplete_reason")
+    assert m["collisions"] == 0
+    assert m["min_clearance_m"] > 0
+    assert m["delay_max_s"] is not None and m["delay_jain"] is not None
+    assert 0 < m["authority_jain"] <= 1
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("coordinator", ["aac", "lfc"])
+def test_circle_swap_of_8_ends_in_completion_or_a_reported_deadlock(coordinator):
+    m = runner.run(config.load("circle_swap", [f"controller.coordinator={coordinator}", "circle_swap.n_robots=8"])).metrics
+    assert m["collisions"] == 0
+    assert m["completed"] or m["deadlock"], m.get("incomplete_reason")
+    if m["deadlock"]:
+        assert m["incomplete_reason"].startswith("deadlock")
+
+
+def test_short_runs_are_reproducible():
+    sets = ["scenario.duration=2.0", "scenario.seed=3"]
+    a, b = (runner.run(config.load("swarm_rescue", sets)) for _ in range(2))
+    pd.testing.assert_frame_equal(a.steps.drop(columns=["solve_ms"]), b.steps.drop(columns=["solve_ms"]))
+    other = runner.run(config.load("swarm_rescue", ["scenario.duration=2.0", "scenario.seed=4"]))
+    assert not a.steps[["x", "y"]].equals(other.steps[["x", "y"]])  # the seed moves the starts
+
+
+def test_plain_paper_behaviour_has_no_safety_stops():
+    m = runner.run(config.load("circle_swap", ["aac.safety_stop=false", "scenario.duration=3.0"])).metrics
+    assert m["safety_stops"] == 0
+
+
+@pytest.mark.parametrize("sets, key", [
+    (["swarm_rescue.goals=[[15.0, 8.0]]"], "swarm_rescue.goals"),
+    (["swarm_rescue.debris=[[1.0, 2.0, 3.0]]"], "swarm_rescue.debris"),
+    (["swarm_rescue.goals=[[15.0, 8.0], [15.0, 1.0], [5.0, 5.3], [15.0, 5.0], [15.0, 6.5]]"], "swarm_rescue.goals"),
+    (["swarm_rescue.starts=[[0.0, 1.0, 0.0], [0.2, 1.1, 0.0], [0.0, 5.0, 0.0], [0.0, 7.0, 0.0], [0.0, 9.0, 0.0]]",
+      "swarm_rescue.start_jitter=0.0"], "swarm_rescue.starts"),
+    (["swarm_rescue.cruise_speed=5.0"], "swarm_rescue.cruise_speed"),
+])
+def test_bad_swarm_scenarios_name_the_key(sets, key):
+    with pytest.raises(ScenarioError) as err:
+        runner.run(config.load("swarm_rescue", sets))
+    assert err.value.key == key
+    assert "\n" not in str(err.value)
+
+
+def test_bad_swarm_scenario_exits_2_with_one_line(capsys):
+    assert main(["run", "swarm_rescue", "--set", "swarm_rescue.goals=[[15.0, 8.0]]"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "swarm_rescue.goals" in err[0]
+
+
+def test_run_writes_the_swarm_picture_and_the_authority_record(tmp_path, capsys):
+    assert main(["run", "swarm_rescue", "--set", "scenario.duration=1.5", "--out", str(tmp_path)]) == 0
+    assert (tmp_path / "trajectories.png").stat().st_size > 10_000
+    steps = pd.read_csv(tmp_path / "steps.csv")
+    per_period = steps.groupby("t")["authority"].sum()
+    assert (per_period == 1).all()  # AAC: exactly one authority robot each period
+    assert set(steps.loc[steps["authority"], "reason"]) <= {"round_robin", "proximity"}
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert metrics["coordinator"] == "aac" and metrics["n_robots"] == 5
