@@ -544,6 +544,7 @@ def plot_tuning(series: dict[str, Sequence[Trial]], objective: Objective, path: 
         if bad:
             ax.scatter(bad, [0.02] * len(bad), transform=ax.get_xaxis_transform(), marker="x", s=20,
                        color=colour, alpha=0.8, label=f"{labels.get(name, name)}: penalised trial")
+    ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
     ax.set_xlabel("trial")
     ax.set_ylabel(f"{objective.metric} ({'higher' if objective.maximise else 'lower'} is better)")
     ax.set_title(title, fontsize=10)
