@@ -43,7 +43,8 @@ def run(scenario: Scenario) -> RunResult:
     completed, task_duration, error, deadlock = False, None, None, False
     arrival = np.full(len(setup.tasks), np.nan)
     stop, patience = scenario["metrics.stop_speed"], scenario["metrics.deadlock_time"]
-    last_motion = 0.0
+    history: list[np.ndarray] = []  # rear-axle positions per period, for the deadlock rule
+    window = int(round(patience / dt))
     try:
         for k in range(int(round(duration / dt)) + 1):
             world = sim.observe()
@@ -55,11 +56,12 @@ def run(scenario: Scenario) -> RunResult:
                 break
             if k * dt >= duration - 1e-9:
                 break
-            if np.any(np.abs(world.states[~done, 3]) > stop):
-                last_motion = world.t
-            elif world.t - last_motion >= patience - 1e-9:
-                deadlock = True
-                break
+            history.append(world.states[:, :2].copy())
+            if len(history) > window:
+                moved = np.hypot(*(history[-1] - history[-1 - window]).T)[~done]
+                if moved.size and moved.max() <= stop * patience:
+                    deadlock = True
+                    break
             decision = coord.decide(world)
             ttc = time_to_collision(world)
             nearest = nearest_robot_distance(world)
@@ -110,7 +112,8 @@ def run(scenario: Scenario) -> RunResult:
         metrics["completed"], metrics["task_duration_s"] = False, None
         reasons.append(f"{collisions} collision(s); wrecked robots stop where they hit")
     if deadlock:
-        reasons.append(f"deadlock: no unfinished robot moved faster than {stop} m/s for {patience} s (t = {len(periods) * dt:.1f} s)")
+        reasons.append(f"deadlock: no unfinished robot got further than {stop * patience:.2f} m from where it was "
+                       f"{patience} s before (t = {len(periods) * dt:.1f} s)")
     elif not completed and error is None:
         reasons.append(f"time limit {duration} s reached")
     if reasons:
