@@ -1,4 +1,4 @@
-"""The ``aac-sumo`` command line (see CONTRACT.md): run, sweep, table, bench.
+"""The ``aac-sumo`` command line (see CONTRACT.md): run, sweep, table, bench, plus tune and net build.
 
 Every user mistake (unknown key, bad value, missing or broken scenario file, bad ``--grid`` /
 ``--set`` syntax, unknown command) ends with exit status 2 and one line on stderr,
