@@ -100,7 +100,7 @@ def compute_metrics(steps: pd.DataFrame, periods: pd.DataFrame, info: dict) -> d
 
     ``info`` carries what ran (scenario, coordinator, barrier, horizon, seed, n_robots),
     ``completed``, ``task_duration_s``, ``collisions``, ``sim_collisions``, ``wall_s``, the
-    aggressive-driving thresholds, ``wheelbase`` per robot, and optionally ``delay_jain``,
+    aggressive-driving thresholds, ``wheelbase`` per robot, and optionally ``ttc_max``, ``delay_jain``,
     ``delay_max_s``, ``safety_stops`` and ``deadlock``.
     """
     compute = periods["compute_ms"].to_numpy() if len(periods) else np.array([])
@@ -122,7 +122,7 @@ def compute_metrics(steps: pd.DataFrame, periods: pd.DataFrame, info: dict) -> d
         min_clearance_m=_finite(steps["clearance_m"].min()) if len(steps) else None,
         collisions=int(info["collisions"]),
         sim_collisions=info.get("sim_collisions"),
-        ttc_mean_s=_finite(steps["ttc_s"].mean()) if steps["ttc_s"].notna().any() else None,
+        ttc_mean_s=_ttc_mean(steps["ttc_s"], info.get("ttc_max", np.inf)),
         aggressive_driving_rate=_aggressive_rate(steps, info) if len(steps) else None,
         tracking_error_m=_finite(np.hypot(steps["x"] - steps["ref_x"], steps["y"] - steps["ref_y"]).mean()) if len(steps) else None,
         authority_jain=authority_jain(steps) if len(steps) else None,
@@ -134,6 +134,12 @@ def compute_metrics(steps: pd.DataFrame, periods: pd.DataFrame, info: dict) -> d
         min_pedestrian_clearance_m=_finite(steps["pedestrian_clearance_m"].min()) if "pedestrian_clearance_m" in steps and len(steps) else None,
     )
     return {k: m[k] for k in METRIC_KEYS} | {k: v for k, v in m.items() if k not in METRIC_KEYS}
+
+
+def _ttc_mean(ttc: pd.Series, ttc_max: float) -> float | None:
+    """Mean TTC [s] over the steps with a conflict: closing in, TTC at most ``ttc_max``."""
+    conflicts = ttc[ttc <= ttc_max]
+    return _finite(conflicts.mean()) if len(conflicts) else None
 
 
 def _aggressive_rate(steps: pd.DataFrame, info: dict) -> float:

@@ -98,6 +98,7 @@ def run(scenario: Scenario) -> RunResult:
         seed=scenario["scenario.seed"], n_robots=len(setup.tasks), completed=completed, task_duration_s=task_duration,
         collisions=collisions, sim_collisions=sim_collisions, wall_s=time.perf_counter() - wall_start, dt=dt,
         accel_threshold=scenario["metrics.accel_threshold"], lat_accel_threshold=scenario["metrics.lat_accel_threshold"],
+        ttc_max=scenario["metrics.ttc_max"],
         wheelbase={r.name: r.model.wheelbase for r in robots},
     )
     if setup.free_flow_s is not None and completed:
