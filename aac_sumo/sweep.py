@@ -105,8 +105,9 @@ def plan_tasks(scenario: str, sets: list[str], grid: list[tuple[str, list[str]]]
 
 
 def columns(grid_keys: list[str]) -> list[str]:
-    """``results.csv`` columns: grid keys, seed, every other metric in METRIC_KEYS order, status, error."""
-    return list(grid_keys) + ["seed"] + [k for k in METRIC_KEYS if k != "seed"] + ["status", "error"]
+    """``results.csv`` columns: grid keys, seed, every other metric in METRIC_KEYS order, why an
+    unfinished run stopped, status, error."""
+    return list(grid_keys) + ["seed"] + [k for k in METRIC_KEYS if k != "seed"] + ["incomplete_reason", "status", "error"]
 
 
 #: One simulation at a time per process (libsumo), also on a Dask worker with several threads.
@@ -127,6 +128,7 @@ def run_task(task: Task) -> dict:
     metrics = result.metrics
     row |= {k: metrics.get(k) for k in METRIC_KEYS if k != "seed"}
     row["seed"] = task.seed
+    row["incomplete_reason"] = metrics.get("incomplete_reason", "")
     error = metrics.get("error")
     return row | {"status": "error" if error else "ok", "error": error or ""}
 

@@ -27,7 +27,7 @@ def test_grid_sweep_two_workers(capsys, tmp_path):
     rc = main(["sweep", "braking", "--grid", "braking.speed=5,6", "--workers", "2", "--out", str(tmp_path), *SHORT])
     assert rc == 0, capsys.readouterr().err
     cols, rows = read_rows(tmp_path / "results.csv")
-    assert cols == ["braking.speed", "seed"] + [k for k in METRIC_KEYS if k != "seed"] + ["status", "error"]
+    assert cols == ["braking.speed", "seed"] + [k for k in METRIC_KEYS if k != "seed"] + ["incomplete_reason", "status", "error"]
     assert [(float(r["braking.speed"]), r["seed"], r["status"], r["error"]) for r in rows] == [
         (5.0, "0", "ok", ""), (6.0, "0", "ok", "")]
     assert all(r["horizon"] == "5" and r["scenario"] == "braking" for r in rows)
