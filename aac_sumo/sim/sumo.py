@@ -50,7 +50,7 @@ class SumoOptions:
         cmd = [sumo_binary("sumo-gui" if self.gui else "sumo"), "-n", str(self.net),
                "--step-length", repr(dt), "--seed", str(self.seed),
                "--collision.action", "warn", "--collision.mingap-factor", "0", "--collision.check-junctions",
-               "--intermodal-collision.action", "warn", "--time-to-teleport", "-1", "--lateral-resolution", "0.4",
+               "--intermodal-collision.action", "warn", "--time-to-teleport", "-1",
                "--no-step-log", "--no-warnings"]
         if self.routes:
             cmd += ["-r", ",".join(str(p) for p in self.routes)]
