@@ -11,6 +11,8 @@ Each control period exactly one unfinished robot holds authority and solves MPC-
    stored input, followed by braking to a stop, would bring its footprint within
    ``safety_margin`` of another robot's or an obstacle's footprint, closer than it is now,
    brakes instead (as gently as passes the same check, straight wheels) and drops its plan.
+   The authority robot's first planned input gets the same check after its solve, but against
+   actual contact only (its MPC keeps its own margins, and looks only N periods ahead).
 5. The authority robot plans around the obstacles and the swept **convex-hull regions** of the
    others: at stage k, an ellipse containing the hull of a robot's footprints at k and k+1 along
    its known motion (stored plan, else constant velocity; the authority's own current motion
@@ -80,7 +82,10 @@ class AacCoordinator(Coordinator):
         traj = self.fleet.rollout(others, world.states[others], horizon_inputs, cfg.dt)
 
         planned = np.array([records[j].mode == "plan" for j in others], dtype=bool)
-        first = self.safe_inputs(world, others, horizon_inputs[:, 0], planned) if self.params.safety_stop else horizon_inputs[:, 0]
+        inputs[others] = horizon_inputs[:, 0]
+        if self.params.safety_stop:
+            inputs = self.safe_inputs(world, others, inputs, planned)
+        first = inputs[others]
         stops = np.any(first != horizon_inputs[:, 0], axis=1)
         for row in np.flatnonzero(stops):
             j = others[row]
@@ -101,7 +106,14 @@ class AacCoordinator(Coordinator):
         records[authority] = decided
         inputs[authority] = self.plans[authority].inputs[0]
         self.used[authority] = 1
-        notes.update(authority=world.robots[authority].name, reason=reason, safety_stops=int(stops.sum()), proximity_ms=proximity_ms)
+        stopped = int(stops.sum())
+        if self.params.safety_stop:  # its plan looks only N periods ahead: no contact beyond them
+            checked = self.safe_inputs(world, np.array([authority]), inputs, np.array([True]), margin=0.0)
+            if np.any(checked[authority] != inputs[authority]):
+                inputs[authority], decided.mode = checked[authority], "safety_stop"
+                self.used[authority] = len(self.plans[authority].inputs)
+                stopped += 1
+        notes.update(authority=world.robots[authority].name, reason=reason, safety_stops=stopped, proximity_ms=proximity_ms)
         return Decision(inputs, records, notes=notes)
 
     def choose_authority(self, world: WorldState, active: np.ndarray, records: list[RobotDecision]) -> tuple[int, str]:
@@ -141,56 +153,58 @@ class AacCoordinator(Coordinator):
         out[0] = track(world.robots[j], world.states[j], task, self.params.lookahead, self.params.speed_gain)
         return out, "tracking"
 
-    def safe_inputs(self, world: WorldState, others: np.ndarray, first: np.ndarray, planned: np.ndarray) -> np.ndarray:
-        """The non-authority robots' inputs (m, 2) after the safety check: a robot whose intended
-        input fails :meth:`unsafe` gets the gentlest braking (coasting, then a third, two
-        thirds and all of its strongest braking, straight wheels) that passes, or full braking."""
-        chosen = first.copy()
-        flagged = self.unsafe(world, others, chosen, planned)
-        a_min = self.fleet.a_min[others]
+    def safe_inputs(self, world: WorldState, check: np.ndarray, inputs: np.ndarray, planned: np.ndarray,
+                    margin: float | None = None) -> np.ndarray:
+        """Every robot's inputs (n, 2) after the safety check of robots ``check``: one whose
+        intended input fails :meth:`unsafe` gets the gentlest braking (coasting, then a third,
+        two thirds and all of its strongest braking, straight wheels) that passes, else full
+        braking. ``margin`` [m] replaces ``safety_margin``."""
+        chosen = inputs.copy()
+        flagged = self.unsafe(world, check, chosen, planned, margin)
+        a_min = self.fleet.a_min[check]
         for share in (0.0, 1 / 3, 2 / 3):
             if not flagged.any():
                 break
-            chosen[flagged] = np.column_stack([np.minimum(first[flagged, 0], share * a_min[flagged]), np.zeros(flagged.sum())])
-            flagged &= self.unsafe(world, others, chosen, planned)
-        for row in np.flatnonzero(flagged):
-            chosen[row] = world.robots[others[row]].model.limits.braking_input(world.states[others[row], 3], self.planner.config.dt)
+            rows = check[flagged]
+            chosen[rows] = np.column_stack([np.minimum(inputs[rows, 0], share * a_min[flagged]), np.zeros(len(rows))])
+            flagged &= self.unsafe(world, check, chosen, planned, margin)
+        for i in check[flagged]:
+            chosen[i] = world.robots[i].model.limits.braking_input(world.states[i, 3], self.planner.config.dt)
         return chosen
 
-    def unsafe(self, world: WorldState, others: np.ndarray, first: np.ndarray, planned: np.ndarray) -> np.ndarray:
-        """Which non-authority robots (rows of ``others``, about to apply ``first`` (m, 2)) must
-        brake instead.
+    def unsafe(self, world: WorldState, check: np.ndarray, inputs: np.ndarray, planned: np.ndarray,
+               margin: float | None = None) -> np.ndarray:
+        """Which of robots ``check`` must brake instead of applying ``inputs`` (n, 2, every robot's
+        input this period as far as known; zero where not).
 
-        A robot's course is its intended input once, then braking to a stop with straight
-        wheels. It stops now when, on that course, its footprint comes within ``safety_margin``
-        of another robot's footprint at the same stage, or of an obstacle moving at constant
-        velocity, closer than it is now. The other robots are taken both on their own such
-        course (the authority's intended input counts as zero) and braking at once, since
-        either may happen. Robots following an MPC plan (``planned`` rows), which already keeps
-        its margin from standing obstacles, stop for those only before an actual contact.
+        A robot's course is its input once, then braking to a stop with straight wheels. It must
+        brake when, on that course, its footprint comes within ``safety_margin`` of another
+        robot's footprint at the same stage, or of an obstacle moving at constant velocity,
+        closer than it is now. The other robots are taken both on their own such course and
+        braking at once, since either may happen. Robots following an MPC plan (``planned``
+        rows of ``check``), which already keeps its margin from standing obstacles, stop for
+        those only before an actual contact.
         """
         cfg, fleet = self.planner.config, self.fleet
-        n = len(world.robots)
-        if len(others) == 0:
+        n, m = len(world.robots), len(check)
+        if m == 0:
             return np.zeros(0, dtype=bool)
-        inputs = np.zeros((n, 2))
-        inputs[others] = first
         steps = int(np.ceil(np.max(np.abs(world.states[:, 3]) / -fleet.a_min) / cfg.dt)) + 2  # input acts at stage 2
-        go_on = self._stopping_course(world, inputs, steps)
-        rows = fleet.footprints(np.arange(n), go_on)  # (n, K+1, 5)
+        rows = fleet.footprints(np.arange(n), self._stopping_course(world, inputs, steps))  # (n, K+1, 5)
         halt = fleet.footprints(np.arange(n), self._stopping_course(world, None, steps))
         obs = np.array([o.footprint() for o in world.obstacles]).reshape(-1, 5)
         vel = np.array([o.velocity for o in world.obstacles]).reshape(-1, 2)
         moving = np.repeat(obs[:, None, :], steps + 1, axis=1)
         moving[:, :, :2] += np.arange(steps + 1)[None, :, None] * cfg.dt * vel[:, None, :]
         targets = np.concatenate([rows, halt, moving])  # (2 n + obstacles, K+1, 5)
-        gaps = rect_clearance_rows(rows[others][:, None], targets[None])  # (m, targets, K+1)
-        gaps[np.arange(len(others)), others] = np.inf
-        gaps[np.arange(len(others)), n + others] = np.inf
+        gaps = rect_clearance_rows(rows[check][:, None], targets[None])  # (m, targets, K+1)
+        gaps[np.arange(m), check] = np.inf
+        gaps[np.arange(m), n + check] = np.inf
         standing = np.hypot(vel[:, 0], vel[:, 1]) == 0.0
-        gaps[:, 2 * n:][planned[:, None] & standing[None, :]] = np.inf
+        margin = self.params.safety_margin if margin is None else margin
+        gaps[:, 2 * n:][planned[:, None] & standing[None, :]] += margin
         now, later = gaps[:, :, 0].min(axis=1), gaps[:, :, 1:].min(axis=(1, 2))
-        return (later < self.params.safety_margin) & (later < now)
+        return (later < margin) & (later < now)
 
     def _stopping_course(self, world: WorldState, first: np.ndarray | None, steps: int) -> np.ndarray:
         """States (n, steps+1, 4) of every robot applying ``first`` (n, 2) once (None: braking

@@ -3,8 +3,9 @@
 It turns one robot's state, reference and surrounding obstacles into a plan. Obstacles are
 ranked by distance and the nearest ``slots`` fill the compiled problem; unused slots are switched
 off. Each solve is warm-started from the robot's shifted previous plan. If the fast solver fails
-it retries once with ipopt; if that fails too the robot brakes along its heading and the step is
-reported as ``infeasible`` or ``failed``.
+it retries once with ipopt; if that fails too the robot brakes as hard as it can, steering as its
+last solved plan did (straight without one), and the step is reported as ``infeasible`` or
+``failed``.
 """
 
 from __future__ import annotations
@@ -246,8 +247,11 @@ class MpcPlanner:
         inputs = np.empty((cfg.horizon, 2))
         states = np.empty((cfg.horizon + 1, 4))
         states[0] = state
+        steer = np.zeros(cfg.horizon)  # the previous plan's steering, shifted: its path was clear
+        if previous is not None and len(previous.inputs) == cfg.horizon and previous.solver != "fallback":
+            steer[: cfg.horizon - 1] = previous.inputs[1:, 1]
         for k in range(cfg.horizon):  # brake to a stop, never reverse
-            inputs[k] = lim.braking_input(states[k, 3], cfg.dt)
+            inputs[k] = [lim.braking_input(states[k, 3], cfg.dt)[0], steer[k]]
             states[k + 1] = robot.model.step(states[k], inputs[k], cfg.dt)
         return Plan(states, inputs, outcome.status, total_ms, "fallback", outcome.iterations, f"{used}: {outcome.detail}")
 
