@@ -14,7 +14,7 @@ from aac_sumo import config, network, runner
 from aac_sumo.cli import main
 from aac_sumo.config import ScenarioError
 from aac_sumo.experiments import build
-from aac_sumo.experiments.common import COORDINATORS, robot_spec
+from aac_sumo.experiments.common import robot_spec
 from aac_sumo.experiments.lane_change import BUNDLED_NET, BUNDLED_NET_DIR, target_lane
 from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
 from aac_sumo.sim.sumo import SumoOptions, SumoSimulator
@@ -188,11 +188,16 @@ def test_scenario_runs_to_completion_on_a_curved_four_lane_network(tmp_path):
     assert m["tracking_error_m"] < 0.5  # the references follow the curved lanes
 
 
+KNOWN_LANE_CHANGE_FAILURE = pytest.mark.xfail(strict=True, reason=(
+    "open in issue 4: with 15 cars, AAC (seed 0) ends without collisions but deadlocked in a jam "
+    "beside the cones; LFC collides. Strict: this test starts failing CI once it passes, so the "
+    "mark must then go"))
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["aac", "lfc"])
+@pytest.mark.parametrize("name", [pytest.param("aac", marks=KNOWN_LANE_CHANGE_FAILURE),
+                                  pytest.param("lfc", marks=KNOWN_LANE_CHANGE_FAILURE)])
 def test_fifteen_vehicles_change_lanes_without_collision(name):
-    if name not in COORDINATORS:
-        pytest.skip(f"coordinator {name!r} is not registered in aac_sumo.experiments.common.COORDINATORS yet")
     m = runner.run(config.load("lane_change", [f"controller.coordinator={name}", "controller.horizon=10"])).metrics
     assert "error" not in m
     assert m["n_robots"] == 15
