@@ -1,12 +1,14 @@
 """Alternative Authority Control (paper Algorithm 1, as DESIGN.md interprets it).
 
-Each control period exactly one unfinished robot holds authority and solves MPC-(F)CBF:
+Each control period exactly one active robot holds authority and solves MPC-(F)CBF:
 
-1. **Close pairs** of unfinished robots (centre distance below ``close_distance``, KD-tree).
+1. **Close pairs** of active robots (centre distance below ``close_distance``, KD-tree). Active
+   are the unfinished robots and those whose task goes on after finishing (a car that has
+   passed the cones still drives among the others); robots parked at their goal are not.
 2. With close pairs, the **proximity decision** picks the authority among the robots in them;
-   without, **round robin** gives it to the next unfinished robot after the last holder.
+   without, **round robin** gives it to the next active robot after the last holder.
 3. Every other robot applies the next input of its stored plan, or the tracking law when its
-   plan is used up (finished robots brake to a stop).
+   plan is used up (robots parked at their goal brake to a stop).
 4. Optional **safety stop** (beyond the paper, ``safety_stop``): a non-authority robot whose
    stored input, followed by braking to a stop, would bring its footprint within
    ``safety_margin`` of another robot's or an obstacle's footprint, closer than it is now,
@@ -63,7 +65,8 @@ class AacCoordinator(Coordinator):
     def _decide(self, world: WorldState) -> Decision:
         n, cfg = len(world.robots), self.planner.config
         done = np.asarray(self.finished(world), dtype=bool)
-        active = np.flatnonzero(~done)
+        parked = done & np.array([task.stop_at_end for task in self.tasks])
+        active = np.flatnonzero(~parked)  # finished robots that drive on (cars past the cones) still take turns
         records = [RobotDecision(False) for _ in range(n)]
         inputs = np.zeros((n, 2))
         notes: dict = {}
