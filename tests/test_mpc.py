@@ -30,9 +30,10 @@ DIST_TOL = 1e-6  # exact-distance tolerance on solved plans [m]
 
 
 @lru_cache(maxsize=None)
-def planner(barrier="fcbf", gamma=0.3, discs=1, solver="fatrop", retry=True) -> MpcPlanner:
+def planner(barrier="fcbf", gamma=0.3, discs=1, solver="fatrop", retry=True, band=False) -> MpcPlanner:
     """Planners share compiled problems through get_problem's per-process cache."""
-    cfg = MpcConfig(horizon=HORIZON, dt=DT, solver=solver, barrier=barrier, gamma=gamma, slots=SLOTS, discs=discs, retry_with_ipopt=retry)
+    cfg = MpcConfig(horizon=HORIZON, dt=DT, solver=solver, barrier=barrier, gamma=gamma, slots=SLOTS, discs=discs,
+                    retry_with_ipopt=retry, band=band)
     return MpcPlanner(cfg)
 
 
@@ -331,7 +332,7 @@ def test_plans_stay_inside_a_lateral_band():
     it only as far as the band allows (rear axle 0.5 m inside the left edge)."""
     from aac_sumo.references import LateralBand
 
-    pl = planner(barrier="fcbf", gamma=0.3)
+    pl = planner(barrier="fcbf", gamma=0.3, band=True)
     band = LateralBand(right=[[-10.0, -2.0], [100.0, -2.0]], left=[[-10.0, 2.0], [100.0, 2.0]], margin=0.5)
     state = np.array([0.0, 0.0, 0.0, 3.0])
     reference = straight_reference(0.0, 3.0, y=3.0)
@@ -348,9 +349,11 @@ def test_a_band_the_robot_is_already_outside_of_holds_it_where_it_is():
     """Starting 1 m beyond the band's left limit, the plan may not drift further out."""
     from aac_sumo.references import LateralBand
 
-    pl = planner(barrier="fcbf", gamma=0.3)
+    pl = planner(barrier="fcbf", gamma=0.3, band=True)
     band = LateralBand(right=[[-10.0, -2.0], [100.0, -2.0]], left=[[-10.0, 2.0], [100.0, 2.0]], margin=0.5)
     state = np.array([0.0, 2.5, 0.0, 3.0])
+    with pytest.raises(ValueError):
+        planner(barrier="fcbf", gamma=0.3).plan(ROBOT, state, straight_reference(0.0, 3.0), np.zeros(2), [], corridor=band)
     plan = pl.plan(ROBOT, state, straight_reference(0.0, 3.0, y=4.0), np.zeros(2), [], corridor=band)
     assert plan.status == "solved"
     assert plan.states[:, 1].max() <= 2.5 + 1e-6

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Callable
 
@@ -17,7 +18,7 @@ from aac_sumo.coordination.proximity import ProximityParams
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.geometry import pairwise_rect_clearance
 from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
-from aac_sumo.references import PathReference
+from aac_sumo.references import LateralBand, PathReference
 from aac_sumo.sim.base import Simulator
 from aac_sumo.world import RobotSpec, WorldState
 
@@ -76,7 +77,9 @@ def coordinator(scenario: Scenario, tasks: list[PathReference], corridors=None, 
     robots have finished their task (they no longer take authority)."""
     name = scenario["controller.coordinator"]
     extra = dict(params=aac_params(scenario)) if name == "aac" else {}
-    return COORDINATORS[name](MpcPlanner(mpc_config(scenario)), tasks, corridors, finished, **extra)
+    band = any(isinstance(c, LateralBand) for c in corridors or [])
+    planner = MpcPlanner(dataclasses.replace(mpc_config(scenario), band=band))
+    return COORDINATORS[name](planner, tasks, corridors, finished, **extra)
 
 
 def check_start(scenario: Scenario, world: WorldState, key: str) -> None:

@@ -29,6 +29,8 @@ INTRUSION_EPS = 1e-3
 class MpcConfig:
     """Everything the planner needs besides the robot and its surroundings.
 
+    ``band`` builds the problem with the lateral-band rows that a
+    :class:`~aac_sumo.references.LateralBand` corridor needs.
     Weights are diagonal: Q on ``[x, y, heading, v]`` errors, R on ``[accel, steer]``, S on input
     changes, and the terminal P = ``terminal_scale`` * Q. ``d_safe`` [m] is added to the ego disc
     radius. ``gamma`` in (0, 1] is the barrier decay rate per control period ``dt`` [s].
@@ -55,6 +57,7 @@ class MpcConfig:
     max_cpu_time: float = 1.0
     retry_with_ipopt: bool = True
     codegen: bool = False
+    band: bool = False
 
     def weights(self) -> np.ndarray:
         q = np.array([self.q_pos, self.q_pos, self.q_heading, self.q_speed])
@@ -63,7 +66,7 @@ class MpcConfig:
     def shape(self, solver: str) -> ProblemShape:
         """Problem shape for ``solver``; only the fast path is compiled to C when ``codegen``."""
         codegen = self.codegen and solver == self.solver
-        return ProblemShape(self.horizon, self.slots, self.discs, solver, self.dt, self.max_iter, self.max_cpu_time, codegen)
+        return ProblemShape(self.horizon, self.slots, self.discs, solver, self.dt, self.max_iter, self.max_cpu_time, codegen, self.band)
 
 
 @dataclass
@@ -213,6 +216,8 @@ class MpcPlanner:
         to a :class:`~aac_sumo.references.LateralBand` (a road of any shape); a band the robot
         is already outside of is widened so that it may not go further out than now."""
         cfg = self.config
+        if isinstance(corridor, LateralBand) and not cfg.band:
+            raise ValueError("a LateralBand corridor needs a planner built with MpcConfig(band=True)")
         lim = robot.model.limits
         state = np.asarray(state, dtype=float).copy()
         state[3] = np.clip(state[3], lim.v_min, lim.v_max)
@@ -225,7 +230,7 @@ class MpcPlanner:
             weights=cfg.weights(),
             x_ref=reference,
             obstacles=self.barrier_parameters(robot, state, u_prev, obstacles),
-            band=self.band_rows(corridor, reference, state),
+            band=self.band_rows(corridor, reference, state) if cfg.band else np.zeros(0),
         )
         if previous is not None and len(previous.inputs) == cfg.horizon:
             guess = previous.shifted(state)

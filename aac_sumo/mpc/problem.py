@@ -41,6 +41,7 @@ class ProblemShape:
     max_iter: int = 100
     max_cpu_time: float = 1.0
     codegen: bool = False
+    band: bool = False  # with the lateral band rows (two inequalities per stage)
 
 
 @dataclass
@@ -76,7 +77,7 @@ class MpcProblem:
             "weights": N_WEIGHTS,
             "x_ref": (n + 1) * NX,
             "obstacles": (n + 1) * slots * N_STAGE_FIELDS,
-            "band": n * BAND_FIELDS,
+            "band": n * BAND_FIELDS if shape.band else 0,
         }
         p = ca.SX.sym("p", sum(self.param_sizes.values()))
         par = self._split(p)
@@ -87,7 +88,7 @@ class MpcProblem:
         q, r, s, pw = weights[0:4], weights[4:6], weights[6:8], weights[8:12]
         x_ref = ca.reshape(par["x_ref"], NX, n + 1)
         obstacles = ca.reshape(par["obstacles"], N_STAGE_FIELDS, (n + 1) * slots)
-        band = ca.reshape(par["band"], BAND_FIELDS, n)
+        band = ca.reshape(par["band"], BAND_FIELDS, n) if shape.band else None
 
         cost = 0
         g, equality = [], []
@@ -110,10 +111,10 @@ class MpcProblem:
                     active = ob_next[6]
                     g.append(active * (h_next - (1 - par["gamma"]) * h_now) + (1 - active))
                     equality.append(False)
-            # lateral band of the rear axle at stage k+1: lo <= n . p <= hi
-            across = band[0, k] * x_next[0] + band[1, k] * x_next[1]
-            g += [across - band[2, k], band[3, k] - across]
-            equality += [False, False]
+            if band is not None:  # lateral band of the rear axle at stage k+1: lo <= n . p <= hi
+                across = band[0, k] * x_next[0] + band[1, k] * x_next[1]
+                g += [across - band[2, k], band[3, k] - across]
+                equality += [False, False]
         err = xs[n] - x_ref[:, n]
         cost += ca.dot(pw, err**2)
         g = ca.cse(ca.vertcat(*g))
