@@ -77,3 +77,13 @@ def test_run_writes_the_swarm_picture_and_the_authority_record(tmp_path, capsys)
     assert set(steps.loc[steps["authority"], "reason"]) <= {"round_robin", "proximity"}
     metrics = json.loads((tmp_path / "metrics.json").read_text())
     assert metrics["coordinator"] == "aac" and metrics["n_robots"] == 5
+
+
+@pytest.mark.parametrize("coordinator", ["aac", "lfc", "independent"])
+@pytest.mark.parametrize("barrier", ["fcbf", "cbf"])
+def test_every_coordinator_runs_with_every_barrier(coordinator, barrier):
+    m = runner.run(config.load("swarm_rescue", [f"controller.coordinator={coordinator}", f"controller.barrier={barrier}",
+                                                "scenario.duration=1.0"])).metrics
+    assert "error" not in m
+    assert m["coordinator"] == coordinator and m["barrier"] == barrier
+    assert m["solves"] > 0 and m["collisions"] == 0

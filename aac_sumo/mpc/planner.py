@@ -119,12 +119,16 @@ class MpcPlanner:
 
     def nearest_regions(self, state: np.ndarray, obstacles: list[Obstacle | ObstaclePrediction | RegionTrack]) -> list[np.ndarray]:
         """Safety ellipses (N+1, 5) per stage of the ``slots`` obstacles nearest to ``state``."""
+        return [e for e, _ in self._nearest(state, obstacles)]
+
+    def _nearest(self, state, obstacles) -> list[tuple[np.ndarray, bool]]:
+        """The nearest obstacles' safety ellipses, each with whether it is a robot's swept region."""
         cfg = self.config
-        regions = [o.ellipses[: cfg.horizon + 1] if isinstance(o, RegionTrack) else
-                   safety_ellipses(o if isinstance(o, ObstaclePrediction) else predict(o, cfg.horizon, cfg.dt), cfg.barrier, cfg.fcbf)
+        regions = [(o.ellipses[: cfg.horizon + 1], True) if isinstance(o, RegionTrack) else
+                   (safety_ellipses(o if isinstance(o, ObstaclePrediction) else predict(o, cfg.horizon, cfg.dt), cfg.barrier, cfg.fcbf), False)
                    for o in obstacles]
         if len(regions) > cfg.slots:
-            gaps = [np.hypot(*(e[0, :2] - state[:2])) - max(e[0, 2], e[0, 3]) for e in regions]
+            gaps = [np.hypot(*(e[0, :2] - state[:2])) - max(e[0, 2], e[0, 3]) for e, _ in regions]
             regions = [regions[i] for i in np.argsort(gaps, kind="stable")[: cfg.slots]]
         return regions
 
@@ -146,11 +150,14 @@ class MpcPlanner:
         """The MPC's obstacle parameters (N+1, slots, 7): the nearest regions, grown for the ego's
         discs, with intrusions held (see :meth:`hold_intrusions`)."""
         _, radius = ego_discs(robot, self.config.discs)
-        regions = self.nearest_regions(state, obstacles)
+        nearest = self._nearest(state, obstacles)
+        regions = [e for e, _ in nearest]
         params = self.slot_parameters(robot, state, regions, radius + self.config.d_safe)
-        room = np.ones(self.config.slots)  # how far each region may shrink: to its bare ellipse
-        for k, e in enumerate(regions):
-            room[k] = np.minimum(e[:, 2] ** -2 / params[:, k, 4], e[:, 3] ** -2 / params[:, k, 5]).min()
+        floor = self.slot_parameters(robot, state, regions, radius)  # contact: grown by the disc alone
+        for k, (e, swept) in enumerate(nearest):
+            if swept:  # a robot's swept region already contains its footprint with room to spare
+                floor[:, k, 4], floor[:, k, 5] = e[:, 2] ** -2, e[:, 3] ** -2
+        room = np.minimum(floor[:, :, 4] / params[:, :, 4], floor[:, :, 5] / params[:, :, 5]).min(axis=0)
         return self.hold_intrusions(params, robot, state, u_prev, room)
 
     def hold_intrusions(self, params: np.ndarray, robot: RobotSpec, state: np.ndarray, u_prev: np.ndarray,
@@ -161,12 +168,14 @@ class MpcPlanner:
         inputs only turn the discs about it. Where the stage-1 discs (heading predicted with the
         previous steering) already break the first condition ``h1 >= (1 - gamma) h0`` of a slot,
         that row is switched off for this solve. Where they lie inside the region (``q < 1``,
-        with ``q = h + 1`` the quadratic form) but outside the bare safety ellipse, the slot's
+        with ``q = h + 1`` the quadratic form) but only within the ``d_safe`` margin, the slot's
         ``1/A^2, 1/B^2`` are scaled at every stage by ``(1 + eps) / q`` (at most ``room``
-        (slots,), which shrinks the grown region to the bare ellipse): the ego starts just outside
-        the shrunk region and may not go deeper than it already is. A disc centre inside the bare
-        ellipse keeps the full region, so the solve fails and the robot brakes. Other slots keep
-        the paper's conditions; a shrunk region grows back as the ego moves away.
+        (slots,): down to the safety ellipse grown by the disc radius alone, where contact
+        begins; for another robot's swept region, whose ellipse contains its footprint with room
+        to spare, down to that ellipse itself): the ego starts just outside the shrunk region and
+        may not go deeper than it already is. A disc deeper than the margin keeps the full region, so the solve
+        fails and the robot brakes. Other slots keep the paper's conditions; a shrunk region
+        grows back as the ego moves away.
         """
         cfg = self.config
         offsets, _ = ego_discs(robot, cfg.discs)
