@@ -117,7 +117,7 @@ COMMON: dict[str, dict[str, Key]] = {
         "s_steer": Key(float, 1.0, "S weight on steering change", **NN),
         "terminal_scale": Key(float, 5.0, "terminal weight P = terminal_scale * Q", **NN),
         "max_iter": Key(int, 100, "iteration cap per solve", **P),
-        "max_cpu_time": Key(float, 1.0, "CPU-time cap per ipopt solve [s]", **P),
+        "max_cpu_time": Key(float, 60.0, "CPU-time cap per ipopt solve [s]; keep it above what max_iter allows, or results depend on machine speed", **P),
     },
     "robot": {
         "length": Key(float, 1.0, "footprint length [m]", **P),

@@ -54,7 +54,7 @@ class MpcConfig:
     s_steer: float = 1.0
     terminal_scale: float = 5.0
     max_iter: int = 100
-    max_cpu_time: float = 1.0
+    max_cpu_time: float = 60.0
     retry_with_ipopt: bool = True
     codegen: bool = False
     band: bool = False
