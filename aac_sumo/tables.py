@@ -194,39 +194,44 @@ def run_horizon_table(scenario: str, seeds: int, workers: int | None, out: Path,
     return sweep.run_tasks(tasks, [k for k, _ in grid], out, workers, progress, desc=desc)
 
 
+SWARM_COLUMNS = (
+    ("Task duration [s] (ours)", "task_duration_s", "f2"), ("(paper)", "paper_task_duration_s", "f2"),
+    ("Compute [ms] mean (ours)", "compute_ms_mean", "f2"), ("median (ours)", "compute_ms_median", "f2"),
+    ("(paper)", "paper_compute_ms_mean", "f2"), ("Min distance [m] (ours)", "min_distance_m", "f2"),
+    ("(paper)", "paper_min_distance_m", "f2"), ("Collisions", "collisions", "count"), ("Completed", "completed", "pct"),
+    ("authority_jain", "authority_jain", "f2"), ("delay_jain", "delay_jain", "f2"), ("delay_max_s [s]", "delay_max_s", "f2"),
+    ("Infeasible", "infeasibility_rate", "pct"), ("Safety stops", "safety_stops", "count"),
+)
+
+
+def horizon_markdown(title: str, intro: str, columns, rows: list[dict]) -> str:
+    """A markdown table of (coordinator, horizon) rows; ``columns`` are (header, key, kind) with
+    kind as in :func:`_fmt`. Ours carry their std (not rates); the paper's never do."""
+    lines = [f"# {title}", "", intro, "",
+             "| " + " | ".join(["Controller", "N"] + [h for h, _, _ in columns]) + " |",
+             "|---|---:|" + "---:|" * len(columns)]
+    for r in rows:
+        cells = [COORDINATOR_LABELS.get(r["coordinator"], r["coordinator"]), str(r["horizon"])]
+        for _, key, kind in columns:
+            plain = key.startswith("paper_") or kind == "pct"
+            cells.append(_fmt(r[key], None if plain else r.get(f"{key}_std"), kind))
+        if r["errors"]:
+            cells[0] += f" ({r['errors']} failed run{'s' if r['errors'] > 1 else ''})"
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def swarm_markdown(rows: list[dict], scenario: config.Scenario, seeds: int) -> str:
     c, s = scenario.data["controller"], scenario.data["swarm_rescue"]
-    head = ["Controller", "N", "Task duration [s] (ours)", "(paper)", "Compute [ms] mean (ours)", "median (ours)", "(paper)",
-            "Min distance [m] (ours)", "(paper)", "Collisions", "Completed", "authority_jain", "delay_jain", "delay_max_s [s]",
-            "Infeasible", "Safety stops"]
-    lines = [
-        "# Table I: swarm rescue, AAC vs LFC",
-        "",
+    intro = (
         f"{len(s['starts'])} robots with crossing paths among {len(s['debris'])} debris pieces, dt = {scenario['scenario.dt']} s, "
         f"MPC-{c['barrier'].upper()} with {c['solver']}{' compiled to C' if c['codegen'] else ''}; both coordinators use the same "
         f"planner, solver and weights. " + (f"Ours: mean ± sample std over {seeds} seeds." if seeds > 1 else "Ours: one seed.")
         + " Compute is the coordinator's wall time per control period (every MPC solve of the period included). Min distance"
         " is the smallest centre-to-centre distance between two robots. Task duration is averaged over completed runs only."
-        " The paper reports only task duration, compute time and minimum distance; — marks a missing value.",
-        "",
-        "| " + " | ".join(head) + " |",
-        "|---|---:|" + "---:|" * (len(head) - 2),
-    ]
-    for r in rows:
-        std = lambda m: r.get(f"{m}_std")  # noqa: E731
-        cells = [COORDINATOR_LABELS.get(r["coordinator"], r["coordinator"]), str(r["horizon"]),
-                 _fmt(r["task_duration_s"], std("task_duration_s")), _fmt(r["paper_task_duration_s"]),
-                 _fmt(r["compute_ms_mean"], std("compute_ms_mean")), _fmt(r["compute_ms_median"], std("compute_ms_median")),
-                 _fmt(r["paper_compute_ms_mean"]),
-                 _fmt(r["min_distance_m"], std("min_distance_m")), _fmt(r["paper_min_distance_m"]),
-                 _fmt(r["collisions"], std("collisions"), "count"), _fmt(r["completed"], None, "pct"),
-                 _fmt(r["authority_jain"], std("authority_jain")), _fmt(r["delay_jain"], std("delay_jain")),
-                 _fmt(r["delay_max_s"], std("delay_max_s")), _fmt(r["infeasibility_rate"], None, "pct"),
-                 _fmt(r["safety_stops"], std("safety_stops"), "count")]
-        if r["errors"]:
-            cells[0] += f" ({r['errors']} failed run{'s' if r['errors'] > 1 else ''})"
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
+        " The paper reports only task duration, compute time and minimum distance; — marks a missing value."
+    )
+    return horizon_markdown("Table I: swarm rescue, AAC vs LFC", intro, SWARM_COLUMNS, rows)
 
 
 def swarm_table(seeds: int, workers: int | None, out: Path, sets: list[str] | None = None,
@@ -251,41 +256,29 @@ PAPER_TABLE_II: dict[tuple[str, int], tuple[float, float, float, float]] = {
 PAPER_II_METRICS = ("task_duration_s", "compute_ms_mean", "aggressive_driving_rate", "tracking_error_m")
 
 
+LANE_COLUMNS = (
+    ("Task duration [s] (ours)", "task_duration_s", "f2"), ("(paper)", "paper_task_duration_s", "f2"),
+    ("Compute [ms] mean (ours)", "compute_ms_mean", "f2"), ("median (ours)", "compute_ms_median", "f2"),
+    ("(paper)", "paper_compute_ms_mean", "f2"), ("Aggressive driving (ours)", "aggressive_driving_rate", "pct"),
+    ("(paper)", "paper_aggressive_driving_rate", "pct"), ("Tracking error [m] (ours)", "tracking_error_m", "f2"),
+    ("(paper)", "paper_tracking_error_m", "f2"), ("Min clearance to pedestrians [m]", "min_pedestrian_clearance_m", "f2"),
+    ("Collisions", "collisions", "count"), ("SUMO collisions", "sim_collisions", "count"), ("Completed", "completed", "pct"),
+    ("Infeasible", "infeasibility_rate", "pct"), ("Safety stops", "safety_stops", "count"),
+)
+
+
 def lane_change_markdown(rows: list[dict], scenario: config.Scenario, seeds: int) -> str:
     c, lc = scenario.data["controller"], scenario.data["lane_change"]
-    head = ["Controller", "N", "Task duration [s] (ours)", "(paper)", "Compute [ms] mean (ours)", "median (ours)", "(paper)",
-            "Aggressive driving (ours)", "(paper)", "Tracking error [m] (ours)", "(paper)", "Min clearance to pedestrians [m]",
-            "Collisions", "SUMO collisions", "Completed", "Infeasible", "Safety stops"]
-    lines = [
-        "# Table II: lane change in SUMO, AAC vs LFC",
-        "",
+    intro = (
         f"{lc['vehicles']} controlled vehicles at {lc['speed']} m/s in SUMO (libsumo) among cones and crossing pedestrians, "
         f"dt = {scenario['scenario.dt']} s, MPC-{c['barrier'].upper()} with {c['solver']}{' compiled to C' if c['codegen'] else ''}; "
         "both coordinators use the same planner, solver and weights. "
         + (f"Ours: mean ± sample std over {seeds} seeds." if seeds > 1 else "Ours: one seed.")
         + f" Aggressive driving: share of vehicles whose |accel| ever exceeds {scenario['metrics.accel_threshold']} m/s² or whose"
         f" lateral acceleration exceeds {scenario['metrics.lat_accel_threshold']} m/s². Collisions are counted by our footprint"
-        " check; SUMO collisions by SUMO itself. The paper reports no clearance or collision figures; — marks a missing value.",
-        "",
-        "| " + " | ".join(head) + " |",
-        "|---|---:|" + "---:|" * (len(head) - 2),
-    ]
-    for r in rows:
-        std = lambda m: r.get(f"{m}_std")  # noqa: E731
-        cells = [COORDINATOR_LABELS.get(r["coordinator"], r["coordinator"]), str(r["horizon"]),
-                 _fmt(r["task_duration_s"], std("task_duration_s")), _fmt(r["paper_task_duration_s"]),
-                 _fmt(r["compute_ms_mean"], std("compute_ms_mean")), _fmt(r["compute_ms_median"], std("compute_ms_median")),
-                 _fmt(r["paper_compute_ms_mean"]),
-                 _fmt(r["aggressive_driving_rate"], None, "pct"), _fmt(r["paper_aggressive_driving_rate"], None, "pct"),
-                 _fmt(r["tracking_error_m"], std("tracking_error_m")), _fmt(r["paper_tracking_error_m"]),
-                 _fmt(r["min_pedestrian_clearance_m"], std("min_pedestrian_clearance_m")),
-                 _fmt(r["collisions"], std("collisions"), "count"), _fmt(r["sim_collisions"], std("sim_collisions"), "count"),
-                 _fmt(r["completed"], None, "pct"), _fmt(r["infeasibility_rate"], None, "pct"),
-                 _fmt(r["safety_stops"], std("safety_stops"), "count")]
-        if r["errors"]:
-            cells[0] += f" ({r['errors']} failed run{'s' if r['errors'] > 1 else ''})"
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
+        " check; SUMO collisions by SUMO itself. The paper reports no clearance or collision figures; — marks a missing value."
+    )
+    return horizon_markdown("Table II: lane change in SUMO, AAC vs LFC", intro, LANE_COLUMNS, rows)
 
 
 def lane_change_table(seeds: int, workers: int | None, out: Path, sets: list[str] | None = None,

@@ -87,3 +87,19 @@ def test_every_coordinator_runs_with_every_barrier(coordinator, barrier):
     assert "error" not in m
     assert m["coordinator"] == coordinator and m["barrier"] == barrier
     assert m["solves"] > 0 and m["collisions"] == 0
+
+
+def test_table_rows_average_over_seeds_and_stand_beside_the_paper():
+    from aac_sumo import tables
+
+    runs = [dict(status="ok", **{"controller.horizon": 10, "controller.coordinator": "aac"}, task_duration_s=t, completed=c,
+                 compute_ms_mean=m, min_distance_m=1.0, collisions=0)
+            for t, c, m in ((18.0, True, 5.0), (None, False, 7.0), (20.0, True, 9.0))]
+    runs.append(dict(status="error", **{"controller.horizon": 10, "controller.coordinator": "aac"}))
+    row = tables.horizon_rows(runs, 3, ("task_duration_s", "completed", "compute_ms_mean"), tables.PAPER_TABLE_I,
+                              tables.PAPER_I_METRICS)[0]
+    assert row["task_duration_s"] == pytest.approx(19.0)  # completed runs only
+    assert row["completed"] == pytest.approx(2 / 3)
+    assert row["compute_ms_mean"] == pytest.approx(7.0) and row["compute_ms_mean_std"] == pytest.approx(2.0)
+    assert (row["paper_task_duration_s"], row["paper_compute_ms_mean"], row["paper_min_distance_m"]) == (18.1, 68.4, 1.13)
+    assert row["runs"] == 3 and row["errors"] == 1
