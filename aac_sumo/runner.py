@@ -15,6 +15,7 @@ import pandas as pd
 from aac_sumo import experiments
 from aac_sumo.config import Scenario
 from aac_sumo.metrics import compute_metrics, jain, nearest_robot_distance, pedestrian_clearance, time_to_collision
+from aac_sumo.mpc.problem import get_problem
 
 
 @dataclass
@@ -33,6 +34,7 @@ class RunResult:
 def run(scenario: Scenario) -> RunResult:
     """Run ``scenario`` to completion or its time limit."""
     wall_start = time.perf_counter()
+    get_problem.cache_clear()  # solvers keep state between solves: every run starts from fresh ones
     setup = experiments.build(scenario)
     sim, coord = setup.sim, setup.coordinator
     robots = sim.observe().robots

@@ -103,3 +103,12 @@ def test_table_rows_average_over_seeds_and_stand_beside_the_paper():
     assert row["compute_ms_mean"] == pytest.approx(7.0) and row["compute_ms_mean_std"] == pytest.approx(2.0)
     assert (row["paper_task_duration_s"], row["paper_compute_ms_mean"], row["paper_min_distance_m"]) == (18.1, 68.4, 1.13)
     assert row["runs"] == 3 and row["errors"] == 1
+
+
+def test_a_run_does_not_depend_on_what_the_process_ran_before():
+    """The solvers keep state between solves; each run starts from fresh ones."""
+    sets = ["controller.coordinator=lfc", "scenario.duration=3.0"]
+    first = runner.run(config.load("circle_swap", sets)).steps
+    runner.run(config.load("braking", ["braking.speed=10", "controller.barrier=cbf"]))  # same problem shape
+    again = runner.run(config.load("circle_swap", sets)).steps
+    pd.testing.assert_frame_equal(first.drop(columns=["solve_ms"]), again.drop(columns=["solve_ms"]))

@@ -291,5 +291,8 @@ def _solver_options(shape: ProblemShape, equality: list[bool]) -> dict:
 
 @lru_cache(maxsize=None)
 def get_problem(shape: ProblemShape) -> MpcProblem:
-    """The compiled problem for ``shape``, built on first use and cached for the process."""
+    """The compiled problem for ``shape``, built on first use and cached until ``cache_clear()``.
+
+    The solver keeps state from one solve to the next (a run's result would depend on what the
+    process solved before), so the runner clears this cache at the start of every run."""
     return MpcProblem(shape)
