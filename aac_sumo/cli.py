@@ -105,7 +105,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seeds", type=_positive_int, default=1, metavar="K", help="seeds per cell (default 1)")
     p.add_argument("--workers", type=_positive_int, metavar="W", help="worker processes (default: CPU count)")
     add_set(p)
+    p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                   help="run on this Dask scheduler's workers instead of local processes (needs aac-sumo[cluster])")
     p.add_argument("--out", type=Path, help="output directory (default out/table/<name>)")
+    p.add_argument("--resume", action="store_true",
+                   help="skip the runs that already have a status=ok row in OUT/results.csv")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
     p = sub.add_parser("bench", help="speed figures: medians and ratios measured in one process")
@@ -271,7 +275,8 @@ def cmd_table(args) -> int:
 
     out = args.out if args.out is not None else Path("out") / "table" / args.name
     _check_out(out)
-    _, text, runs = tables.BUILDERS[args.name](args.seeds, args.workers, out, list(args.sets), progress=not args.no_progress)
+    _, text, runs = tables.BUILDERS[args.name](args.seeds, args.workers, out, list(args.sets), progress=not args.no_progress,
+                                                scheduler=args.scheduler, resume=args.resume)
     print(text, end="")
     print(f"outputs: {out / 'table.csv'}, {out / 'table.md'}, {out / 'results.csv'}")
     return _report_failures(runs)

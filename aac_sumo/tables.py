@@ -127,13 +127,12 @@ def braking_markdown(rows: list[dict], scenario: config.Scenario, seeds: int) ->
 
 
 def braking_table(seeds: int, workers: int | None, out: Path, sets: list[str] | None = None,
-                  progress: bool = True) -> tuple[list[dict], str, list[dict]]:
+                  progress: bool = True, scheduler: str | None = None, resume: bool = False) -> tuple[list[dict], str, list[dict]]:
     """Run Table III (speeds x barriers x seeds) and write results.csv, table.csv and table.md;
     returns the table rows, the markdown and the per-run rows."""
     sets = list(sets or [])
     grid = [("braking.speed", [str(s) for s in BRAKING_SPEEDS]), ("controller.barrier", list(BRAKING_BARRIERS))]
-    tasks = sweep.plan_tasks("braking", sets, grid, seeds)
-    runs = sweep.run_tasks(tasks, [k for k, _ in grid], out, workers, progress, desc="table braking")
+    runs = run_grid("braking", grid, seeds, workers, out, sets, progress, "table braking", scheduler, resume)
     rows = braking_rows(runs, seeds)
     write_csv(rows, braking_columns(seeds), out / "table.csv")
     text = braking_markdown(rows, config.load("braking", sets), seeds)
@@ -186,12 +185,21 @@ def horizon_columns(seeds: int, metrics, paper_metrics) -> list[str]:
     return cols + [f"paper_{m}" for m in paper_metrics] + ["runs", "errors"]
 
 
+def run_grid(scenario: str, grid, seeds: int, workers: int | None, out: Path, sets: list[str] | None,
+             progress: bool, desc: str, scheduler: str | None = None, resume: bool = False) -> list[dict]:
+    """Every grid combination x seeds run of ``scenario`` through the sweep executor (local
+    processes, or the Dask scheduler at ``scheduler``; ``resume`` skips finished runs)."""
+    sets = list(sets or [])
+    tasks = sweep.plan_tasks(scenario, sets, grid, seeds)
+    return sweep.run_tasks(tasks, [k for k, _ in grid], out, workers, progress, desc=desc, scheduler=scheduler,
+                           resume=resume, manifest=sweep.sweep_manifest(tasks[0].source, sets))
+
+
 def run_horizon_table(scenario: str, seeds: int, workers: int | None, out: Path, sets: list[str] | None,
-                      progress: bool, desc: str) -> list[dict]:
+                      progress: bool, desc: str, scheduler: str | None = None, resume: bool = False) -> list[dict]:
     """Every (horizon, coordinator) x seeds run of ``scenario``; the per-run rows."""
     grid = [("controller.horizon", [str(h) for h in HORIZONS]), ("controller.coordinator", list(COORDINATORS))]
-    tasks = sweep.plan_tasks(scenario, list(sets or []), grid, seeds)
-    return sweep.run_tasks(tasks, [k for k, _ in grid], out, workers, progress, desc=desc)
+    return run_grid(scenario, grid, seeds, workers, out, sets, progress, desc, scheduler, resume)
 
 
 SWARM_COLUMNS = (
@@ -235,9 +243,9 @@ def swarm_markdown(rows: list[dict], scenario: config.Scenario, seeds: int) -> s
 
 
 def swarm_table(seeds: int, workers: int | None, out: Path, sets: list[str] | None = None,
-                progress: bool = True) -> tuple[list[dict], str, list[dict]]:
+                progress: bool = True, scheduler: str | None = None, resume: bool = False) -> tuple[list[dict], str, list[dict]]:
     """Run Table I (horizons x coordinators x seeds) and write results.csv, table.csv and table.md."""
-    runs = run_horizon_table("swarm_rescue", seeds, workers, out, sets, progress, "table swarm")
+    runs = run_horizon_table("swarm_rescue", seeds, workers, out, sets, progress, "table swarm", scheduler, resume)
     rows = horizon_rows(runs, seeds, SWARM_METRICS, PAPER_TABLE_I, PAPER_I_METRICS)
     write_csv(rows, horizon_columns(seeds, SWARM_METRICS, PAPER_I_METRICS), out / "table.csv")
     text = swarm_markdown(rows, config.load("swarm_rescue", list(sets or [])), seeds)
@@ -282,9 +290,9 @@ def lane_change_markdown(rows: list[dict], scenario: config.Scenario, seeds: int
 
 
 def lane_change_table(seeds: int, workers: int | None, out: Path, sets: list[str] | None = None,
-                      progress: bool = True) -> tuple[list[dict], str, list[dict]]:
+                      progress: bool = True, scheduler: str | None = None, resume: bool = False) -> tuple[list[dict], str, list[dict]]:
     """Run Table II (horizons x coordinators x seeds) and write results.csv, table.csv and table.md."""
-    runs = run_horizon_table("lane_change", seeds, workers, out, sets, progress, "table lane-change")
+    runs = run_horizon_table("lane_change", seeds, workers, out, sets, progress, "table lane-change", scheduler, resume)
     rows = horizon_rows(runs, seeds, LANE_METRICS, PAPER_TABLE_II, PAPER_II_METRICS)
     write_csv(rows, horizon_columns(seeds, LANE_METRICS, PAPER_II_METRICS), out / "table.csv")
     text = lane_change_markdown(rows, config.load("lane_change", list(sets or [])), seeds)

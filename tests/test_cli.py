@@ -151,3 +151,13 @@ def test_bench_records(capsys, tmp_path):
     assert fast["ratio"] == pytest.approx(base["median_ms"] / fast["median_ms"])
     assert "ratio" not in base
     assert (tmp_path / "bench.md").read_text().count("mpc/") >= 2
+
+
+def test_table_resumes_from_its_results(capsys, tmp_path):
+    argv = ["table", "braking", "--seeds", "1", "--workers", "1", "--set", "scenario.duration=0.3", "--no-progress",
+            "--out", str(tmp_path)]
+    assert main(argv) == 0
+    first = (tmp_path / "results.csv").read_text()
+    assert main(argv + ["--resume"]) == 0
+    assert (tmp_path / "results.csv").read_text() == first
+    assert main(argv[:-2] + ["--set", "scenario.duration=0.4", "--out", str(tmp_path), "--resume"]) == 2  # another sweep
