@@ -51,6 +51,16 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog=PROG, description="AAC + MPC-FCBF experiments: run, sweep, reproduce the paper's tables, benchmark.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="{run,sweep,tune,table,bench,net}")
 
+    def add_executor(p, resume: bool):
+        """Where the runs go (local processes or a Dask cluster), resuming, progress bar."""
+        p.add_argument("--workers", type=_positive_int, metavar="W", help="worker processes (default: CPU count)")
+        p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                       help="run on this Dask scheduler's workers instead of local processes (needs aac-sumo[cluster])")
+        if resume:
+            p.add_argument("--resume", action="store_true",
+                           help="skip the runs that already have a status=ok row in OUT/results.csv")
+        p.add_argument("--no-progress", action="store_true", help="no progress bar")
+
     def add_set(p):
         p.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE",
                        help="override a scenario key, e.g. controller.horizon=5 (repeatable)")
@@ -67,13 +77,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--grid", action="append", default=[], metavar="KEY=V1,V2,...", help="a key and its values (repeatable)")
     add_set(p)
     p.add_argument("--seeds", type=_positive_int, default=1, metavar="K", help="seeds per combination: base seed + 0..K-1 (default 1)")
-    p.add_argument("--workers", type=_positive_int, metavar="W", help="worker processes (default: CPU count)")
-    p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
-                   help="run on this Dask scheduler's workers instead of local processes (needs aac-sumo[cluster])")
     p.add_argument("--out", type=Path, help="output directory (default out/sweep/<scenario name>)")
-    p.add_argument("--resume", action="store_true",
-                   help="skip the runs that already have a status=ok row in OUT/results.csv")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_executor(p, resume=True)
 
     p = sub.add_parser("tune", help="Bayesian optimization (GP + Expected Improvement) of scenario keys, beside random search")
     p.add_argument("scenario", metavar="SCENARIO")
@@ -92,25 +97,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--xi", type=float, default=0.01, metavar="X", help="EI exploration margin, in standard deviations of the objective (default 0.01)")
     p.add_argument("--no-baseline", action="store_true", help="skip the random search of the same budget drawn beside BO in tuning.png")
     add_set(p)
-    p.add_argument("--workers", type=_positive_int, metavar="W", help="worker processes (default: CPU count)")
-    p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
-                   help="run on this Dask scheduler's workers instead of local processes (needs aac-sumo[cluster])")
     p.add_argument("--out", type=Path, help="output directory (default out/tune/<scenario name>)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_executor(p, resume=False)
 
     from aac_sumo.tables import TABLES
 
     p = sub.add_parser("table", help="one of the paper's tables, ours beside the paper's values")
     p.add_argument("name", choices=TABLES, metavar="{" + ",".join(TABLES) + "}")
     p.add_argument("--seeds", type=_positive_int, default=1, metavar="K", help="seeds per cell (default 1)")
-    p.add_argument("--workers", type=_positive_int, metavar="W", help="worker processes (default: CPU count)")
     add_set(p)
-    p.add_argument("--scheduler", metavar="tcp://HOST:PORT",
-                   help="run on this Dask scheduler's workers instead of local processes (needs aac-sumo[cluster])")
     p.add_argument("--out", type=Path, help="output directory (default out/table/<name>)")
-    p.add_argument("--resume", action="store_true",
-                   help="skip the runs that already have a status=ok row in OUT/results.csv")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_executor(p, resume=True)
 
     p = sub.add_parser("bench", help="speed figures: medians and ratios measured in one process")
     p.add_argument("target", nargs="?", default="all", choices=("mpc", "aac", "tune", "all"), metavar="{mpc,aac,tune,all}")
