@@ -4,6 +4,7 @@ reported, and everything recorded up to it is kept."""
 from __future__ import annotations
 
 import json
+from collections import deque
 import sys
 import time
 from dataclasses import dataclass
@@ -45,8 +46,8 @@ def run(scenario: Scenario) -> RunResult:
     completed, task_duration, error, deadlock = False, None, None, False
     arrival = np.full(len(setup.tasks), np.nan)
     stop, patience = scenario["metrics.stop_speed"], scenario["metrics.deadlock_time"]
-    history: list[np.ndarray] = []  # rear-axle positions per period, for the deadlock rule
     window = int(round(patience / dt))
+    history: deque[np.ndarray] = deque(maxlen=window + 1)  # rear-axle positions, for the deadlock rule
     try:
         for k in range(int(round(duration / dt)) + 1):
             world = sim.observe()
@@ -60,7 +61,7 @@ def run(scenario: Scenario) -> RunResult:
                 break
             history.append(world.states[:, :2].copy())
             if len(history) > window:
-                moved = np.hypot(*(history[-1] - history[-1 - window]).T)[~done]
+                moved = np.hypot(*(history[-1] - history[0]).T)[~done]
                 if moved.size and moved.max() <= stop * patience:
                     deadlock = True
                     break

@@ -163,20 +163,34 @@ class AacCoordinator(Coordinator):
         two thirds and all of its strongest braking, straight wheels) that passes, else full
         braking. ``margin`` [m] replaces ``safety_margin``."""
         chosen = inputs.copy()
-        flagged = self.unsafe(world, check, chosen, planned, margin)
+        around = self._surroundings(world)
+        flagged = self.unsafe(world, check, chosen, planned, around, margin)
         a_min = self.fleet.a_min[check]
         for share in (0.0, 1 / 3, 2 / 3):
             if not flagged.any():
                 break
             rows = check[flagged]
             chosen[rows] = np.column_stack([np.minimum(inputs[rows, 0], share * a_min[flagged]), np.zeros(len(rows))])
-            flagged &= self.unsafe(world, check, chosen, planned, margin)
+            flagged &= self.unsafe(world, check, chosen, planned, around, margin)
         for i in check[flagged]:
             chosen[i] = world.robots[i].model.limits.braking_input(world.states[i, 3], self.planner.config.dt)
         return chosen
 
+    def _surroundings(self, world: WorldState) -> tuple[int, np.ndarray, np.ndarray]:
+        """What every safety check of this period compares against: the number of stages, the
+        footprints (n + obstacles, K+1, 5) of every robot braking at once and of every obstacle
+        moving at constant velocity, and which obstacles stand still."""
+        cfg, fleet, n = self.planner.config, self.fleet, len(world.robots)
+        steps = int(np.ceil(np.max(np.abs(world.states[:, 3]) / -fleet.a_min) / cfg.dt)) + 2  # input acts at stage 2
+        halt = fleet.footprints(np.arange(n), self._stopping_course(world, None, steps))
+        obs = np.array([o.footprint() for o in world.obstacles]).reshape(-1, 5)
+        vel = np.array([o.velocity for o in world.obstacles]).reshape(-1, 2)
+        moving = np.repeat(obs[:, None, :], steps + 1, axis=1)
+        moving[:, :, :2] += np.arange(steps + 1)[None, :, None] * cfg.dt * vel[:, None, :]
+        return steps, np.concatenate([halt, moving]), np.hypot(vel[:, 0], vel[:, 1]) == 0.0
+
     def unsafe(self, world: WorldState, check: np.ndarray, inputs: np.ndarray, planned: np.ndarray,
-               margin: float | None = None) -> np.ndarray:
+               around: tuple[int, np.ndarray, np.ndarray], margin: float | None = None) -> np.ndarray:
         """Which of robots ``check`` must brake instead of applying ``inputs`` (n, 2, every robot's
         input this period as far as known; zero where not).
 
@@ -186,24 +200,17 @@ class AacCoordinator(Coordinator):
         closer than it is now. The other robots are taken both on their own such course and
         braking at once, since either may happen. Robots following an MPC plan (``planned``
         rows of ``check``), which already keeps its margin from standing obstacles, stop for
-        those only before an actual contact.
+        those only before an actual contact. ``around`` is :meth:`_surroundings` of ``world``.
         """
-        cfg, fleet = self.planner.config, self.fleet
         n, m = len(world.robots), len(check)
         if m == 0:
             return np.zeros(0, dtype=bool)
-        steps = int(np.ceil(np.max(np.abs(world.states[:, 3]) / -fleet.a_min) / cfg.dt)) + 2  # input acts at stage 2
-        rows = fleet.footprints(np.arange(n), self._stopping_course(world, inputs, steps))  # (n, K+1, 5)
-        halt = fleet.footprints(np.arange(n), self._stopping_course(world, None, steps))
-        obs = np.array([o.footprint() for o in world.obstacles]).reshape(-1, 5)
-        vel = np.array([o.velocity for o in world.obstacles]).reshape(-1, 2)
-        moving = np.repeat(obs[:, None, :], steps + 1, axis=1)
-        moving[:, :, :2] += np.arange(steps + 1)[None, :, None] * cfg.dt * vel[:, None, :]
-        targets = np.concatenate([rows, halt, moving])  # (2 n + obstacles, K+1, 5)
+        steps, fixed, standing = around
+        rows = self.fleet.footprints(np.arange(n), self._stopping_course(world, inputs, steps))  # (n, K+1, 5)
+        targets = np.concatenate([rows, fixed])  # (2 n + obstacles, K+1, 5)
         gaps = rect_clearance_rows(rows[check][:, None], targets[None])  # (m, targets, K+1)
         gaps[np.arange(m), check] = np.inf
         gaps[np.arange(m), n + check] = np.inf
-        standing = np.hypot(vel[:, 0], vel[:, 1]) == 0.0
         margin = self.params.safety_margin if margin is None else margin
         gaps[:, 2 * n:][planned[:, None] & standing[None, :]] += margin
         now, later = gaps[:, :, 0].min(axis=1), gaps[:, :, 1:].min(axis=(1, 2))
