@@ -117,12 +117,9 @@ class MpcPlanner:
         retry = config.retry_with_ipopt and config.solver != "ipopt"
         self.retry_problem = get_problem(config.shape("ipopt")) if retry else None
 
-    def nearest_regions(self, state: np.ndarray, obstacles: list[Obstacle | ObstaclePrediction | RegionTrack]) -> list[np.ndarray]:
-        """Safety ellipses (N+1, 5) per stage of the ``slots`` obstacles nearest to ``state``."""
-        return [e for e, _ in self._nearest(state, obstacles)]
-
-    def _nearest(self, state, obstacles) -> list[tuple[np.ndarray, bool]]:
-        """The nearest obstacles' safety ellipses, each with whether it is a robot's swept region."""
+    def nearest_regions(self, state: np.ndarray, obstacles: list[Obstacle | ObstaclePrediction | RegionTrack]) -> list[tuple[np.ndarray, bool]]:
+        """Safety ellipses (N+1, 5) per stage of the ``slots`` obstacles nearest to ``state``,
+        each with whether it is a robot's swept region."""
         cfg = self.config
         regions = [(o.ellipses[: cfg.horizon + 1], True) if isinstance(o, RegionTrack) else
                    (safety_ellipses(o if isinstance(o, ObstaclePrediction) else predict(o, cfg.horizon, cfg.dt), cfg.barrier, cfg.fcbf), False)
@@ -143,14 +140,15 @@ class MpcPlanner:
         """Stage parameters (N+1, slots, 7) of the nearest obstacles around ``state``, each
         region grown by the ego's disc radius plus ``d_safe``."""
         _, radius = ego_discs(robot, self.config.discs)
-        return self.slot_parameters(robot, state, self.nearest_regions(state, obstacles), radius + self.config.d_safe)
+        regions = [e for e, _ in self.nearest_regions(state, obstacles)]
+        return self.slot_parameters(robot, state, regions, radius + self.config.d_safe)
 
     def barrier_parameters(self, robot: RobotSpec, state: np.ndarray, u_prev: np.ndarray,
                            obstacles: list[Obstacle | ObstaclePrediction | RegionTrack]) -> np.ndarray:
         """The MPC's obstacle parameters (N+1, slots, 7): the nearest regions, grown for the ego's
         discs, with intrusions held (see :meth:`hold_intrusions`)."""
         _, radius = ego_discs(robot, self.config.discs)
-        nearest = self._nearest(state, obstacles)
+        nearest = self.nearest_regions(state, obstacles)
         regions = [e for e, _ in nearest]
         params = self.slot_parameters(robot, state, regions, radius + self.config.d_safe)
         floor = self.slot_parameters(robot, state, regions, radius)  # contact: grown by the disc alone
