@@ -82,7 +82,6 @@ class AacCoordinator(Coordinator):
         horizon_inputs = np.zeros((len(others), cfg.horizon + 2, 2))
         for row, j in enumerate(others):
             horizon_inputs[row], records[j].mode = self.intended_inputs(world, j, done[j], cfg.horizon + 2)
-        traj = self.fleet.rollout(others, world.states[others], horizon_inputs, cfg.dt)
 
         planned = np.array([records[j].mode == "plan" for j in others], dtype=bool)
         inputs[others] = horizon_inputs[:, 0]
@@ -98,9 +97,7 @@ class AacCoordinator(Coordinator):
             records[j].mode = "safety_stop"
             if self.plans[j] is not None:
                 self.used[j] = len(self.plans[j].inputs)
-        if stops.any():
-            traj[stops] = self.fleet.rollout(others[stops], world.states[others[stops]], horizon_inputs[stops], cfg.dt)
-        inputs[others] = horizon_inputs[:, 0]
+        traj = self.fleet.rollout(others, world.states[others], horizon_inputs, cfg.dt)
         self.used[others] += 1
 
         regions = self.fleet.swept_regions(others, traj, cfg.horizon, cfg.barrier, cfg.fcbf)
