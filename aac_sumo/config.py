@@ -106,6 +106,8 @@ COMMON: dict[str, dict[str, Key]] = {
         "mu2": Key(float, 0.2, "F-CBF gain across the velocity [s]", **NN),
         "sigmoid_k": Key(float, 2.0, "F-CBF sigmoid steepness k [s/m]", **P),
         "v0": Key(float, 1.0, "F-CBF sigmoid threshold v0 [m/s]", **NN),
+        "pedestrian_reach": Key(float, 0.0, "pedestrians may start, stop or turn at any moment: their regions grow by this speed times the look-ahead time in every direction [m/s]", **NN),
+        "pedestrian_margin": Key(float, 0.0, "extra clearance every robot keeps from pedestrians, on top of d_safe [m]", **NN),
         "obstacle_slots": Key(int, 8, "obstacles the MPC considers (nearest first)", check=lambda n: n >= 1, expect=">= 1"),
         "ego_discs": Key(int, 1, "discs covering the ego footprint", check=lambda n: 1 <= n <= 5, expect="in 1..5"),
         "q_pos": Key(float, 1.0, "Q weight on position error [1/m^2]", **NN),
@@ -141,6 +143,10 @@ COMMON: dict[str, dict[str, Key]] = {
         "safety_margin": Key(float, 0.1, "footprint gap below which the safety stop triggers [m]", **NN),
         "lookahead": Key(float, 1.0, "pure-pursuit lookahead of the tracking law for robots without a plan [m]", **P),
         "speed_gain": Key(float, 1.0, "speed-error gain of the tracking law [1/s]", **P),
+    },
+    "lfc": {
+        "safety_stop": Key(bool, False, "every robot's first planned input passes AAC's safety stop (the paper's LFC has none)"),
+        "safety_margin": Key(float, 0.1, "footprint gap below which the safety stop triggers [m]", **NN),
     },
     "metrics": {
         "accel_threshold": Key(float, 3.0, "|longitudinal acceleration| that counts as aggressive [m/s^2]", **P),

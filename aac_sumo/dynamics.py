@@ -32,6 +32,18 @@ def bicycle_step(state, control, dt: float, wheelbase, xp=np):
     return np.stack(nxt, axis=-1) if xp is np else xp.vertcat(*nxt)
 
 
+def heading_hold_steer(states, heading_ref, dt: float, wheelbase, steer_max, turn_time: float) -> np.ndarray:
+    """Steering angles [rad] (...) that turn each state's heading (states (..., 4)) towards
+    ``heading_ref`` (...) [rad] with time constant ``turn_time`` [s] under :func:`bicycle_step`,
+    within ``steer_max``; zero at standstill. The heading error never changes side."""
+    states = np.asarray(states, dtype=float)
+    error = np.angle(np.exp(1j * (np.asarray(heading_ref, dtype=float) - states[..., 2])))
+    turn = min(1.0, dt / turn_time) * error  # heading change wanted this period
+    speed = states[..., 3]
+    steer = np.arctan2(np.asarray(wheelbase) * turn * np.sign(speed), np.abs(speed) * dt)
+    return np.where(speed != 0.0, np.clip(steer, -np.asarray(steer_max), steer_max), 0.0)
+
+
 def _components(vec, n: int, xp):
     """The ``n`` entries of a numpy (..., n) array or a casadi column vector."""
     return [vec[..., i] for i in range(n)] if xp is np else [vec[i] for i in range(n)]

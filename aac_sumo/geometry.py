@@ -291,14 +291,16 @@ def containing_ellipse(points, theta) -> np.ndarray:
 
 
 def polyline_offset(points, polyline) -> np.ndarray:
-    """Signed distance [m] from each of ``points`` (K, 2) to the polyline (M, 2), M >= 2:
-    positive to the left of its direction of travel, negative to the right (side of the
-    nearest segment)."""
+    """Signed distance [m] from each of ``points`` (K, 2) to the polyline (M, 2), M >= 2, whose
+    first and last segments go on straight beyond its ends: positive to the left of its
+    direction of travel, negative to the right (side of the nearest segment)."""
     p = np.asarray(points, dtype=float)[:, None, :]
     a, b = np.asarray(polyline, dtype=float)[:-1], np.asarray(polyline, dtype=float)[1:]
     d = b - a
     length2 = np.maximum(np.einsum("ij,ij->i", d, d), 1e-18)
-    t = np.clip(np.einsum("kij,ij->ki", p - a, d) / length2, 0.0, 1.0)
+    lo, hi = np.zeros(len(d)), np.ones(len(d))
+    lo[0], hi[-1] = -np.inf, np.inf
+    t = np.clip(np.einsum("kij,ij->ki", p - a, d) / length2, lo, hi)
     gap = p - (a + t[..., None] * d)
     dist = np.sqrt(np.einsum("kij,kij->ki", gap, gap))
     nearest = np.argmin(dist, axis=1)

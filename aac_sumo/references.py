@@ -29,13 +29,16 @@ class PathReference:
         self.speed = float(speed)
         self.decel = float(decel)
         self.stop_at_end = stop_at_end
+        self._last_open = np.r_[np.ones(len(self.seg_len) - 1), np.inf]  # upper bound of t per segment
 
     def project(self, point) -> tuple[float, float]:
-        """Arc length [m] of the closest path point to ``point`` and the distance [m] to it."""
+        """Arc length [m] of the closest path point to ``point`` and the distance [m] to it. A
+        path that does not stop goes on straight beyond its end, so a point past the end projects
+        onto that extension (arc length above ``length``)."""
         p = np.asarray(point, dtype=float)
         a = self.points[:-1]
         d = np.diff(self.points, axis=0)
-        t = np.clip(np.einsum("ij,ij->i", p - a, d) / self.seg_len**2, 0.0, 1.0)
+        t = np.clip(np.einsum("ij,ij->i", p - a, d) / self.seg_len**2, 0.0, 1.0 if self.stop_at_end else self._last_open)
         closest = a + t[:, None] * d
         dist = np.hypot(*(closest - p).T)
         i = int(np.argmin(dist))

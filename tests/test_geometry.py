@@ -363,17 +363,28 @@ def test_pairwise_self_diagonal_negative():
 @given(points=st.lists(st.tuples(st.floats(-20, 20), st.floats(-20, 20)), min_size=1, max_size=6),
        line=st.lists(st.tuples(st.floats(-20, 20), st.floats(-20, 20)), min_size=2, max_size=6))
 def test_polyline_offset_matches_dense_sampling(points, line):
-    """|offset| is the distance to the polyline; its sign tells the side of the nearest segment."""
+    """|offset| is the distance to the polyline with its end segments carried on straight."""
     from aac_sumo.geometry import polyline_offset
 
     pts, poly = np.array(points), np.array(line)
-    t = np.linspace(0.0, 1.0, 2001)[:, None]
-    dense = np.vstack([a + t * (b - a) for a, b in zip(poly[:-1], poly[1:])])
+
+    def carried(a, b, back, ahead):  # the segment, extended 200 m where asked (the points lie within 60 m)
+        d = b - a
+        n = np.hypot(*d)
+        if n < 1e-9:
+            return a, b
+        unit = d / n
+        return a - 200.0 * back * unit, b + 200.0 * ahead * unit
+
+    last = len(poly) - 2
+    segments = [carried(a, b, i == 0, i == last) for i, (a, b) in enumerate(zip(poly[:-1], poly[1:]))]
+    t = np.linspace(0.0, 1.0, 20001)[:, None]
+    dense = np.vstack([a + t * (b - a) for a, b in segments])
     brute = np.hypot(*(pts[:, None, :] - dense[None]).transpose(2, 0, 1)).min(axis=1)
     got = np.abs(polyline_offset(pts, poly))
     assert np.all(got <= brute + 1e-9)
-    seg = np.hypot(*np.diff(poly, axis=0).T).max()
-    assert np.all(brute - got <= seg / 2000 + 1e-9)
+    seg = max(np.hypot(*(b - a)) for a, b in segments)
+    assert np.all(brute - got <= seg / 20000 + 1e-9)
 
 
 def test_polyline_offset_sign_is_left_positive():
@@ -381,3 +392,5 @@ def test_polyline_offset_sign_is_left_positive():
 
     line = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0]])  # east, then north
     np.testing.assert_allclose(polyline_offset([[5.0, 2.0], [5.0, -3.0], [12.0, 5.0], [8.0, 5.0]], line), [2.0, -3.0, -2.0, 2.0])
+    # beyond the ends the end segments go on: 30 m past the end, 1 m right of the line's extension
+    np.testing.assert_allclose(polyline_offset([[11.0, 40.0], [-20.0, -1.0]], line), [-1.0, -1.0])

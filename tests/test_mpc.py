@@ -284,6 +284,24 @@ def test_fallback_from_slow_start_never_reverses():
     assert np.all(np.diff(plan.states[:, 0]) >= 0.0)
 
 
+@given(heading=st.floats(-1.0, 1.0), speed=st.floats(0.5, 12.0))
+@settings(max_examples=40, deadline=None)
+def test_fallback_brakes_turning_towards_the_reference_heading(heading, speed):
+    """The fallback brakes at full strength, never reverses, and turns the heading towards the
+    reference's (a straight lane along +x) without overshooting it: a car brakes in its lane."""
+    pl = planner(barrier="fcbf", gamma=0.3, discs=1)
+    state = np.array([0.0, 0.0, heading, speed])
+    states, inputs = pl.fallback(ROBOT, state, straight_reference(0.0, speed))
+    speeds = states[:, 3]
+    np.testing.assert_allclose(speeds, np.maximum(speed + LIMITS.a_min * DT * np.arange(HORIZON + 1), 0.0), atol=1e-12)
+    assert np.all(np.abs(inputs[:, 1]) <= LIMITS.steer_max)
+    errors = np.abs(states[:, 2])
+    assert np.all(np.diff(errors) <= 1e-12)  # the heading error never grows
+    assert np.all(np.sign(states[:, 2]) * np.sign(heading) >= 0.0)  # and never changes side
+    if abs(heading) > 1e-6 and speed > 2.0:
+        assert errors[-1] < abs(heading)
+
+
 # --------------------------------------------------------------------------------------------
 # Warm start and solver agreement
 # --------------------------------------------------------------------------------------------

@@ -30,8 +30,8 @@ import numpy as np
 
 from aac_sumo.coordination.base import Coordinator, Decision, Finished, RobotDecision
 from aac_sumo.coordination.proximity import ProximityParams, close_pairs, proximity_decision
+from aac_sumo.coordination.safety import SafetyCheck
 from aac_sumo.coordination.tracking import track
-from aac_sumo.geometry import rect_clearance_rows
 from aac_sumo.mpc.planner import MpcPlanner
 from aac_sumo.references import PathReference
 from aac_sumo.world import WorldState
@@ -85,8 +85,10 @@ class AacCoordinator(Coordinator):
 
         planned = np.array([records[j].mode == "plan" for j in others], dtype=bool)
         inputs[others] = horizon_inputs[:, 0]
+        safety = SafetyCheck(world, self.fleet, cfg)
         if self.params.safety_stop:
-            inputs = self.safe_inputs(world, others, inputs, planned)
+            steer = self.braking_steer(world)
+            inputs = safety.safe_inputs(others, inputs, planned, self.params.safety_margin, steer)
         first = inputs[others]
         stops = np.any(first != horizon_inputs[:, 0], axis=1)
         for row in np.flatnonzero(stops):
@@ -108,7 +110,7 @@ class AacCoordinator(Coordinator):
         self.used[authority] = 1
         stopped = int(stops.sum())
         if self.params.safety_stop:  # its plan looks only N periods ahead: no contact beyond them
-            checked = self.safe_inputs(world, np.array([authority]), inputs, np.array([True]), margin=0.0)
+            checked = safety.safe_inputs(np.array([authority]), inputs, np.array([True]), 0.0, steer)
             if np.any(checked[authority] != inputs[authority]):
                 inputs[authority], decided.mode = checked[authority], "safety_stop"
                 self.used[authority] = len(self.plans[authority].inputs)
@@ -152,77 +154,3 @@ class AacCoordinator(Coordinator):
             return out, "plan"
         out[0] = track(world.robots[j], world.states[j], task, self.params.lookahead, self.params.speed_gain)
         return out, "tracking"
-
-    def safe_inputs(self, world: WorldState, check: np.ndarray, inputs: np.ndarray, planned: np.ndarray,
-                    margin: float | None = None) -> np.ndarray:
-        """Every robot's inputs (n, 2) after the safety check of robots ``check``: one whose
-        intended input fails :meth:`unsafe` gets the gentlest braking (coasting, then a third,
-        two thirds and all of its strongest braking, straight wheels) that passes, else full
-        braking. ``margin`` [m] replaces ``safety_margin``."""
-        chosen = inputs.copy()
-        around = self._surroundings(world)
-        flagged = self.unsafe(world, check, chosen, planned, around, margin)
-        a_min = self.fleet.a_min[check]
-        for share in (0.0, 1 / 3, 2 / 3):
-            if not flagged.any():
-                break
-            rows = check[flagged]
-            chosen[rows] = np.column_stack([np.minimum(inputs[rows, 0], share * a_min[flagged]), np.zeros(len(rows))])
-            flagged &= self.unsafe(world, check, chosen, planned, around, margin)
-        for i in check[flagged]:
-            chosen[i] = world.robots[i].model.limits.braking_input(world.states[i, 3], self.planner.config.dt)
-        return chosen
-
-    def _surroundings(self, world: WorldState) -> tuple[int, np.ndarray, np.ndarray]:
-        """What every safety check of this period compares against: the number of stages, the
-        footprints (n + obstacles, K+1, 5) of every robot braking at once and of every obstacle
-        moving at constant velocity, and which obstacles stand still."""
-        cfg, fleet, n = self.planner.config, self.fleet, len(world.robots)
-        steps = int(np.ceil(np.max(np.abs(world.states[:, 3]) / -fleet.a_min) / cfg.dt)) + 2  # input acts at stage 2
-        halt = fleet.footprints(np.arange(n), self._stopping_course(world, None, steps))
-        obs = np.array([o.footprint() for o in world.obstacles]).reshape(-1, 5)
-        vel = np.array([o.velocity for o in world.obstacles]).reshape(-1, 2)
-        moving = np.repeat(obs[:, None, :], steps + 1, axis=1)
-        moving[:, :, :2] += np.arange(steps + 1)[None, :, None] * cfg.dt * vel[:, None, :]
-        return steps, np.concatenate([halt, moving]), np.hypot(vel[:, 0], vel[:, 1]) == 0.0
-
-    def unsafe(self, world: WorldState, check: np.ndarray, inputs: np.ndarray, planned: np.ndarray,
-               around: tuple[int, np.ndarray, np.ndarray], margin: float | None = None) -> np.ndarray:
-        """Which of robots ``check`` must brake instead of applying ``inputs`` (n, 2, every robot's
-        input this period as far as known; zero where not).
-
-        A robot's course is its input once, then braking to a stop with straight wheels. It must
-        brake when, on that course, its footprint comes within ``safety_margin`` of another
-        robot's footprint at the same stage, or of an obstacle moving at constant velocity,
-        closer than it is now. The other robots are taken both on their own such course and
-        braking at once, since either may happen. Robots following an MPC plan (``planned``
-        rows of ``check``), which already keeps its margin from standing obstacles, stop for
-        those only before an actual contact. ``around`` is :meth:`_surroundings` of ``world``.
-        """
-        n, m = len(world.robots), len(check)
-        if m == 0:
-            return np.zeros(0, dtype=bool)
-        steps, fixed, standing = around
-        rows = self.fleet.footprints(np.arange(n), self._stopping_course(world, inputs, steps))  # (n, K+1, 5)
-        targets = np.concatenate([rows, fixed])  # (2 n + obstacles, K+1, 5)
-        gaps = rect_clearance_rows(rows[check][:, None], targets[None])  # (m, targets, K+1)
-        gaps[np.arange(m), check] = np.inf
-        gaps[np.arange(m), n + check] = np.inf
-        margin = self.params.safety_margin if margin is None else margin
-        gaps[:, 2 * n:][planned[:, None] & standing[None, :]] += margin
-        now, later = gaps[:, :, 0].min(axis=1), gaps[:, :, 1:].min(axis=(1, 2))
-        return (later < margin) & (later < now)
-
-    def _stopping_course(self, world: WorldState, first: np.ndarray | None, steps: int) -> np.ndarray:
-        """States (n, steps+1, 4) of every robot applying ``first`` (n, 2) once (None: braking
-        at once), then braking to a stop with straight wheels."""
-        cfg, fleet, n = self.planner.config, self.fleet, len(world.robots)
-        course = np.empty((n, steps + 1, 4))
-        course[:, 0] = world.states
-        for k in range(steps):
-            if k == 0 and first is not None:
-                u = first
-            else:
-                u = np.column_stack([np.clip(-course[:, k, 3] / cfg.dt, fleet.a_min, fleet.a_max), np.zeros(n)])
-            course[:, k + 1] = fleet.rollout(np.arange(n), course[:, k], u[:, None, :], cfg.dt)[:, 1]
-        return course

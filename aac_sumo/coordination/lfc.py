@@ -5,18 +5,40 @@ MPC in that order; robot i avoids the swept regions of the plans that robots 0..
 period, the current constant-velocity motion of the robots that have not planned yet (and of
 finished ones), and the obstacles. That is n solves per period. Other priority planners rank
 robots by distance to their goal or to a conflict; the paper ranks by index, and so do we.
+
+The paper's LFC has no safety layer. With ``safety_stop`` (off by default) every robot's first
+planned input then passes the same safety stop as AAC's robots (:mod:`~aac_sumo.coordination.safety`),
+so that both coordinators can be compared with the same safety net.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from aac_sumo.coordination.base import Coordinator, Decision, RobotDecision
+from dataclasses import dataclass
+
+from aac_sumo.coordination.base import Coordinator, Decision, Finished, RobotDecision
+from aac_sumo.coordination.safety import SafetyCheck
+from aac_sumo.mpc.planner import MpcPlanner
+from aac_sumo.references import PathReference
 from aac_sumo.world import WorldState
+
+
+@dataclass(frozen=True)
+class LfcParams:
+    """LFC settings: the optional safety stop and its footprint margin [m]."""
+
+    safety_stop: bool = False
+    safety_margin: float = 0.1
 
 
 class LfcCoordinator(Coordinator):
     name = "lfc"
+
+    def __init__(self, planner: MpcPlanner, tasks: list[PathReference], corridors=None, finished: Finished | None = None,
+                 params: LfcParams = LfcParams()):
+        super().__init__(planner, tasks, corridors, finished)
+        self.params = params
 
     def _decide(self, world: WorldState) -> Decision:
         n, cfg = len(world.robots), self.planner.config
@@ -38,4 +60,13 @@ class LfcCoordinator(Coordinator):
             inputs[i] = plan.inputs[0]
             motion[i, : cfg.horizon + 1] = plan.states
             motion[i, -1] = self.fleet.rollout(np.array([i]), plan.states[None, -1], np.zeros((1, 1, 2)), cfg.dt)[0, -1]
-        return Decision(inputs, records, notes=dict(authority="", reason="priority"))
+        stopped = 0
+        if self.params.safety_stop:
+            planned = np.flatnonzero([r.mode == "mpc" for r in records])
+            checked = SafetyCheck(world, self.fleet, cfg).safe_inputs(planned, inputs, np.ones(len(planned), dtype=bool),
+                                                                      self.params.safety_margin, self.braking_steer(world))
+            for i in planned[np.any(checked[planned] != inputs[planned], axis=1)]:
+                records[i].mode = "safety_stop"
+                stopped += 1
+            inputs = checked
+        return Decision(inputs, records, notes=dict(authority="", reason="priority", safety_stops=stopped))

@@ -13,7 +13,7 @@ from aac_sumo.config import Scenario, ScenarioError
 from aac_sumo.coordination.aac import AacCoordinator, AacParams
 from aac_sumo.coordination.base import Coordinator, Finished
 from aac_sumo.coordination.independent import IndependentCoordinator
-from aac_sumo.coordination.lfc import LfcCoordinator
+from aac_sumo.coordination.lfc import LfcCoordinator, LfcParams
 from aac_sumo.coordination.proximity import ProximityParams
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.geometry import pairwise_rect_clearance
@@ -58,6 +58,7 @@ def mpc_config(scenario: Scenario) -> MpcConfig:
         q_speed=c["q_speed"], r_accel=c["r_accel"], r_steer=c["r_steer"], s_accel=c["s_accel"],
         s_steer=c["s_steer"], terminal_scale=c["terminal_scale"], max_iter=c["max_iter"],
         max_cpu_time=c["max_cpu_time"], retry_with_ipopt=c["retry_with_ipopt"], codegen=c["codegen"],
+        pedestrian_reach=c["pedestrian_reach"], pedestrian_margin=c["pedestrian_margin"],
     )
 
 
@@ -77,6 +78,8 @@ def coordinator(scenario: Scenario, tasks: list[PathReference], corridors=None, 
     robots have finished their task (they no longer take authority)."""
     name = scenario["controller.coordinator"]
     extra = dict(params=aac_params(scenario)) if name == "aac" else {}
+    if name == "lfc":
+        extra = dict(params=LfcParams(scenario["lfc.safety_stop"], scenario["lfc.safety_margin"]))
     band = any(isinstance(c, LateralBand) for c in corridors or [])
     planner = MpcPlanner(dataclasses.replace(mpc_config(scenario), band=band))
     return COORDINATORS[name](planner, tasks, corridors, finished, **extra)

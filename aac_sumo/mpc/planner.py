@@ -3,9 +3,8 @@
 It turns one robot's state, reference and surrounding obstacles into a plan. Obstacles are
 ranked by distance and the nearest ``slots`` fill the compiled problem; unused slots are switched
 off. Each solve is warm-started from the robot's shifted previous plan. If the fast solver fails
-it retries once with ipopt; if that fails too the robot brakes as hard as it can, steering as its
-last solved plan did (straight without one), and the step is reported as ``infeasible`` or
-``failed``.
+it retries once with ipopt; if that fails too the robot brakes as hard as it can, turning towards
+its reference's heading, and the step is reported as ``infeasible`` or ``failed``.
 """
 
 from __future__ import annotations
@@ -15,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from aac_sumo.barriers import FcbfParams, ObstaclePrediction, RegionTrack, barrier_value, inactive_slot, predict_constant_velocity, safety_ellipses, stage_parameters
-from aac_sumo.dynamics import bicycle_step
+from aac_sumo.dynamics import bicycle_step, heading_hold_steer
 from aac_sumo.mpc.problem import OPEN_BAND, ProblemShape, get_problem
 from aac_sumo.references import LateralBand
 from aac_sumo.world import Obstacle, RobotSpec
@@ -23,6 +22,9 @@ from aac_sumo.world import Obstacle, RobotSpec
 STATUSES = ("solved", "infeasible", "failed")
 #: Relative margin kept outside a region the ego already intrudes on (see MpcPlanner.hold_intrusions).
 INTRUSION_EPS = 1e-3
+#: Time constant [s] with which a braking robot (fallback, safety stop) turns its heading towards
+#: its reference's.
+FALLBACK_TURN_TIME = 0.5
 
 
 @dataclass(frozen=True)
@@ -34,6 +36,9 @@ class MpcConfig:
     Weights are diagonal: Q on ``[x, y, heading, v]`` errors, R on ``[accel, steer]``, S on input
     changes, and the terminal P = ``terminal_scale`` * Q. ``d_safe`` [m] is added to the ego disc
     radius. ``gamma`` in (0, 1] is the barrier decay rate per control period ``dt`` [s].
+    ``pedestrian_reach`` [m/s] grows a pedestrian's region at stage k by ``pedestrian_reach * k *
+    dt`` in every direction: a walker may start, stop or turn at any moment; ``pedestrian_margin``
+    [m] grows it at every stage (pedestrians have priority: cars keep clear of them).
     """
 
     horizon: int = 10
@@ -58,6 +63,8 @@ class MpcConfig:
     retry_with_ipopt: bool = True
     codegen: bool = False
     band: bool = False
+    pedestrian_reach: float = 0.0
+    pedestrian_margin: float = 0.0
 
     def weights(self) -> np.ndarray:
         q = np.array([self.q_pos, self.q_pos, self.q_heading, self.q_speed])
@@ -124,6 +131,11 @@ class MpcPlanner:
         regions = [(o.ellipses[: cfg.horizon + 1], True) if isinstance(o, RegionTrack) else
                    (safety_ellipses(o if isinstance(o, ObstaclePrediction) else predict(o, cfg.horizon, cfg.dt), cfg.barrier, cfg.fcbf), False)
                    for o in obstacles]
+        if cfg.pedestrian_reach > 0.0 or cfg.pedestrian_margin > 0.0:
+            growth = cfg.pedestrian_margin + cfg.pedestrian_reach * cfg.dt * np.arange(cfg.horizon + 1)
+            for (e, _), o in zip(regions, obstacles):
+                if isinstance(o, Obstacle) and o.kind == "pedestrian":
+                    e[:, 2:4] += growth[:, None]
         if len(regions) > cfg.slots:
             gaps = [np.hypot(*(e[0, :2] - state[:2])) - max(e[0, 2], e[0, 3]) for e, _ in regions]
             regions = [regions[i] for i in np.argsort(gaps, kind="stable")[: cfg.slots]]
@@ -156,7 +168,31 @@ class MpcPlanner:
             if swept:  # a robot's swept region already contains its footprint with room to spare
                 floor[:, k, 4], floor[:, k, 5] = e[:, 2] ** -2, e[:, 3] ** -2
         room = np.minimum(floor[:, :, 4] / params[:, :, 4], floor[:, :, 5] / params[:, :, 5]).min(axis=0)
-        return self.hold_intrusions(params, robot, state, u_prev, room)
+        return self.hold_intrusions(self.drop_out_of_reach(params, robot, state), robot, state, u_prev, room)
+
+    def drop_out_of_reach(self, params: np.ndarray, robot: RobotSpec, state: np.ndarray) -> np.ndarray:
+        """Switch off the barrier conditions of a stage k >= 1 whose region lies farther from the
+        rear axle than the ego can travel by stage k plus its stopping distance now.
+
+        The rear axle travels at most ``sum_i min(v_max, |v| + a_max i dt) dt`` in k periods, and
+        a region lies within its largest grown semi-axis of its centre, so there ``h_k > 0`` holds
+        whatever the inputs. The stopping distance ``v^2 / (2 |a_min|)`` on top keeps the decay
+        condition wherever it still matters beyond the horizon: for a car ahead that may brake, it
+        makes the ego slow down in time. Farther away, the algebraic barrier, which grows with the
+        squared distance, changes by more than the decay rate allows when a region merely turns or
+        changes shape (a car steering 30 m away), and the solve would fail for nothing.
+        """
+        cfg, lim = self.config, robot.model.limits
+        offsets, _ = ego_discs(robot, cfg.discs)
+        speed = abs(state[3])
+        steps = np.minimum(max(lim.v_max, -lim.v_min), speed + lim.a_max * cfg.dt * np.arange(cfg.horizon)) * cfg.dt
+        reach = np.r_[0.0, np.cumsum(steps)] + np.abs(offsets).max() + speed**2 / (2.0 * abs(lim.a_min))  # (N+1,)
+        extent = np.minimum(params[:, :, 4], params[:, :, 5]).clip(1e-12) ** -0.5  # the larger semi-axis
+        gap = np.hypot(params[:, :, 0] - state[0], params[:, :, 1] - state[1]) - extent
+        far = gap > reach[:, None]
+        far[0] = False
+        params[far, 6] = 0.0
+        return params
 
     def hold_intrusions(self, params: np.ndarray, robot: RobotSpec, state: np.ndarray, u_prev: np.ndarray,
                         room: np.ndarray) -> np.ndarray:
@@ -256,16 +292,24 @@ class MpcPlanner:
             used = problem.shape.solver
             if outcome.status == "solved":
                 return Plan(outcome.states, outcome.inputs, "solved", total_ms, used, outcome.iterations, outcome.detail)
+        states, inputs = self.fallback(robot, state, reference)
+        return Plan(states, inputs, outcome.status, total_ms, "fallback", outcome.iterations, f"{used}: {outcome.detail}")
+
+    def fallback(self, robot: RobotSpec, state: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """States (N+1, 4) and inputs (N, 2) of the safe fallback: brake as hard as possible to a
+        stop, never reversing, while turning the heading towards the reference's (a car brakes
+        in its lane instead of drifting across the road at the angle it had). The heading error
+        closes with time constant ``FALLBACK_TURN_TIME`` [s], within the steering limit."""
+        cfg, lim = self.config, robot.model.limits
         inputs = np.empty((cfg.horizon, 2))
         states = np.empty((cfg.horizon + 1, 4))
         states[0] = state
-        steer = np.zeros(cfg.horizon)  # the previous plan's steering, shifted: its path was clear
-        if previous is not None and len(previous.inputs) == cfg.horizon and previous.solver != "fallback":
-            steer[: cfg.horizon - 1] = previous.inputs[1:, 1]
-        for k in range(cfg.horizon):  # brake to a stop, never reverse
-            inputs[k] = [lim.braking_input(states[k, 3], cfg.dt)[0], steer[k]]
-            states[k + 1] = robot.model.step(states[k], inputs[k], cfg.dt)
-        return Plan(states, inputs, outcome.status, total_ms, "fallback", outcome.iterations, f"{used}: {outcome.detail}")
+        for k in range(cfg.horizon):
+            x = states[k]
+            steer = heading_hold_steer(x, reference[k, 2], cfg.dt, robot.model.wheelbase, lim.steer_max, FALLBACK_TURN_TIME)
+            inputs[k] = [lim.braking_input(x[3], cfg.dt)[0], steer]
+            states[k + 1] = robot.model.step(x, inputs[k], cfg.dt)
+        return states, inputs
 
     def rollout(self, robot: RobotSpec, state: np.ndarray, inputs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """States (N+1, 4) from applying ``inputs`` (N, 2) with the planner's model, and the inputs."""

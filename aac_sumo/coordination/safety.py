@@ -1,0 +1,110 @@
+"""The safety stop (beyond the paper): a check that every coordinator can run on the inputs it
+is about to apply.
+
+A robot's course is its input once, then braking to a stop with straight wheels. It must brake
+instead when, on that course, its footprint comes within ``margin`` [m] of another robot's
+footprint at the same stage, or of an obstacle moving at constant velocity, closer to it than it
+is now and than braking at once would bring it (braking at once is always allowed: a robot
+standing beside a pedestrian who may start walking may drive away from them). The other robots are taken both on their own such course and braking at once, since either
+may happen. A pedestrian's footprint grows on every side by the planner's ``pedestrian_margin``
+[m] plus its ``pedestrian_reach`` [m/s] times the time. A robot that fails brakes as gently as passes the check.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from aac_sumo.coordination.regions import Fleet
+from aac_sumo.geometry import rect_clearance_rows
+from aac_sumo.mpc.planner import MpcConfig
+from aac_sumo.world import WorldState
+
+
+#: Gap difference [m] below which a course counts as no closer than braking at once.
+BRAKING_TIE = 1e-6
+
+
+class SafetyCheck:
+    """The safety stop of one period of ``world``, for robots of ``fleet`` driven with the
+    planner's ``config`` (period, pedestrian reach)."""
+
+    def __init__(self, world: WorldState, fleet: Fleet, config: MpcConfig):
+        self.world, self.fleet, self.config = world, fleet, config
+        self._around = None
+
+    def safe_inputs(self, check: np.ndarray, inputs: np.ndarray, planned: np.ndarray, margin: float,
+                    steer: np.ndarray | None = None) -> np.ndarray:
+        """Every robot's inputs (n, 2) after the check of robots ``check``: one whose intended
+        input fails :meth:`unsafe` gets the gentlest braking (coasting, then a third, two thirds
+        and all of its strongest braking) that passes, else full braking, with the steering
+        ``steer`` (n,) [rad] (straight wheels without it; a car steers back along its lane)."""
+        world = self.world
+        steer = np.zeros(len(world.robots)) if steer is None else steer
+        chosen = inputs.copy()
+        flagged = self.unsafe(check, chosen, planned, margin)
+        a_min = self.fleet.a_min[check]
+        for share in (0.0, 1 / 3, 2 / 3):
+            if not flagged.any():
+                break
+            rows = check[flagged]
+            chosen[rows] = np.column_stack([np.minimum(inputs[rows, 0], share * a_min[flagged]), steer[rows]])
+            flagged &= self.unsafe(check, chosen, planned, margin)
+        for i in check[flagged]:
+            chosen[i] = [world.robots[i].model.limits.braking_input(world.states[i, 3], self.config.dt)[0], steer[i]]
+        return chosen
+
+    def unsafe(self, check: np.ndarray, inputs: np.ndarray, planned: np.ndarray, margin: float) -> np.ndarray:
+        """Which of robots ``check`` must brake instead of applying ``inputs`` (n, 2, every robot's
+        input this period as far as known; zero where not). Robots following an MPC plan
+        (``planned`` rows of ``check``), which already keeps its margin from standing obstacles,
+        stop for those only before an actual contact."""
+        n, m = len(self.world.robots), len(check)
+        if m == 0:
+            return np.zeros(0, dtype=bool)
+        steps, fixed, standing = self.surroundings()
+        rows = self.fleet.footprints(np.arange(n), self.stopping_course(inputs, steps))  # (n, K+1, 5)
+        targets = np.concatenate([rows, fixed])  # (2 n + obstacles, K+1, 5)
+        own = np.stack([rows[check], fixed[check]], axis=1)  # (m, 2, K+1, 5): its course, braking at once
+        gaps = rect_clearance_rows(own[:, :, None], targets[None, None])  # (m, 2, targets, K+1)
+        gaps[np.arange(m), :, check] = np.inf
+        gaps[np.arange(m), :, n + check] = np.inf
+        gaps[:, :, 2 * n:] += margin * (planned[:, None, None, None] & standing[None, None, :, None])
+        now = gaps[:, 0, :, 0]  # (m, targets)
+        later, braking = gaps[:, 0, :, 1:].min(axis=2), gaps[:, 1, :, 1:].min(axis=2)
+        return np.any((later < margin) & (later < np.minimum(now, braking) - BRAKING_TIE), axis=1)
+
+    def surroundings(self) -> tuple[int, np.ndarray, np.ndarray]:
+        """What every check of this period compares against, computed once: the number of
+        stages, the footprints (n + obstacles, K+1, 5) of every robot braking at once and of
+        every obstacle moving at constant velocity (pedestrians grown), and which obstacles
+        stand still for sure."""
+        if self._around is None:
+            world, cfg, fleet = self.world, self.config, self.fleet
+            n = len(world.robots)
+            steps = int(np.ceil(np.max(np.abs(world.states[:, 3]) / -fleet.a_min) / cfg.dt)) + 2  # input acts at stage 2
+            halt = fleet.footprints(np.arange(n), self.stopping_course(None, steps))
+            obs = np.array([o.footprint() for o in world.obstacles]).reshape(-1, 5)
+            vel = np.array([o.velocity for o in world.obstacles]).reshape(-1, 2)
+            moving = np.repeat(obs[:, None, :], steps + 1, axis=1)
+            moving[:, :, :2] += np.arange(steps + 1)[None, :, None] * cfg.dt * vel[:, None, :]
+            walkers = np.array([o.kind == "pedestrian" for o in world.obstacles], dtype=bool)
+            walkers &= cfg.pedestrian_reach > 0.0 or cfg.pedestrian_margin > 0.0
+            growth = cfg.pedestrian_margin + cfg.pedestrian_reach * cfg.dt * np.arange(steps + 1)
+            moving[walkers, :, 2:4] += 2.0 * growth[None, :, None]
+            self._around = steps, np.concatenate([halt, moving]), (np.hypot(vel[:, 0], vel[:, 1]) == 0.0) & ~walkers
+        return self._around
+
+    def stopping_course(self, first: np.ndarray | None, steps: int) -> np.ndarray:
+        """States (n, steps+1, 4) of every robot applying ``first`` (n, 2) once (None: braking
+        at once), then braking to a stop with straight wheels."""
+        world, dt, fleet = self.world, self.config.dt, self.fleet
+        n = len(world.robots)
+        course = np.empty((n, steps + 1, 4))
+        course[:, 0] = world.states
+        for k in range(steps):
+            if k == 0 and first is not None:
+                u = first
+            else:
+                u = np.column_stack([np.clip(-course[:, k, 3] / dt, fleet.a_min, fleet.a_max), np.zeros(n)])
+            course[:, k + 1] = fleet.rollout(np.arange(n), course[:, k], u[:, None, :], dt)[:, 1]
+        return course
