@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo demo-sumo test test-fast bench clean
+.PHONY: demo demo-braking test test-fast bench clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -14,10 +14,10 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/aac-sumo table braking --out out/table_braking
+	$(BIN)/aac-sumo run lane_change --out out/
 
-demo-sumo: $(STAMP)
-	$(BIN)/aac-sumo run lane_change --out out/lane_change
+demo-braking: $(STAMP)
+	$(BIN)/aac-sumo table braking --out out/table_braking
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q

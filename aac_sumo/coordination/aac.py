@@ -30,7 +30,6 @@ import numpy as np
 
 from aac_sumo.coordination.base import Coordinator, Decision, Finished, RobotDecision
 from aac_sumo.coordination.proximity import ProximityParams, close_pairs, proximity_decision
-from aac_sumo.coordination.safety import SafetyCheck
 from aac_sumo.coordination.tracking import track
 from aac_sumo.mpc.planner import MpcPlanner
 from aac_sumo.references import PathReference
@@ -85,10 +84,9 @@ class AacCoordinator(Coordinator):
 
         planned = np.array([records[j].mode == "plan" for j in others], dtype=bool)
         inputs[others] = horizon_inputs[:, 0]
-        safety = SafetyCheck(world, self.fleet, cfg)
-        if self.params.safety_stop:
-            steer = self.braking_steer(world)
-            inputs = safety.safe_inputs(others, inputs, planned, self.params.safety_margin, steer)
+        safety = self.safety_check(world) if self.params.safety_stop else None
+        if safety is not None:
+            inputs = safety.safe_inputs(others, inputs, planned, self.params.safety_margin)
         first = inputs[others]
         stops = np.any(first != horizon_inputs[:, 0], axis=1)
         for row in np.flatnonzero(stops):
@@ -109,8 +107,8 @@ class AacCoordinator(Coordinator):
         inputs[authority] = self.plans[authority].inputs[0]
         self.used[authority] = 1
         stopped = int(stops.sum())
-        if self.params.safety_stop:  # its plan looks only N periods ahead: no contact beyond them
-            checked = safety.safe_inputs(np.array([authority]), inputs, np.array([True]), 0.0, steer)
+        if safety is not None:  # its plan looks only N periods ahead: no contact beyond them
+            checked = safety.safe_inputs(np.array([authority]), inputs, np.array([True]), 0.0)
             if np.any(checked[authority] != inputs[authority]):
                 inputs[authority], decided.mode = checked[authority], "safety_stop"
                 self.used[authority] = len(self.plans[authority].inputs)

@@ -12,8 +12,8 @@ import numpy as np
 
 from aac_sumo.barriers import ObstaclePrediction, RegionTrack
 from aac_sumo.coordination.regions import Fleet
-from aac_sumo.dynamics import heading_hold_steer
-from aac_sumo.mpc.planner import FALLBACK_TURN_TIME, MpcPlanner, Plan
+from aac_sumo.coordination.safety import SafetyCheck
+from aac_sumo.mpc.planner import MpcPlanner, Plan
 from aac_sumo.references import PathReference
 from aac_sumo.world import Obstacle, WorldState
 
@@ -96,13 +96,12 @@ class Coordinator(ABC):
         self.plans[i] = plan
         return RobotDecision(True, plan.status, plan.solve_ms, plan.solver, ref, reason=reason, mode="mpc")
 
-    def braking_steer(self, world: WorldState) -> np.ndarray:
-        """Every robot's steering [rad] while it brakes: towards its reference's heading where it
-        is (a car brakes along its lane), as the planner's fallback does."""
-        cfg, fleet = self.planner.config, self.fleet
-        heading = np.array([task.horizon(state, 0, cfg.dt)[0, 2] for task, state in zip(self.tasks, world.states)])
-        limits = np.array([r.model.limits.steer_max for r in world.robots])
-        return heading_hold_steer(world.states, heading, cfg.dt, fleet.wheelbase, limits, FALLBACK_TURN_TIME)
+    def safety_check(self, world: WorldState) -> SafetyCheck:
+        """The safety stop of this period: robots brake turning towards their reference's heading
+        where they are (a car brakes along its lane), as the planner's fallback does."""
+        dt = self.planner.config.dt
+        headings = np.array([task.horizon(state, 0, dt)[0, 2] for task, state in zip(self.tasks, world.states)])
+        return SafetyCheck(world, self.fleet, self.planner.config, headings)
 
     def hold_input(self, world: WorldState, i: int) -> np.ndarray:
         """Braking input that brings robot ``i`` to a stop where it is."""

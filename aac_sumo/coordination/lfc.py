@@ -18,7 +18,6 @@ import numpy as np
 from dataclasses import dataclass
 
 from aac_sumo.coordination.base import Coordinator, Decision, Finished, RobotDecision
-from aac_sumo.coordination.safety import SafetyCheck
 from aac_sumo.mpc.planner import MpcPlanner
 from aac_sumo.references import PathReference
 from aac_sumo.world import WorldState
@@ -63,8 +62,7 @@ class LfcCoordinator(Coordinator):
         stopped = 0
         if self.params.safety_stop:
             planned = np.flatnonzero([r.mode == "mpc" for r in records])
-            checked = SafetyCheck(world, self.fleet, cfg).safe_inputs(planned, inputs, np.ones(len(planned), dtype=bool),
-                                                                      self.params.safety_margin, self.braking_steer(world))
+            checked = self.safety_check(world).safe_inputs(planned, inputs, np.ones(len(planned), dtype=bool), self.params.safety_margin)
             for i in planned[np.any(checked[planned] != inputs[planned], axis=1)]:
                 records[i].mode = "safety_stop"
                 stopped += 1

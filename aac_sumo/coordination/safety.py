@@ -1,7 +1,9 @@
 """The safety stop (beyond the paper): a check that every coordinator can run on the inputs it
 is about to apply.
 
-A robot's course is its input once, then braking to a stop with straight wheels. It must brake
+A robot's course is its input once, then braking to a stop while turning towards the heading it
+brakes along (its reference's, where it is: a car brakes along its lane, as the planner's
+fallback does). It must brake
 instead when, on that course, its footprint comes within ``margin`` [m] of another robot's
 footprint at the same stage, or of an obstacle moving at constant velocity, closer to it than it
 is now and than braking at once would bring it (braking at once is always allowed: a robot
@@ -16,7 +18,8 @@ import numpy as np
 
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.geometry import rect_clearance_rows
-from aac_sumo.mpc.planner import MpcConfig
+from aac_sumo.dynamics import heading_hold_steer
+from aac_sumo.mpc.planner import FALLBACK_TURN_TIME, MpcConfig
 from aac_sumo.world import WorldState
 
 
@@ -26,20 +29,25 @@ BRAKING_TIE = 1e-6
 
 class SafetyCheck:
     """The safety stop of one period of ``world``, for robots of ``fleet`` driven with the
-    planner's ``config`` (period, pedestrian reach)."""
+    planner's ``config`` (period, pedestrian reach); robots brake turning towards ``headings``
+    (n,) [rad]."""
 
-    def __init__(self, world: WorldState, fleet: Fleet, config: MpcConfig):
-        self.world, self.fleet, self.config = world, fleet, config
+    def __init__(self, world: WorldState, fleet: Fleet, config: MpcConfig, headings: np.ndarray):
+        self.world, self.fleet, self.config, self.headings = world, fleet, config, np.asarray(headings, dtype=float)
+        self.steer_max = np.array([r.model.limits.steer_max for r in world.robots])
         self._around = None
 
-    def safe_inputs(self, check: np.ndarray, inputs: np.ndarray, planned: np.ndarray, margin: float,
-                    steer: np.ndarray | None = None) -> np.ndarray:
+    def braking_steer(self, states: np.ndarray) -> np.ndarray:
+        """Steering (n,) [rad] of every robot braking from ``states`` (n, 4)."""
+        return heading_hold_steer(states, self.headings, self.config.dt, self.fleet.wheelbase, self.steer_max, FALLBACK_TURN_TIME)
+
+    def safe_inputs(self, check: np.ndarray, inputs: np.ndarray, planned: np.ndarray, margin: float) -> np.ndarray:
         """Every robot's inputs (n, 2) after the check of robots ``check``: one whose intended
         input fails :meth:`unsafe` gets the gentlest braking (coasting, then a third, two thirds
-        and all of its strongest braking) that passes, else full braking, with the steering
-        ``steer`` (n,) [rad] (straight wheels without it; a car steers back along its lane)."""
+        and all of its strongest braking) that passes, else full braking, steering as braking
+        robots do."""
         world = self.world
-        steer = np.zeros(len(world.robots)) if steer is None else steer
+        steer = self.braking_steer(world.states)
         chosen = inputs.copy()
         flagged = self.unsafe(check, chosen, planned, margin)
         a_min = self.fleet.a_min[check]
@@ -96,7 +104,7 @@ class SafetyCheck:
 
     def stopping_course(self, first: np.ndarray | None, steps: int) -> np.ndarray:
         """States (n, steps+1, 4) of every robot applying ``first`` (n, 2) once (None: braking
-        at once), then braking to a stop with straight wheels."""
+        at once), then braking to a stop as :meth:`braking_steer` steers."""
         world, dt, fleet = self.world, self.config.dt, self.fleet
         n = len(world.robots)
         course = np.empty((n, steps + 1, 4))
@@ -105,6 +113,6 @@ class SafetyCheck:
             if k == 0 and first is not None:
                 u = first
             else:
-                u = np.column_stack([np.clip(-course[:, k, 3] / dt, fleet.a_min, fleet.a_max), np.zeros(n)])
+                u = np.column_stack([np.clip(-course[:, k, 3] / dt, fleet.a_min, fleet.a_max), self.braking_steer(course[:, k])])
             course[:, k + 1] = fleet.rollout(np.arange(n), course[:, k], u[:, None, :], dt)[:, 1]
         return course

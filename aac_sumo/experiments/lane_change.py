@@ -14,6 +14,9 @@ vehicles and obstacles (as in the paper): at road fraction ``u`` the point
 from the network (sumolib), so curved roads work. A vehicle has finished when it is within
 ``lane_tolerance`` of its target lane's centre line and its rear axle is ``finish_margin`` beyond
 the last cone (beyond the end of its lane change, without cones), or when SUMO removed it.
+The MPC keeps each vehicle's rear axle within the lanes its lane change spans (a lateral band,
+half a car width plus ``ROAD_MARGIN`` inside their outer edges): it may wait behind a stopped
+car but not swerve into a third lane, such as the one the cones close.
 """
 
 from __future__ import annotations
@@ -89,10 +92,10 @@ def offset_polyline(line: np.ndarray, offset: float) -> np.ndarray:
     return line + offset * vertex
 
 
-def road_edges(rd: network.Road) -> tuple[np.ndarray, np.ndarray]:
-    """The road's right and left edges (polylines [m]): the outer lanes' centre lines shifted
-    out by half their width (SUMO numbers lanes from the right)."""
-    return offset_polyline(rd.lanes[0], -0.5 * rd.widths[0]), offset_polyline(rd.lanes[-1], 0.5 * rd.widths[-1])
+def lane_edges(rd: network.Road, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:
+    """The right edge of lane ``lo`` and the left edge of lane ``hi`` (polylines [m]): their
+    centre lines shifted out by half their width (SUMO numbers lanes from the right)."""
+    return offset_polyline(rd.lanes[lo], -0.5 * rd.widths[lo]), offset_polyline(rd.lanes[hi], 0.5 * rd.widths[hi])
 
 
 def network_files(scenario: Scenario) -> tuple[Path, list[Path]]:
@@ -178,9 +181,9 @@ def build_lane_change(scenario: Scenario) -> Setup:
 
         finish_points = [along(rd.lanes[b], finish_s[k])[0][0] for k, b in enumerate(targets)]
         free_flow = np.array([task.project(p)[0] for task, p in zip(tasks, finish_points)]) / lc["speed"]
-        right, left = road_edges(rd)
-        band = LateralBand(right, left, 0.5 * robots[0].width + ROAD_MARGIN)
-        return Setup(scenario, sim, coordinator(scenario, tasks, [band] * n, finished), tasks, finished, free_flow)
+        bands = [LateralBand(*lane_edges(rd, min(a, b), max(a, b)), 0.5 * robots[0].width + ROAD_MARGIN)
+                 for a, b in zip(start_lane, targets)]
+        return Setup(scenario, sim, coordinator(scenario, tasks, bands, finished), tasks, finished, free_flow)
     except BaseException:
         sim.close()
         raise
