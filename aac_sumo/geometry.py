@@ -281,8 +281,8 @@ def containing_ellipse(points, theta) -> np.ndarray:
     v = -s * pts[..., 0] + c * pts[..., 1]
     u_lo, u_hi, v_lo, v_hi = u.min(-1), u.max(-1), v.min(-1), v.max(-1)
     uc, vc = 0.5 * (u_lo + u_hi), 0.5 * (v_lo + v_hi)
-    hu = np.maximum(0.5 * (u_hi - u_lo), 1e-9)
-    hv = np.maximum(0.5 * (v_hi - v_lo), 1e-9)
+    hu = np.maximum(0.5 * (u_hi - u_lo), 1e-6)  # a micron: thinner ellipses lose containment to round-off
+    hv = np.maximum(0.5 * (v_hi - v_lo), 1e-6)
     scale = np.sqrt(((u - uc[..., None]) / hu[..., None]) ** 2 + ((v - vc[..., None]) / hv[..., None]) ** 2).max(-1)
     scale = np.maximum(scale, 1.0) * (1.0 + 1e-9)
     cx = np.cos(theta) * uc - np.sin(theta) * vc

@@ -72,14 +72,27 @@ class SafetyCheck:
         steps, fixed, standing = self.surroundings()
         rows = self.fleet.footprints(np.arange(n), self.stopping_course(inputs, steps))  # (n, K+1, 5)
         targets = np.concatenate([rows, fixed])  # (2 n + obstacles, K+1, 5)
-        own = np.stack([rows[check], fixed[check]], axis=1)  # (m, 2, K+1, 5): its course, braking at once
-        gaps = rect_clearance_rows(own[:, :, None], targets[None, None])  # (m, 2, targets, K+1)
-        gaps[np.arange(m), :, check] = np.inf
-        gaps[np.arange(m), :, n + check] = np.inf
-        gaps[:, :, 2 * n:] += margin * (planned[:, None, None, None] & standing[None, None, :, None])
-        now = gaps[:, 0, :, 0]  # (m, targets)
-        later, braking = gaps[:, 0, :, 1:].min(axis=2), gaps[:, 1, :, 1:].min(axis=2)
-        return np.any((later < margin) & (later < np.minimum(now, braking) - BRAKING_TIE), axis=1)
+        own, brake = rows[check], fixed[check]  # (m, K+1, 5): its course, and braking at once
+        # Circumscribed discs bound each gap from below: only pairs whose course may come within
+        # the margin are measured exactly.
+        radius = 0.5 * np.hypot(targets[:, 1:, 2], targets[:, 1:, 3])  # (targets, K) per stage: pedestrians grow
+        apart = np.linalg.norm(own[:, None, 1:, :2] - targets[None, :, 1:, :2], axis=-1)
+        bound = (apart - radius[check][:, None] - radius[None]).min(axis=-1)  # (m, targets)
+        bound[np.arange(m), check] = np.inf
+        bound[np.arange(m), n + check] = np.inf
+        rows_i, cols = np.nonzero(bound < margin)
+        if rows_i.size == 0:
+            return np.zeros(m, dtype=bool)
+        course = rect_clearance_rows(own[rows_i], targets[cols])  # (pairs, K+1)
+        braking = rect_clearance_rows(brake[rows_i], targets[cols])[:, 1:].min(axis=1)
+        eased = planned[rows_i] & np.r_[np.zeros(2 * n, dtype=bool), standing][cols]
+        course[eased] += margin
+        braking[eased] += margin
+        now, later = course[:, 0], course[:, 1:].min(axis=1)
+        flagged = (later < margin) & (later < np.minimum(now, braking) - BRAKING_TIE)
+        out = np.zeros(m, dtype=bool)
+        out[rows_i[flagged]] = True
+        return out
 
     def surroundings(self) -> tuple[int, np.ndarray, np.ndarray]:
         """What every check of this period compares against, computed once: the number of
