@@ -16,12 +16,13 @@ from aac_sumo.coordination.aac import AacCoordinator, AacParams
 from aac_sumo.coordination.lfc import LfcCoordinator
 from aac_sumo.coordination.proximity import ProximityParams, close_pairs, proximity_decision
 from aac_sumo.coordination.regions import Fleet
+from aac_sumo.coordination.safety import BRAKING_TIE, SafetyCheck
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
-from aac_sumo.geometry import containing_ellipse, convex_hull, ellipse_signed_distance, rect_corners
+from aac_sumo.geometry import containing_ellipse, convex_hull, ellipse_signed_distance, rect_clearance_rows, rect_corners
 from aac_sumo.metrics import authority_jain
 from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
 from aac_sumo.references import PathReference
-from aac_sumo.world import RobotSpec, WorldState
+from aac_sumo.world import Obstacle, RobotSpec, WorldState
 
 DT = 0.1
 LIMITS = VehicleLimits(a_min=-2.0, a_max=1.0, steer_max=0.6, v_min=0.0, v_max=1.5)
@@ -186,6 +187,44 @@ def test_safety_stop_brakes_a_robot_heading_into_another(enabled):
     else:
         assert decision.robots[2].mode == "tracking" and decision.notes["safety_stops"] == 0
         assert decision.inputs[2, 0] > LIMITS.a_min
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 100_000), margin=st.floats(0.0, 1.0))
+def test_safety_check_flags_exactly_what_its_definition_says(seed, margin):
+    """The check measures only pairs whose circumscribed discs come within the margin. It flags
+    the same robots as the definition applied to every pair: some robot or obstacle gets closer
+    than ``margin`` on the robot's course, closer than now and than braking at once would get
+    (standing obstacles eased by the margin for robots on a plan)."""
+    rng = np.random.default_rng(seed)
+    n = 5
+    robots = [robot(i) for i in range(n)]
+    states = np.column_stack([rng.uniform(-4, 4, (n, 2)), rng.uniform(-np.pi, np.pi, n), rng.uniform(0, LIMITS.v_max, n)])
+    obstacles = [Obstacle("cone", "cone", rng.uniform(-2, 2, 2), np.zeros(2), 0.0, 0.3, 0.3),
+                 Obstacle("walker", "pedestrian", rng.uniform(-2, 2, 2), rng.uniform(-1, 1, 2), 0.0, 0.3, 0.5),
+                 Obstacle("cart", "scripted", rng.uniform(-2, 2, 2), rng.uniform(-1, 1, 2), 0.5, 0.8, 0.5)]
+    world = WorldState(0.0, states, robots, obstacles)
+    fleet = Fleet(robots)
+    config = MpcConfig(dt=DT, pedestrian_reach=1.0, pedestrian_margin=0.2)
+    check = SafetyCheck(world, fleet, config, rng.uniform(-np.pi, np.pi, n))
+    inputs = np.column_stack([rng.uniform(LIMITS.a_min, LIMITS.a_max, n), rng.uniform(-0.6, 0.6, n)])
+    planned = rng.random(n) < 0.5
+    got = check.unsafe(np.arange(n), inputs, planned, margin)
+
+    steps, fixed, standing = check.surroundings()
+    rows = fleet.footprints(np.arange(n), check.stopping_course(inputs, steps))
+    targets = np.concatenate([rows, fixed])
+    expected = np.zeros(n, dtype=bool)
+    for i, t in itertools.product(range(n), range(len(targets))):
+        if t in (i, n + i):
+            continue
+        course = rect_clearance_rows(rows[i], targets[t])
+        braking = rect_clearance_rows(fixed[i], targets[t])
+        if planned[i] and t >= 2 * n and standing[t - 2 * n]:
+            course, braking = course + margin, braking + margin
+        later = course[1:].min()
+        expected[i] |= later < margin and later < min(course[0], braking[1:].min()) - BRAKING_TIE
+    np.testing.assert_array_equal(got, expected)
 
 
 # --- LFC --------------------------------------------------------------------------------------
