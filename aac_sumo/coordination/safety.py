@@ -36,10 +36,12 @@ class SafetyCheck:
         self.world, self.fleet, self.config, self.headings = world, fleet, config, np.asarray(headings, dtype=float)
         self.steer_max = np.array([r.model.limits.steer_max for r in world.robots])
         self._around = None
+        self._last = None
 
-    def braking_steer(self, states: np.ndarray) -> np.ndarray:
-        """Steering (n,) [rad] of every robot braking from ``states`` (n, 4)."""
-        return heading_hold_steer(states, self.headings, self.config.dt, self.fleet.wheelbase, self.steer_max, FALLBACK_TURN_TIME)
+    def braking_steer(self, states: np.ndarray, idx: np.ndarray | None = None) -> np.ndarray:
+        """Steering (m,) [rad] of robots ``idx`` (all by default) braking from ``states`` (m, 4)."""
+        idx = slice(None) if idx is None else idx
+        return heading_hold_steer(states, self.headings[idx], self.config.dt, self.fleet.wheelbase[idx], self.steer_max[idx], FALLBACK_TURN_TIME)
 
     def safe_inputs(self, check: np.ndarray, inputs: np.ndarray, planned: np.ndarray, margin: float) -> np.ndarray:
         """Every robot's inputs (n, 2) after the check of robots ``check``: one whose intended
@@ -70,7 +72,7 @@ class SafetyCheck:
         if m == 0:
             return np.zeros(0, dtype=bool)
         steps, fixed, standing = self.surroundings()
-        rows = self.fleet.footprints(np.arange(n), self.stopping_course(inputs, steps))  # (n, K+1, 5)
+        rows = self.fleet.footprints(np.arange(n), self._courses(inputs, steps))  # (n, K+1, 5)
         targets = np.concatenate([rows, fixed])  # (2 n + obstacles, K+1, 5)
         own, brake = rows[check], fixed[check]  # (m, K+1, 5): its course, and braking at once
         # Circumscribed discs bound each gap from below: only pairs whose course may come within
@@ -115,17 +117,31 @@ class SafetyCheck:
             self._around = steps, np.concatenate([halt, moving]), (np.hypot(vel[:, 0], vel[:, 1]) == 0.0) & ~walkers
         return self._around
 
-    def stopping_course(self, first: np.ndarray | None, steps: int) -> np.ndarray:
-        """States (n, steps+1, 4) of every robot applying ``first`` (n, 2) once (None: braking
-        at once), then braking to a stop as :meth:`braking_steer` steers."""
+    def stopping_course(self, first: np.ndarray | None, steps: int, idx: np.ndarray | None = None) -> np.ndarray:
+        """States (m, steps+1, 4) of robots ``idx`` (all by default) applying ``first`` (m, 2)
+        once (None: braking at once), then braking to a stop as :meth:`braking_steer` steers."""
         world, dt, fleet = self.world, self.config.dt, self.fleet
-        n = len(world.robots)
-        course = np.empty((n, steps + 1, 4))
-        course[:, 0] = world.states
+        idx = np.arange(len(world.robots)) if idx is None else idx
+        course = np.empty((len(idx), steps + 1, 4))
+        course[:, 0] = world.states[idx]
         for k in range(steps):
             if k == 0 and first is not None:
                 u = first
             else:
-                u = np.column_stack([np.clip(-course[:, k, 3] / dt, fleet.a_min, fleet.a_max), self.braking_steer(course[:, k])])
-            course[:, k + 1] = fleet.rollout(np.arange(n), course[:, k], u[:, None, :], dt)[:, 1]
+                u = np.column_stack([np.clip(-course[:, k, 3] / dt, fleet.a_min[idx], fleet.a_max[idx]), self.braking_steer(course[:, k], idx)])
+            course[:, k + 1] = fleet.rollout(idx, course[:, k], u[:, None, :], dt)[:, 1]
+        return course
+
+    def _courses(self, inputs: np.ndarray, steps: int) -> np.ndarray:
+        """:meth:`stopping_course` of every robot for ``inputs`` (n, 2), rolling out again only
+        the robots whose input changed since the last call of this period."""
+        if self._last is None:
+            course = self.stopping_course(inputs, steps)
+        else:
+            last_inputs, course = self._last
+            changed = np.flatnonzero(np.any(inputs != last_inputs, axis=1))
+            if changed.size:
+                course = course.copy()
+                course[changed] = self.stopping_course(inputs[changed], steps, changed)
+        self._last = inputs.copy(), course
         return course
