@@ -20,10 +20,10 @@ demo-braking: $(STAMP)
 	$(BIN)/aac-sumo table braking --out out/table_braking
 
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2
 
 test-fast: $(STAMP)
-	$(BIN)/python -m pytest -q -m "not slow"
+	$(BIN)/python -m pytest -q -n 2 -m "not slow"
 
 bench: $(STAMP)
 	$(BIN)/aac-sumo bench mpc --out out/bench
