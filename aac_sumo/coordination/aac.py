@@ -9,10 +9,12 @@ Each control period exactly one active robot holds authority and solves MPC-(F)C
    without, **round robin** gives it to the next active robot after the last holder.
 3. Every other robot applies the next input of its stored plan, or the tracking law when its
    plan is used up (robots parked at their goal brake to a stop).
-4. Optional **safety stop** (beyond the paper, ``safety_stop``): a non-authority robot whose
-   stored input, followed by braking to a stop, would bring its footprint within
-   ``safety_margin`` of another robot's or an obstacle's footprint, closer than it is now,
-   brakes instead (as gently as passes the same check, straight wheels) and drops its plan.
+4. Optional **safety stop** (beyond the paper, ``safety_stop``; see
+   :mod:`~aac_sumo.coordination.safety`): a non-authority robot whose stored input, followed
+   by braking to a stop, would bring its footprint within ``safety_margin`` of another robot's
+   or an obstacle's footprint, closer than it is now and than braking at once, brakes instead
+   (as gently as passes the same check, turning towards its reference's heading) and drops its
+   plan.
    The authority robot's first planned input gets the same check after its solve, but against
    actual contact only (its MPC keeps its own margins, and looks only N periods ahead).
 5. The authority robot plans around the obstacles and the swept **convex-hull regions** of the

@@ -2,14 +2,15 @@
 is about to apply.
 
 A robot's course is its input once, then braking to a stop while turning towards the heading it
-brakes along (its reference's, where it is: a car brakes along its lane, as the planner's
-fallback does). It must brake
-instead when, on that course, its footprint comes within ``margin`` [m] of another robot's
-footprint at the same stage, or of an obstacle moving at constant velocity, closer to it than it
-is now and than braking at once would bring it (braking at once is always allowed: a robot
-standing beside a pedestrian who may start walking may drive away from them). The other robots are taken both on their own such course and braking at once, since either
-may happen. A pedestrian's footprint grows on every side by the planner's ``pedestrian_margin``
-[m] plus its ``pedestrian_reach`` [m/s] times the time. A robot that fails brakes as gently as passes the check.
+brakes along (its reference's where it is: a car brakes along its lane, as the planner's
+fallback does). It must brake instead when, on that course, its footprint comes within
+``margin`` [m] of another robot's footprint at the same stage, or of an obstacle moving at
+constant velocity, closer to it than it is now and than braking at once would bring it.
+Braking at once is always allowed: a robot standing beside a pedestrian who may start walking
+may drive away from them. The other robots are taken both on their own such course and braking
+at once, since either may happen. A pedestrian's footprint grows on every side by the
+planner's ``pedestrian_margin`` [m] plus its ``pedestrian_reach`` [m/s] times the time. A robot
+that fails brakes as gently as passes the check.
 """
 
 from __future__ import annotations
@@ -17,8 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from aac_sumo.coordination.regions import Fleet
-from aac_sumo.geometry import rect_clearance_rows
 from aac_sumo.dynamics import heading_hold_steer
+from aac_sumo.geometry import rect_clearance_rows
 from aac_sumo.mpc.planner import FALLBACK_TURN_TIME, MpcConfig
 from aac_sumo.world import WorldState
 
