@@ -36,7 +36,6 @@ import csv
 import math
 import operator
 import re
-import sys
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path

@@ -12,7 +12,6 @@ import sumolib
 
 from aac_sumo import config, network, runner
 from aac_sumo.cli import main
-from aac_sumo.config import ScenarioError
 from aac_sumo.experiments import build
 from aac_sumo.experiments.common import robot_spec
 from aac_sumo.experiments.lane_change import BUNDLED_NET, BUNDLED_NET_DIR, target_lane
