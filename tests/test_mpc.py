@@ -345,6 +345,20 @@ def test_fatrop_and_ipopt_agree(obstacles):
     np.testing.assert_allclose(fast.states, slow.states, atol=1e-3)
 
 
+def test_fatrop_converges_with_a_heavy_input_change_cost():
+    """The input-change cost couples consecutive inputs; carried in the stage state it stays a
+    stage cost, so fatrop converges (it does not stop at its iteration cap with a merely
+    feasible iterate) and finds ipopt's optimum, starting from a steering input of 0.2 rad."""
+    plans = {}
+    for solver in ("fatrop", "ipopt"):
+        cfg = MpcConfig(horizon=HORIZON, dt=DT, solver=solver, slots=SLOTS, s_accel=1.0, s_steer=10.0, retry_with_ipopt=False)
+        plans[solver] = MpcPlanner(cfg).plan(ROBOT, np.array([0.0, 0.5, 0.1, 2.5]), straight_reference(0.0, 3.0), np.array([0.5, 0.2]), [])
+    fast, slow = plans["fatrop"], plans["ipopt"]
+    assert (fast.status, fast.solver, fast.detail) == ("solved", "fatrop", "0")
+    assert fast.iterations < 30
+    np.testing.assert_allclose(fast.inputs, slow.inputs, atol=1e-3)
+
+
 def test_plans_stay_inside_a_lateral_band():
     """A reference 3 m to the left of a road whose edges are 2 m either side: the plan follows
     it only as far as the band allows (rear axle 0.5 m inside the left edge)."""

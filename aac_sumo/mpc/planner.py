@@ -266,7 +266,6 @@ class MpcPlanner:
         state[3] = np.clip(state[3], lim.v_min, lim.v_max)
         offsets, _ = ego_discs(robot, cfg.discs)
         params = dict(
-            u_prev=u_prev,
             wheelbase=robot.model.wheelbase,
             gamma=cfg.gamma,
             disc_offsets=offsets,
@@ -286,8 +285,8 @@ class MpcPlanner:
         for problem in (self.problem, self.retry_problem):
             if problem is None:
                 continue
-            lbx, ubx = problem.bounds(state, *bounds)
-            outcome = problem.solve(problem.parameters(**params), problem.pack(*guess), lbx, ubx)
+            lbx, ubx = problem.bounds(state, u_prev, *bounds)
+            outcome = problem.solve(problem.parameters(**params), problem.pack(*guess, u_prev), lbx, ubx)
             total_ms += outcome.solve_ms
             used = problem.shape.solver
             if outcome.status == "solved":

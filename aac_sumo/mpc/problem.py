@@ -1,9 +1,13 @@
 """The MPC-FCBF optimal control problem (paper eq. 25), built once per shape and solved many times.
 
-Decision variables are ordered stage by stage, ``[X0, U0, X1, U1, ..., X_N]``, and constraints
-likewise, so structure-exploiting solvers (fatrop) see an optimal-control problem. The measured
-initial state pins ``X0`` through the variable bounds. Everything else that changes between
-solves (reference, previous input, weights, wheelbase,
+Decision variables are ordered stage by stage, ``[Z0, U0, Z1, U1, ..., Z_N]``, and constraints
+likewise, so structure-exploiting solvers (fatrop) see an optimal-control problem. Each stage
+state ``Z_k = [x, y, heading, v, m_accel, m_steer]`` carries the input ``m_k`` applied before
+stage k (``m_{k+1} = U_k``), so the input-change cost ``S (U_k - m_k)^2`` is a stage cost: fatrop
+sees the Hessian only in stage blocks, and a cost coupling ``U_k`` with ``U_{k-1}`` directly would
+lose its cross terms (the solver then crawled to its iteration cap). The measured initial state
+and the previous input pin ``Z0`` through the variable bounds. Everything else that changes between
+solves (reference, weights, wheelbase,
 gamma, ego disc offsets, obstacle ellipses per stage, the lateral band of the rear axle per
 stage) is a parameter.
 """
@@ -27,6 +31,7 @@ from aac_sumo.dynamics import NU, NX, bicycle_step
 
 SOLVERS = ("fatrop", "sqp", "ipopt")
 N_WEIGHTS = 12  # Q(4), R(2), S(2), P(4) diagonals
+NZ = NX + NU  # stage state: the robot's state and the input applied before the stage
 
 
 @dataclass(frozen=True)
@@ -68,9 +73,8 @@ class MpcProblem:
     def __init__(self, shape: ProblemShape):
         self.shape = shape
         n, slots, discs = shape.horizon, shape.slots, shape.discs
-        self.n_w = (n + 1) * NX + n * NU
+        self.n_w = (n + 1) * NZ + n * NU
         self.param_sizes = {
-            "u_prev": NU,
             "wheelbase": 1,
             "gamma": 1,
             "disc_offsets": discs,
@@ -82,7 +86,8 @@ class MpcProblem:
         p = ca.SX.sym("p", sum(self.param_sizes.values()))
         par = self._split(p)
         w = ca.SX.sym("w", self.n_w)
-        xs = [w[self._x_index(k)] for k in range(n + 1)]
+        zs = [w[self._z_index(k)] for k in range(n + 1)]
+        xs, ms = [z[:NX] for z in zs], [z[NX:] for z in zs]
         us = [w[self._u_index(k)] for k in range(n)]
         weights = par["weights"]
         q, r, s, pw = weights[0:4], weights[4:6], weights[6:8], weights[8:12]
@@ -92,15 +97,13 @@ class MpcProblem:
 
         cost = 0
         g, equality = [], []
-        u_last = par["u_prev"]
         for k in range(n):
             err = xs[k] - x_ref[:, k]
-            du = us[k] - u_last
+            du = us[k] - ms[k]
             cost += ca.dot(q, err**2) + ca.dot(r, us[k] ** 2) + ca.dot(s, du**2)
-            u_last = us[k]
             x_next = bicycle_step(xs[k], us[k], shape.dt, par["wheelbase"], xp=ca)
-            g.append(xs[k + 1] - x_next)
-            equality += [True] * NX
+            g.append(zs[k + 1] - ca.vertcat(x_next, us[k]))
+            equality += [True] * NZ
             # barrier condition of stage k depends on (x_k, u_k) only
             for slot in range(slots):
                 ob_now = obstacles[:, k * slots + slot]
@@ -134,12 +137,12 @@ class MpcProblem:
             i += size
         return out
 
-    def _x_index(self, k: int) -> slice:
-        start = k * (NX + NU)
-        return slice(start, start + NX)
+    def _z_index(self, k: int) -> slice:
+        start = k * (NZ + NU)
+        return slice(start, start + NZ)
 
     def _u_index(self, k: int) -> slice:
-        start = k * (NX + NU) + NX
+        start = k * (NZ + NU) + NZ
         return slice(start, start + NU)
 
     @staticmethod
@@ -148,11 +151,12 @@ class MpcProblem:
         py = state[1] + offset * ca.sin(state[2])
         return barrier_value(px, py, ob[0], ob[1], ob[2], ob[3], ob[4], ob[5])
 
-    def pack(self, states: np.ndarray, inputs: np.ndarray) -> np.ndarray:
-        """Decision vector from states (N+1, 4) and inputs (N, 2)."""
+    def pack(self, states: np.ndarray, inputs: np.ndarray, u_prev: np.ndarray) -> np.ndarray:
+        """Decision vector from states (N+1, 4), inputs (N, 2) and the input applied before them."""
         w = np.empty(self.n_w)
+        before = np.vstack([np.reshape(u_prev, (1, NU)), inputs])
         for k in range(self.shape.horizon + 1):
-            w[self._x_index(k)] = states[k]
+            w[self._z_index(k)] = np.r_[states[k], before[k]]
             if k < self.shape.horizon:
                 w[self._u_index(k)] = inputs[k]
         return w
@@ -160,7 +164,7 @@ class MpcProblem:
     def unpack(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """States (N+1, 4) and inputs (N, 2) from a decision vector."""
         n = self.shape.horizon
-        states = np.array([w[self._x_index(k)] for k in range(n + 1)])
+        states = np.array([w[self._z_index(k)][:NX] for k in range(n + 1)])
         inputs = np.array([w[self._u_index(k)] for k in range(n)])
         return states, inputs
 
@@ -174,17 +178,19 @@ class MpcProblem:
             parts.append(block)
         return np.concatenate(parts)
 
-    def bounds(self, x0, lower_state, upper_state, lower_input, upper_input) -> tuple[np.ndarray, np.ndarray]:
-        """Variable bounds: ``X0`` pinned to the measured state ``x0``, then per-state (4,) and
-        per-input (2,) limits on the later stages."""
+    def bounds(self, x0, u_prev, lower_state, upper_state, lower_input, upper_input) -> tuple[np.ndarray, np.ndarray]:
+        """Variable bounds: ``Z0`` pinned to the measured state ``x0`` and the previous input
+        ``u_prev``, then per-state (4,) and per-input (2,) limits on the later stages (the
+        carried inputs are bounded by the inputs they copy)."""
         n = self.shape.horizon
         lower = np.tile(np.asarray(lower_state, dtype=float), (n + 1, 1))
         upper = np.tile(np.asarray(upper_state, dtype=float), (n + 1, 1))
         lower[0] = upper[0] = x0
-        return (
-            self.pack(lower, np.tile(lower_input, (n, 1))),
-            self.pack(upper, np.tile(upper_input, (n, 1))),
-        )
+        lbx = self.pack(lower, np.tile(lower_input, (n, 1)), u_prev)
+        ubx = self.pack(upper, np.tile(upper_input, (n, 1)), u_prev)
+        for k in range(1, n + 1):
+            lbx[self._z_index(k)][NX:], ubx[self._z_index(k)][NX:] = -np.inf, np.inf
+        return lbx, ubx
 
     def solve(self, params: np.ndarray, w0: np.ndarray, lbx: np.ndarray, ubx: np.ndarray) -> SolveOutcome:
         """Solve once from the initial guess ``w0``; never raises on solver failure."""
