@@ -378,7 +378,9 @@ def test_plans_stay_inside_a_lateral_band():
 
 
 def test_a_band_the_robot_is_already_outside_of_holds_it_where_it_is():
-    """Starting 1 m beyond the band's left limit, the plan may not drift further out."""
+    """Starting 1 m beyond the band's left limit, the plan may not drift further out than the
+    band's give."""
+    from aac_sumo.mpc.planner import BAND_GIVE
     from aac_sumo.references import LateralBand
 
     pl = planner(barrier="fcbf", gamma=0.3, band=True)
@@ -388,4 +390,17 @@ def test_a_band_the_robot_is_already_outside_of_holds_it_where_it_is():
         planner(barrier="fcbf", gamma=0.3).plan(ROBOT, state, straight_reference(0.0, 3.0), np.zeros(2), [], corridor=band)
     plan = pl.plan(ROBOT, state, straight_reference(0.0, 3.0, y=4.0), np.zeros(2), [], corridor=band)
     assert plan.status == "solved"
-    assert plan.states[:, 1].max() <= 2.5 + 1e-6
+    assert plan.states[:, 1].max() <= 2.5 + BAND_GIVE + 1e-6
+
+
+def test_a_standing_robot_on_its_band_edge_can_plan():
+    """A robot standing exactly on its band's edge, heading slightly outwards, still gets a solved
+    plan (without the band's give, the feasible set has no interior and the solvers fail)."""
+    from aac_sumo.references import LateralBand
+
+    pl = planner(barrier="fcbf", gamma=0.3, band=True)
+    band = LateralBand(right=[[-10.0, -2.0], [100.0, -2.0]], left=[[-10.0, 2.0], [100.0, 2.0]], margin=0.5)
+    state = np.array([0.0, 1.5, 0.01, 0.0])
+    plan = pl.plan(ROBOT, state, straight_reference(0.0, 3.0), np.zeros(2), [], corridor=band)
+    assert (plan.status, plan.solver) == ("solved", "fatrop")
+    assert plan.states[-1, 0] > 0.1  # it drives off

@@ -22,6 +22,9 @@ from aac_sumo.world import Obstacle, RobotSpec
 STATUSES = ("solved", "infeasible", "failed")
 #: Relative margin kept outside a region the ego already intrudes on (see MpcPlanner.hold_intrusions).
 INTRUSION_EPS = 1e-3
+#: Room [m] a lateral band always leaves the rear axle beyond its stage-1 position: a band edge
+#: exactly there leaves a standing car's solve no interior, and interior-point solvers fail on it.
+BAND_GIVE = 0.05
 #: Time constant [s] with which a braking robot (fallback, safety stop) turns its heading towards
 #: its reference's.
 FALLBACK_TURN_TIME = 0.5
@@ -230,7 +233,10 @@ class MpcPlanner:
         return params
 
     def band_rows(self, corridor, reference: np.ndarray, state: np.ndarray) -> np.ndarray:
-        """The MPC's lateral-band rows (N, 4) for stages 1..N; open unless ``corridor`` is a band."""
+        """The MPC's lateral-band rows (N, 4) for stages 1..N; open unless ``corridor`` is a band.
+        Each row leaves the stage-1 rear axle (fixed by the current state) at least ``BAND_GIVE``
+        of room on both sides: a robot outside its band, or on its edge, may not go more than
+        that further out."""
         n = self.config.horizon
         if not isinstance(corridor, LateralBand):
             return np.tile(OPEN_BAND, (n, 1))
@@ -238,8 +244,8 @@ class MpcPlanner:
         x, y, heading, v = state
         stage1 = np.array([x, y]) + v * self.config.dt * np.array([np.cos(heading), np.sin(heading)])
         now = rows[:, :2] @ stage1  # the stage-1 rear axle is fixed by the current state
-        rows[:, 2] = np.minimum(rows[:, 2], now)
-        rows[:, 3] = np.maximum(rows[:, 3], now)
+        rows[:, 2] = np.minimum(rows[:, 2], now - BAND_GIVE)
+        rows[:, 3] = np.maximum(rows[:, 3], now + BAND_GIVE)
         return rows
 
     def plan(
