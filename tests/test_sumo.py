@@ -14,7 +14,7 @@ from aac_sumo import config, network, runner
 from aac_sumo.cli import main
 from aac_sumo.experiments import build
 from aac_sumo.experiments.common import robot_spec
-from aac_sumo.experiments.lane_change import BUNDLED_NET, BUNDLED_NET_DIR, target_lane
+from aac_sumo.experiments.lane_change import BAND_SETTLE, BUNDLED_NET, BUNDLED_NET_DIR, lane_change_band, target_lane
 from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
 from aac_sumo.sim.sumo import SumoOptions, SumoSimulator
 
@@ -138,6 +138,34 @@ def test_target_lanes_move_away_from_the_cone_lane():
     assert [target_lane(i, 0, 3) for i in range(3)] == [1, 2, 1]
     assert [target_lane(i, 2, 3) for i in range(3)] == [1, 0, 1]
     assert [target_lane(i, 0, 2) for i in range(2)] == [1, 1]  # nowhere to go but the cone lane: keep lane
+
+
+@pytest.mark.parametrize("start, target", [(0, 1), (1, 2), (2, 1)])
+def test_lane_change_band_spans_both_lanes_then_narrows_to_the_target(start, target):
+    """Until its lane change ends a vehicle may be anywhere in its start and target lanes; from
+    BAND_SETTLE metres beyond, only in its target lane (margin 1 m inside the lane edges)."""
+    radius = [500.0 - 3.2 * (i - 1) for i in range(3)]  # a 3-lane road curving left
+
+    def point(lane: int, s: float) -> np.ndarray:
+        """Rear-axle state on lane ``lane``'s centre line at arc length ``s``."""
+        angle = s / radius[lane]
+        return np.array([radius[lane] * np.sin(angle), 500.0 - radius[lane] * np.cos(angle), angle, 10.0])
+
+    lanes = [np.array([point(i, s)[:2] for s in np.linspace(0.0, 250.0, 251)]) for i in range(3)]
+    change_end = 100.0
+    band = lane_change_band(network.Road(["E0"], lanes, [3.2, 3.2, 3.2]), start, target, change_end, margin=1.0)
+
+    def inside(lane: int, s: float) -> bool:
+        ref = np.array([point(lane, s - 1.0), point(lane, s)])
+        nx, ny, lo, hi = band.limits(ref)[0]
+        return bool(lo <= nx * ref[1, 0] + ny * ref[1, 1] <= hi)
+
+    for s in (20.0, change_end - 5.0):
+        assert inside(start, s) and inside(target, s)
+    for s in (change_end + BAND_SETTLE + 5.0, 200.0):
+        assert inside(target, s) and not inside(start, s)
+    other = 3 - start - target
+    assert not any(inside(other, s) for s in (20.0, 200.0))
 
 
 def test_net_build_reproduces_the_bundled_lanes(tmp_path):

@@ -16,7 +16,9 @@ from the network (sumolib), so curved roads work. A vehicle has finished when it
 the last cone (beyond the end of its lane change, without cones), or when SUMO removed it.
 The MPC keeps each vehicle's rear axle within the lanes its lane change spans (a lateral band,
 half a car width plus ``ROAD_MARGIN`` inside their outer edges): it may wait behind a stopped
-car but not swerve into a third lane, such as the one the cones close.
+car but not swerve into a third lane, such as the one the cones close. Beyond the end of its lane
+change the band narrows to the target lane: a vehicle that has changed lanes brakes for a car
+that cuts in instead of swerving back into the lane it left (where cones may stand).
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ BUNDLED_NET = BUNDLED_NET_DIR / "lane_change.net.xml"
 BUNDLED_ROUTES = [BUNDLED_NET_DIR / "cones.rou.xml", BUNDLED_NET_DIR / "pedestrians.rou.xml"]
 SAMPLE_STEP = 1.0  # reference path resolution along the road [m]
 ROAD_MARGIN = 0.1  # the rear axle keeps half a car width plus this from the road edges [m]
+BAND_SETTLE = 10.0  # beyond the end of its lane change a vehicle's band narrows to its target lane over this [m]
 
 
 def target_lane(lane: int, cone_lane: int, lanes: int) -> int:
@@ -70,15 +73,22 @@ def along(polyline: np.ndarray, s) -> tuple[np.ndarray, np.ndarray]:
     return start[i] + t[:, None] * seg[i], np.arctan2(seg[i, 1], seg[i, 0])
 
 
+def blend(line_a: np.ndarray, line_b: np.ndarray, s_from: float, s_begin: float, length: float) -> np.ndarray:
+    """Points (M, 2) [m] from arc length ``s_from`` of polyline ``line_a`` to its end, moving onto
+    ``line_b`` (at the same fraction of its length) between arc lengths ``s_begin`` and
+    ``s_begin + length`` of ``line_a`` with a quintic smoothstep."""
+    la, lb = (float(np.hypot(*np.diff(line, axis=0).T).sum()) for line in (line_a, line_b))
+    sa = np.r_[np.arange(s_from, la, SAMPLE_STEP), la]
+    pa, _ = along(line_a, sa)
+    pb, _ = along(line_b, sa * lb / la)
+    w = smoothstep((sa - s_begin) / length)[:, None]
+    return (1.0 - w) * pa + w * pb
+
+
 def lane_change_path(rd: network.Road, start: int, target: int, s0: float, change_start: float, change_length: float) -> np.ndarray:
     """Waypoints (M, 2) [m] of the rear axle from arc length ``s0`` of lane ``start`` to the road's
     end, blending into lane ``target`` between ``s0 + change_start`` and ``+ change_length``."""
-    la, lb = rd.length(start), rd.length(target)
-    sa = np.r_[np.arange(s0, la, SAMPLE_STEP), la]
-    pa, _ = along(rd.lanes[start], sa)
-    pb, _ = along(rd.lanes[target], sa * lb / la)
-    w = smoothstep((sa - s0 - change_start) / change_length)[:, None]
-    return (1.0 - w) * pa + w * pb
+    return blend(rd.lanes[start], rd.lanes[target], s0, s0 + change_start, change_length)
 
 
 def offset_polyline(line: np.ndarray, offset: float) -> np.ndarray:
@@ -96,6 +106,18 @@ def lane_edges(rd: network.Road, lo: int, hi: int) -> tuple[np.ndarray, np.ndarr
     """The right edge of lane ``lo`` and the left edge of lane ``hi`` (polylines [m]): their
     centre lines shifted out by half their width (SUMO numbers lanes from the right)."""
     return offset_polyline(rd.lanes[lo], -0.5 * rd.widths[lo]), offset_polyline(rd.lanes[hi], 0.5 * rd.widths[hi])
+
+
+def lane_change_band(rd: network.Road, start: int, target: int, change_end: float, margin: float) -> LateralBand:
+    """The lateral band of a vehicle changing from lane ``start`` to ``target``: both lanes until
+    its lane change ends (arc length ``change_end`` of lane ``start``), then, over
+    ``BAND_SETTLE`` metres, the target lane alone; ``margin`` [m] inside the edges."""
+    right, left = lane_edges(rd, min(start, target), max(start, target))
+    if start < target:  # moving left: the start lane's right edge gives way to the target's
+        right = blend(right, lane_edges(rd, target, target)[0], 0.0, change_end, BAND_SETTLE)
+    elif start > target:
+        left = blend(left, lane_edges(rd, target, target)[1], 0.0, change_end, BAND_SETTLE)
+    return LateralBand(right, left, margin)
 
 
 def network_files(scenario: Scenario) -> tuple[Path, list[Path]]:
@@ -181,8 +203,8 @@ def build_lane_change(scenario: Scenario) -> Setup:
 
         finish_points = [along(rd.lanes[b], finish_s[k])[0][0] for k, b in enumerate(targets)]
         free_flow = np.array([task.project(p)[0] for task, p in zip(tasks, finish_points)]) / lc["speed"]
-        bands = [LateralBand(*lane_edges(rd, min(a, b), max(a, b)), 0.5 * robots[0].width + ROAD_MARGIN)
-                 for a, b in zip(start_lane, targets)]
+        bands = [lane_change_band(rd, int(a), b, change_end[k], 0.5 * robots[0].width + ROAD_MARGIN)
+                 for k, (a, b) in enumerate(zip(start_lane, targets))]
         return Setup(scenario, sim, coordinator(scenario, tasks, bands, finished), tasks, finished, free_flow)
     except BaseException:
         sim.close()
