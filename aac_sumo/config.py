@@ -143,10 +143,18 @@ COMMON: dict[str, dict[str, Key]] = {
         "safety_margin": Key(float, 0.1, "footprint gap below which the safety stop triggers [m]", **NN),
         "lookahead": Key(float, 1.0, "pure-pursuit lookahead of the tracking law for robots without a plan [m]", **P),
         "speed_gain": Key(float, 1.0, "speed-error gain of the tracking law [1/s]", **P),
+        "fallback": Key(("brake", "tracking"), "brake",
+                        "what an authority whose solve fails applies: brake (the planner's fallback, as in the paper) or tracking "
+                        "(the tracking law through the safety stop; needs safety_stop)"),
     },
     "lfc": {
         "safety_stop": Key(bool, False, "every robot's first planned input passes AAC's safety stop (the paper's LFC has none)"),
         "safety_margin": Key(float, 0.1, "footprint gap below which the safety stop triggers [m]", **NN),
+        "fallback": Key(("brake", "tracking"), "brake",
+                        "what a robot whose solve fails applies: brake (the planner's fallback) or tracking "
+                        "(the tracking law below through the safety stop; needs safety_stop)"),
+        "lookahead": Key(float, 1.0, "pure-pursuit lookahead of that tracking law [m]", **P),
+        "speed_gain": Key(float, 1.0, "speed-error gain of that tracking law [1/s]", **P),
     },
     "metrics": {
         "accel_threshold": Key(float, 3.0, "|longitudinal acceleration| that counts as aggressive [m/s^2]", **P),

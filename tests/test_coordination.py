@@ -13,7 +13,8 @@ from hypothesis import strategies as st
 
 from aac_sumo.barriers import FcbfParams, barrier_value
 from aac_sumo.coordination.aac import AacCoordinator, AacParams
-from aac_sumo.coordination.lfc import LfcCoordinator
+from aac_sumo.coordination.lfc import LfcCoordinator, LfcParams
+from aac_sumo.coordination.tracking import track
 from aac_sumo.coordination.proximity import ProximityParams, close_pairs, proximity_decision
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.coordination.safety import BRAKING_TIE, SafetyCheck
@@ -262,6 +263,40 @@ def test_lfc_plans_in_index_order_around_the_plans_made_before():
             cv = fleet.rollout(np.array([j]), states[[j]], np.zeros((1, 6, 2)), DT)
             expected = fleet.swept_regions(np.array([j]), cv, 5, "fcbf", FcbfParams(v0=0.5))[0].ellipses
             np.testing.assert_allclose(seen[f"robot{j}"].ellipses, expected)
+
+
+def hemmed_in_world() -> tuple[WorldState, list[PathReference]]:
+    """Robot 0 stands 0.12 m beside a cone, well inside its MPC region (the solve must fail),
+    with an open lane ahead; robot 1 is far away."""
+    states = np.array([[0.0, 0.0, 0.0, 0.0], [0.0, 30.0, 0.0, 0.5]])
+    goals = np.array([[10.0, 0.0], [10.0, 30.0]])
+    cone = Obstacle("cone", "cone", np.array([0.225, 0.42]), np.zeros(2), 0.0, 0.2, 0.2)
+    return WorldState(0.0, states, [robot(i) for i in range(2)], [cone]), straight_tasks(states, goals)
+
+
+@pytest.mark.parametrize("fallback", ["brake", "tracking"])
+def test_a_robot_whose_solve_fails_brakes_or_tracks(fallback):
+    """Both coordinators: a failed solve is counted as such; with the braking fallback the robot
+    stays put, with the tracking fallback it applies the tracking law, which the safety stop
+    passes here (driving along the cone does not bring the footprints closer)."""
+    world, tasks = hemmed_in_world()
+    lfc = LfcCoordinator(planner(), tasks, params=LfcParams(safety_stop=True, safety_margin=0.05, fallback=fallback, lookahead=1.0))
+    aac = AacCoordinator(planner(), tasks, params=AacParams(close_distance=0.5, safety_margin=0.05, fallback=fallback))
+    for decision in (lfc.decide(world), aac.decide(world)):
+        assert decision.robots[0].authority and decision.robots[0].status in ("infeasible", "failed")
+        if fallback == "brake":
+            assert decision.robots[0].mode == "mpc" and decision.inputs[0, 0] == 0.0
+        else:
+            assert decision.robots[0].mode == "tracking"
+            np.testing.assert_allclose(decision.inputs[0], track(world.robots[0], world.states[0], tasks[0], 1.0, 1.0))
+            assert decision.inputs[0, 0] > 0.0
+
+
+def test_the_tracking_fallback_needs_the_safety_stop():
+    with pytest.raises(ValueError):
+        LfcParams(safety_stop=False, fallback="tracking")
+    with pytest.raises(ValueError):
+        AacParams(safety_stop=False, fallback="tracking")
 
 
 # --- fairness metric --------------------------------------------------------------------------

@@ -215,15 +215,8 @@ def test_scenario_runs_to_completion_on_a_curved_four_lane_network(tmp_path):
     assert m["tracking_error_m"] < 0.5  # the references follow the curved lanes
 
 
-KNOWN_LFC_FAILURE = pytest.mark.xfail(strict=True, reason=(
-    "open in issue 4: with 15 cars, LFC (seed 0) ends without collisions but deadlocked: its "
-    "lowest-priority cone-lane car never merges and stops at the cones, the cars behind queue, "
-    "and a pedestrian waits at the kerb while the cars wait for her. Strict: this test starts "
-    "failing CI once it passes, so the mark must then go"))
-
-
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["aac", pytest.param("lfc", marks=KNOWN_LFC_FAILURE)])
+@pytest.mark.parametrize("name", ["aac", "lfc"])
 def test_fifteen_vehicles_change_lanes_without_collision(name):
     m = runner.run(config.load("lane_change", [f"controller.coordinator={name}", "controller.horizon=10"])).metrics
     assert "error" not in m

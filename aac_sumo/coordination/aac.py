@@ -17,6 +17,10 @@ Each control period exactly one active robot holds authority and solves MPC-(F)C
    plan.
    The authority robot's first planned input gets the same check after its solve, but against
    actual contact only (its MPC keeps its own margins, and looks only N periods ahead).
+   When its solve fails it brakes along its lane (the planner's fallback plan, as the paper's
+   robots do), or, with ``fallback = "tracking"`` (beyond the paper; needs the safety stop), it
+   applies the tracking law through the full safety check, as a robot without a plan does: a
+   car hemmed in by conservative regions may then still creep on where its footprint is safe.
 5. The authority robot plans around the obstacles and the swept **convex-hull regions** of the
    others: at stage k, an ellipse containing the hull of a robot's footprints at k and k+1 along
    its known motion (stored plan, else constant velocity; the authority's own current motion
@@ -30,7 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aac_sumo.coordination.base import Coordinator, Decision, Finished, RobotDecision
+from aac_sumo.coordination.base import FALLBACKS, Coordinator, Decision, Finished, RobotDecision
 from aac_sumo.coordination.proximity import ProximityParams, close_pairs, proximity_decision
 from aac_sumo.coordination.tracking import track
 from aac_sumo.mpc.planner import MpcPlanner
@@ -41,7 +45,9 @@ from aac_sumo.world import WorldState
 @dataclass(frozen=True)
 class AacParams:
     """AAC settings: close-pair distance [m], proximity decision, safety stop (on/off, margin
-    [m]), tracking law (lookahead [m], speed gain [1/s]) and the seed of the sampling trees."""
+    [m]), tracking law (lookahead [m], speed gain [1/s]), what an authority whose solve fails
+    applies (``brake``: the planner's fallback; ``tracking``: the tracking law through the
+    safety stop) and the seed of the sampling trees."""
 
     close_distance: float = 2.0
     proximity: ProximityParams = ProximityParams()
@@ -49,7 +55,12 @@ class AacParams:
     safety_margin: float = 0.1
     lookahead: float = 1.0
     speed_gain: float = 1.0
+    fallback: str = "brake"
     seed: int = 0
+
+    def __post_init__(self):
+        if self.fallback not in FALLBACKS or (self.fallback == "tracking" and not self.safety_stop):
+            raise ValueError(f"fallback must be one of {FALLBACKS}, and 'tracking' needs the safety stop")
 
 
 class AacCoordinator(Coordinator):
@@ -109,8 +120,14 @@ class AacCoordinator(Coordinator):
         inputs[authority] = self.plans[authority].inputs[0]
         self.used[authority] = 1
         stopped = int(stops.sum())
-        if safety is not None:  # its plan looks only N periods ahead: no contact beyond them
-            checked = safety.safe_inputs(np.array([authority]), inputs, np.array([True]), 0.0)
+        if safety is not None:
+            planned, margin = True, 0.0  # its plan looks only N periods ahead: no contact beyond them
+            if decided.status != "solved" and self.params.fallback == "tracking":
+                inputs[authority] = track(world.robots[authority], world.states[authority], self.tasks[authority],
+                                          self.params.lookahead, self.params.speed_gain)
+                self.used[authority] = len(self.plans[authority].inputs)  # no plan to follow: tracking until its next turn
+                decided.mode, planned, margin = "tracking", False, self.params.safety_margin
+            checked = safety.safe_inputs(np.array([authority]), inputs, np.array([planned]), margin)
             if np.any(checked[authority] != inputs[authority]):
                 inputs[authority], decided.mode = checked[authority], "safety_stop"
                 self.used[authority] = len(self.plans[authority].inputs)

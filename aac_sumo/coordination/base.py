@@ -18,6 +18,9 @@ from aac_sumo.references import PathReference
 from aac_sumo.world import Obstacle, WorldState
 
 Finished = Callable[[WorldState], np.ndarray]
+#: What a robot whose solve failed applies: the planner's braking fallback, or the tracking law
+#: through the coordinator's safety stop.
+FALLBACKS = ("brake", "tracking")
 
 
 @dataclass
@@ -26,9 +29,10 @@ class RobotDecision:
 
     ``authority`` is true when the robot solved its MPC this period, and ``status`` is then the
     solve status (None otherwise). ``reason`` says why it holds authority (``round_robin``,
-    ``proximity``, ``priority``, ``independent``) and ``mode`` what it applies (``mpc``,
-    ``plan``: the next input of its stored plan, ``tracking``: the tracking law, ``hold``:
-    braking at its goal, ``safety_stop``). ``score``/``progress`` are its proximity-decision
+    ``proximity``, ``priority``, ``independent``) and ``mode`` what it applies (``mpc``: its
+    plan, or the braking fallback when the solve failed; ``plan``: the next input of its stored
+    plan; ``tracking``: the tracking law, also after a failed solve with the tracking fallback;
+    ``hold``: braking at its goal; ``safety_stop``). ``score``/``progress`` are its proximity-decision
     figures when it was a candidate.
     """
 

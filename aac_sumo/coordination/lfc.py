@@ -8,7 +8,10 @@ robots by distance to their goal or to a conflict; the paper ranks by index, and
 
 The paper's LFC has no safety layer. With ``safety_stop`` (off by default) every robot's first
 planned input then passes the same safety stop as AAC's robots (:mod:`~aac_sumo.coordination.safety`),
-so that both coordinators can be compared with the same safety net.
+so that both coordinators can be compared with the same safety net. A robot whose solve fails
+brakes along its lane (the planner's fallback), or, with ``fallback = "tracking"`` (needs the
+safety stop), applies the tracking law through the safety stop, as AAC's robots without a plan
+do; the robots after it then assume that input once and constant velocity.
 """
 
 from __future__ import annotations
@@ -17,7 +20,8 @@ import numpy as np
 
 from dataclasses import dataclass
 
-from aac_sumo.coordination.base import Coordinator, Decision, Finished, RobotDecision
+from aac_sumo.coordination.base import FALLBACKS, Coordinator, Decision, Finished, RobotDecision
+from aac_sumo.coordination.tracking import track
 from aac_sumo.mpc.planner import MpcPlanner
 from aac_sumo.references import PathReference
 from aac_sumo.world import WorldState
@@ -25,10 +29,19 @@ from aac_sumo.world import WorldState
 
 @dataclass(frozen=True)
 class LfcParams:
-    """LFC settings: the optional safety stop and its footprint margin [m]."""
+    """LFC settings: the optional safety stop and its footprint margin [m], what a robot whose
+    solve fails applies (``brake`` or ``tracking``) and that tracking law's lookahead [m] and
+    speed gain [1/s]."""
 
     safety_stop: bool = False
     safety_margin: float = 0.1
+    fallback: str = "brake"
+    lookahead: float = 1.0
+    speed_gain: float = 1.0
+
+    def __post_init__(self):
+        if self.fallback not in FALLBACKS or (self.fallback == "tracking" and not self.safety_stop):
+            raise ValueError(f"fallback must be one of {FALLBACKS}, and 'tracking' needs the safety stop")
 
 
 class LfcCoordinator(Coordinator):
@@ -56,14 +69,22 @@ class LfcCoordinator(Coordinator):
             regions = self.fleet.swept_regions(others, motion[others], cfg.horizon, cfg.barrier, cfg.fcbf)
             records[i] = self.solve(world, i, world.obstacles + regions, "priority")
             plan = self.plans[i]
+            if plan.status != "solved" and self.params.fallback == "tracking":
+                inputs[i] = track(world.robots[i], world.states[i], self.tasks[i], self.params.lookahead, self.params.speed_gain)
+                records[i].mode = "tracking"
+                once = np.zeros((1, cfg.horizon + 1, 2))
+                once[0, 0] = inputs[i]
+                motion[i] = self.fleet.rollout(np.array([i]), world.states[[i]], once, cfg.dt)[0]
+                continue
             inputs[i] = plan.inputs[0]
             motion[i, : cfg.horizon + 1] = plan.states
             motion[i, -1] = self.fleet.rollout(np.array([i]), plan.states[None, -1], np.zeros((1, 1, 2)), cfg.dt)[0, -1]
         stopped = 0
         if self.params.safety_stop:
-            planned = np.flatnonzero([r.mode == "mpc" for r in records])
-            checked = self.safety_check(world).safe_inputs(planned, inputs, np.ones(len(planned), dtype=bool), self.params.safety_margin)
-            for i in planned[np.any(checked[planned] != inputs[planned], axis=1)]:
+            moving = np.flatnonzero([r.mode in ("mpc", "tracking") for r in records])
+            planned = np.array([records[i].mode == "mpc" for i in moving], dtype=bool)
+            checked = self.safety_check(world).safe_inputs(moving, inputs, planned, self.params.safety_margin)
+            for i in moving[np.any(checked[moving] != inputs[moving], axis=1)]:
                 records[i].mode = "safety_stop"
                 stopped += 1
             inputs = checked

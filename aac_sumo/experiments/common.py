@@ -69,17 +69,31 @@ def aac_params(scenario: Scenario) -> AacParams:
         close_distance=a["close_distance"],
         proximity=ProximityParams(a["proximity_iterations"], a["alpha"], a["beta"], a["tree_step"], a["sample_radius"], a["collision_radius"]),
         safety_stop=a["safety_stop"], safety_margin=a["safety_margin"], lookahead=a["lookahead"], speed_gain=a["speed_gain"],
-        seed=scenario["scenario.seed"],
+        fallback=a["fallback"], seed=scenario["scenario.seed"],
     )
+
+
+def lfc_params(scenario: Scenario) -> LfcParams:
+    """The LFC settings of ``[lfc]``."""
+    f = scenario.data["lfc"]
+    return LfcParams(f["safety_stop"], f["safety_margin"], f["fallback"], f["lookahead"], f["speed_gain"])
+
+
+def _check_fallback(scenario: Scenario, section: str) -> None:
+    """Exit-2 error when ``section.fallback`` is tracking without ``section.safety_stop``."""
+    if scenario[f"{section}.fallback"] == "tracking" and not scenario[f"{section}.safety_stop"]:
+        raise ScenarioError(scenario.source, f"{section}.fallback", f"brake unless {section}.safety_stop is true", "tracking")
 
 
 def coordinator(scenario: Scenario, tasks: list[PathReference], corridors=None, finished: Finished | None = None) -> Coordinator:
     """The ``controller.coordinator`` with its own MPC planner; ``finished`` tells it which
     robots have finished their task (they no longer take authority)."""
     name = scenario["controller.coordinator"]
+    if name in ("aac", "lfc"):
+        _check_fallback(scenario, name)
     extra = dict(params=aac_params(scenario)) if name == "aac" else {}
     if name == "lfc":
-        extra = dict(params=LfcParams(scenario["lfc.safety_stop"], scenario["lfc.safety_margin"]))
+        extra = dict(params=lfc_params(scenario))
     band = any(isinstance(c, LateralBand) for c in corridors or [])
     planner = MpcPlanner(dataclasses.replace(mpc_config(scenario), band=band))
     return COORDINATORS[name](planner, tasks, corridors, finished, **extra)
