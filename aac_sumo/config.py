@@ -146,6 +146,8 @@ COMMON: dict[str, dict[str, Key]] = {
         "fallback": Key(("brake", "tracking"), "brake",
                         "what an authority whose solve fails applies: brake (the planner's fallback, as in the paper) or tracking "
                         "(the tracking law through the safety stop; needs safety_stop)"),
+        "ignore_followers": Key(bool, False, "the authority does not avoid robots straight behind it: they keep their distance "
+                                "through the safety stop (needs safety_stop)"),
     },
     "lfc": {
         "safety_stop": Key(bool, False, "every robot's first planned input passes AAC's safety stop (the paper's LFC has none)"),
@@ -155,6 +157,8 @@ COMMON: dict[str, dict[str, Key]] = {
                         "(the tracking law below through the safety stop; needs safety_stop)"),
         "lookahead": Key(float, 1.0, "pure-pursuit lookahead of that tracking law [m]", **P),
         "speed_gain": Key(float, 1.0, "speed-error gain of that tracking law [1/s]", **P),
+        "ignore_followers": Key(bool, False, "a robot does not avoid robots straight behind it: they keep their distance "
+                                "through the safety stop (needs safety_stop)"),
     },
     "metrics": {
         "accel_threshold": Key(float, 3.0, "|longitudinal acceleration| that counts as aggressive [m/s^2]", **P),

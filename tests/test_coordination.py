@@ -13,6 +13,7 @@ from hypothesis import strategies as st
 
 from aac_sumo.barriers import FcbfParams, barrier_value
 from aac_sumo.coordination.aac import AacCoordinator, AacParams
+from aac_sumo.coordination.base import straight_behind
 from aac_sumo.coordination.lfc import LfcCoordinator, LfcParams
 from aac_sumo.coordination.tracking import track
 from aac_sumo.coordination.proximity import ProximityParams, close_pairs, proximity_decision
@@ -297,6 +298,36 @@ def test_the_tracking_fallback_needs_the_safety_stop():
         LfcParams(safety_stop=False, fallback="tracking")
     with pytest.raises(ValueError):
         AacParams(safety_stop=False, fallback="tracking")
+
+
+@settings(max_examples=60, deadline=None)
+@given(angle=st.floats(-np.pi, np.pi), shift=st.tuples(coord, coord))
+def test_straight_behind_is_the_same_in_every_frame(angle, shift):
+    """Robot 0 drives along +x; behind it in its lane (1), beside it (2), ahead (3), behind in
+    the next lane (4), just touching its rear bumper (5). Only 1 is straight behind, however
+    the scene is rotated and moved."""
+    local = np.array([[0.0, 0.0], [-1.0, 0.1], [0.0, 0.5], [1.0, 0.0], [-1.0, 0.5], [-0.55, 0.0]])
+    rot = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    states = np.column_stack([local @ rot.T + np.array(shift), np.full(6, angle), np.zeros(6)])
+    world = WorldState(0.0, states, [robot(i) for i in range(6)])
+    assert straight_behind(world, 0, np.arange(1, 6)).tolist() == [True, False, False, False, False]
+
+
+@pytest.mark.parametrize("ignore", [False, True])
+def test_the_authority_may_leave_its_follower_to_the_safety_stop(ignore):
+    """With ignore_followers, AAC's authority plans without the region of the robot straight
+    behind it; the robot beside it is still avoided."""
+    states = np.array([[0.0, 0.0, 0.0, 1.0], [-1.0, 0.0, 0.0, 1.0], [0.0, 0.6, 0.0, 1.0]])
+    goals = np.array([[10.0, 0.0], [10.0, 0.0], [10.0, 0.6]])
+    world = WorldState(0.0, states, [robot(i) for i in range(3)])
+    pl = RecordingPlanner(planner().config)
+    aac = AacCoordinator(pl, straight_tasks(states, goals), params=AacParams(close_distance=0.1, ignore_followers=ignore))
+    aac.decide(world)
+    (name, seen), = pl.calls
+    assert name == "robot0" and "robot2" in seen
+    assert ("robot1" in seen) is not ignore
+    with pytest.raises(ValueError):
+        AacParams(safety_stop=False, ignore_followers=True)
 
 
 # --- fairness metric --------------------------------------------------------------------------

@@ -393,6 +393,23 @@ def test_a_band_the_robot_is_already_outside_of_holds_it_where_it_is():
     assert plan.states[:, 1].max() <= 2.5 + BAND_GIVE + 1e-6
 
 
+def test_a_robot_pointing_out_of_its_band_may_turn_back_in():
+    """A robot standing on its band's left edge, heading 0.9 rad out of it, gets the room it
+    needs to turn back in at full lock (R (1 - cos e)), so it drives off instead of standing
+    for ever (it does not reverse), and it does not go further out than that room."""
+    from aac_sumo.mpc.planner import BAND_GIVE
+    from aac_sumo.references import LateralBand
+
+    pl = planner(barrier="fcbf", gamma=0.3, band=True)
+    band = LateralBand(right=[[-10.0, -2.0], [100.0, -2.0]], left=[[-10.0, 2.0], [100.0, 2.0]], margin=0.5)
+    state = np.array([0.0, 1.5, 0.9, 0.0])
+    plan = pl.plan(ROBOT, state, straight_reference(0.0, 3.0), np.zeros(2), [], corridor=band)
+    room = ROBOT.model.wheelbase / np.tan(LIMITS.steer_max) * (1.0 - np.cos(0.9))
+    assert (plan.status, plan.solver) == ("solved", "fatrop")
+    assert plan.states[-1, 0] > 0.1
+    assert plan.states[:, 1].max() <= 1.5 + BAND_GIVE + room + 1e-6
+
+
 def test_a_standing_robot_on_its_band_edge_can_plan():
     """A robot standing exactly on its band's edge, heading slightly outwards, still gets a solved
     plan (without the band's give, the feasible set has no interior and the solvers fail)."""

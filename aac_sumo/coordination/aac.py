@@ -21,6 +21,10 @@ Each control period exactly one active robot holds authority and solves MPC-(F)C
    robots do), or, with ``fallback = "tracking"`` (beyond the paper; needs the safety stop), it
    applies the tracking law through the full safety check, as a robot without a plan does: a
    car hemmed in by conservative regions may then still creep on where its footprint is safe.
+   With ``ignore_followers`` (beyond the paper; needs the safety stop) the authority does not
+   avoid the robots straight behind it: they keep their distance through the safety stop, as
+   a following car does on a road, and a car slowing for the traffic ahead no longer has to
+   outrun the one behind it.
 5. The authority robot plans around the obstacles and the swept **convex-hull regions** of the
    others: at stage k, an ellipse containing the hull of a robot's footprints at k and k+1 along
    its known motion (stored plan, else constant velocity; the authority's own current motion
@@ -34,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aac_sumo.coordination.base import FALLBACKS, Coordinator, Decision, Finished, RobotDecision
+from aac_sumo.coordination.base import FALLBACKS, Coordinator, Decision, Finished, RobotDecision, straight_behind
 from aac_sumo.coordination.proximity import ProximityParams, close_pairs, proximity_decision
 from aac_sumo.coordination.tracking import track
 from aac_sumo.mpc.planner import MpcPlanner
@@ -47,7 +51,9 @@ class AacParams:
     """AAC settings: close-pair distance [m], proximity decision, safety stop (on/off, margin
     [m]), tracking law (lookahead [m], speed gain [1/s]), what an authority whose solve fails
     applies (``brake``: the planner's fallback; ``tracking``: the tracking law through the
-    safety stop) and the seed of the sampling trees."""
+    safety stop), whether the authority ignores the robots straight behind it
+    (:func:`~aac_sumo.coordination.base.straight_behind`; needs the safety stop) and the seed
+    of the sampling trees."""
 
     close_distance: float = 2.0
     proximity: ProximityParams = ProximityParams()
@@ -56,11 +62,14 @@ class AacParams:
     lookahead: float = 1.0
     speed_gain: float = 1.0
     fallback: str = "brake"
+    ignore_followers: bool = False
     seed: int = 0
 
     def __post_init__(self):
         if self.fallback not in FALLBACKS or (self.fallback == "tracking" and not self.safety_stop):
             raise ValueError(f"fallback must be one of {FALLBACKS}, and 'tracking' needs the safety stop")
+        if self.ignore_followers and not self.safety_stop:
+            raise ValueError("ignore_followers needs the safety stop")
 
 
 class AacCoordinator(Coordinator):
@@ -113,7 +122,8 @@ class AacCoordinator(Coordinator):
         traj = self.fleet.rollout(others, world.states[others], horizon_inputs, cfg.dt)
         self.used[others] += 1
 
-        regions = self.fleet.swept_regions(others, traj, cfg.horizon, cfg.barrier, cfg.fcbf)
+        avoid = ~straight_behind(world, authority, others) if self.params.ignore_followers else np.ones(len(others), dtype=bool)
+        regions = self.fleet.swept_regions(others[avoid], traj[avoid], cfg.horizon, cfg.barrier, cfg.fcbf)
         decided = self.solve(world, authority, world.obstacles + regions, reason)
         decided.score, decided.progress = records[authority].score, records[authority].progress
         records[authority] = decided

@@ -23,6 +23,22 @@ Finished = Callable[[WorldState], np.ndarray]
 FALLBACKS = ("brake", "tracking")
 
 
+def straight_behind(world: WorldState, i: int, others: np.ndarray) -> np.ndarray:
+    """Which of robots ``others`` drive straight behind robot ``i`` (bool, len(others)): their
+    footprint centre lies more than half the two lengths behind ``i``'s along ``i``'s heading,
+    and less than half the two widths beside it. A coordinator may leave keeping that distance
+    to them (the follower is responsible, as on a road), when its safety stop makes them do so."""
+    centres = world.robot_centres()
+    heading = world.states[i, 2]
+    rel = centres[others] - centres[i]
+    along = rel[:, 0] * np.cos(heading) + rel[:, 1] * np.sin(heading)
+    across = -rel[:, 0] * np.sin(heading) + rel[:, 1] * np.cos(heading)
+    ego = world.robots[i]
+    length = np.array([world.robots[j].length for j in others])
+    width = np.array([world.robots[j].width for j in others])
+    return (along < -0.5 * (ego.length + length)) & (np.abs(across) < 0.5 * (ego.width + width))
+
+
 @dataclass
 class RobotDecision:
     """One robot's part of a decision.

@@ -11,7 +11,9 @@ planned input then passes the same safety stop as AAC's robots (:mod:`~aac_sumo.
 so that both coordinators can be compared with the same safety net. A robot whose solve fails
 brakes along its lane (the planner's fallback), or, with ``fallback = "tracking"`` (needs the
 safety stop), applies the tracking law through the safety stop, as AAC's robots without a plan
-do; the robots after it then assume that input once and constant velocity.
+do; the robots after it then assume that input once and constant velocity. With
+``ignore_followers`` (needs the safety stop) a robot does not avoid the robots straight behind
+it, as AAC's authority with the same option.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ import numpy as np
 
 from dataclasses import dataclass
 
-from aac_sumo.coordination.base import FALLBACKS, Coordinator, Decision, Finished, RobotDecision
+from aac_sumo.coordination.base import FALLBACKS, Coordinator, Decision, Finished, RobotDecision, straight_behind
 from aac_sumo.coordination.tracking import track
 from aac_sumo.mpc.planner import MpcPlanner
 from aac_sumo.references import PathReference
@@ -30,18 +32,22 @@ from aac_sumo.world import WorldState
 @dataclass(frozen=True)
 class LfcParams:
     """LFC settings: the optional safety stop and its footprint margin [m], what a robot whose
-    solve fails applies (``brake`` or ``tracking``) and that tracking law's lookahead [m] and
-    speed gain [1/s]."""
+    solve fails applies (``brake`` or ``tracking``), that tracking law's lookahead [m] and
+    speed gain [1/s], and whether a robot ignores the robots straight behind it (needs the
+    safety stop)."""
 
     safety_stop: bool = False
     safety_margin: float = 0.1
     fallback: str = "brake"
     lookahead: float = 1.0
     speed_gain: float = 1.0
+    ignore_followers: bool = False
 
     def __post_init__(self):
         if self.fallback not in FALLBACKS or (self.fallback == "tracking" and not self.safety_stop):
             raise ValueError(f"fallback must be one of {FALLBACKS}, and 'tracking' needs the safety stop")
+        if self.ignore_followers and not self.safety_stop:
+            raise ValueError("ignore_followers needs the safety stop")
 
 
 class LfcCoordinator(Coordinator):
@@ -66,6 +72,8 @@ class LfcCoordinator(Coordinator):
                 motion[i] = self.fleet.rollout(np.array([i]), world.states[[i]], hold[None], cfg.dt)[0]
                 continue
             others = np.array([j for j in range(n) if j != i], dtype=int)
+            if self.params.ignore_followers:
+                others = others[~straight_behind(world, i, others)]
             regions = self.fleet.swept_regions(others, motion[others], cfg.horizon, cfg.barrier, cfg.fcbf)
             records[i] = self.solve(world, i, world.obstacles + regions, "priority")
             plan = self.plans[i]

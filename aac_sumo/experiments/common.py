@@ -69,20 +69,24 @@ def aac_params(scenario: Scenario) -> AacParams:
         close_distance=a["close_distance"],
         proximity=ProximityParams(a["proximity_iterations"], a["alpha"], a["beta"], a["tree_step"], a["sample_radius"], a["collision_radius"]),
         safety_stop=a["safety_stop"], safety_margin=a["safety_margin"], lookahead=a["lookahead"], speed_gain=a["speed_gain"],
-        fallback=a["fallback"], seed=scenario["scenario.seed"],
+        fallback=a["fallback"], ignore_followers=a["ignore_followers"], seed=scenario["scenario.seed"],
     )
 
 
 def lfc_params(scenario: Scenario) -> LfcParams:
     """The LFC settings of ``[lfc]``."""
     f = scenario.data["lfc"]
-    return LfcParams(f["safety_stop"], f["safety_margin"], f["fallback"], f["lookahead"], f["speed_gain"])
+    return LfcParams(f["safety_stop"], f["safety_margin"], f["fallback"], f["lookahead"], f["speed_gain"], f["ignore_followers"])
 
 
-def _check_fallback(scenario: Scenario, section: str) -> None:
-    """Exit-2 error when ``section.fallback`` is tracking without ``section.safety_stop``."""
-    if scenario[f"{section}.fallback"] == "tracking" and not scenario[f"{section}.safety_stop"]:
+def _check_safety_options(scenario: Scenario, section: str) -> None:
+    """Exit-2 error when an option of ``section`` that relies on its safety stop is on without it."""
+    if scenario[f"{section}.safety_stop"]:
+        return
+    if scenario[f"{section}.fallback"] == "tracking":
         raise ScenarioError(scenario.source, f"{section}.fallback", f"brake unless {section}.safety_stop is true", "tracking")
+    if scenario[f"{section}.ignore_followers"]:
+        raise ScenarioError(scenario.source, f"{section}.ignore_followers", f"false unless {section}.safety_stop is true", True)
 
 
 def coordinator(scenario: Scenario, tasks: list[PathReference], corridors=None, finished: Finished | None = None) -> Coordinator:
@@ -90,7 +94,7 @@ def coordinator(scenario: Scenario, tasks: list[PathReference], corridors=None, 
     robots have finished their task (they no longer take authority)."""
     name = scenario["controller.coordinator"]
     if name in ("aac", "lfc"):
-        _check_fallback(scenario, name)
+        _check_safety_options(scenario, name)
     extra = dict(params=aac_params(scenario)) if name == "aac" else {}
     if name == "lfc":
         extra = dict(params=lfc_params(scenario))

@@ -232,11 +232,15 @@ class MpcPlanner:
         params[:, inside, 5] *= factor[inside]
         return params
 
-    def band_rows(self, corridor, reference: np.ndarray, state: np.ndarray) -> np.ndarray:
+    def band_rows(self, robot: RobotSpec, corridor, reference: np.ndarray, state: np.ndarray) -> np.ndarray:
         """The MPC's lateral-band rows (N, 4) for stages 1..N; open unless ``corridor`` is a band.
+
         Each row leaves the stage-1 rear axle (fixed by the current state) at least ``BAND_GIVE``
         of room on both sides: a robot outside its band, or on its edge, may not go more than
-        that further out."""
+        that further out. A robot heading out of its band by ``e`` (against the reference's
+        heading) also gets the room it needs to turn back in at full lock, ``R (1 - cos e)``
+        with the turning radius ``R = wheelbase / tan(steer_max)``: without it, a car that had
+        swerved to its band's edge could not move forward at all (it does not reverse)."""
         n = self.config.horizon
         if not isinstance(corridor, LateralBand):
             return np.tile(OPEN_BAND, (n, 1))
@@ -244,8 +248,10 @@ class MpcPlanner:
         x, y, heading, v = state
         stage1 = np.array([x, y]) + v * self.config.dt * np.array([np.cos(heading), np.sin(heading)])
         now = rows[:, :2] @ stage1  # the stage-1 rear axle is fixed by the current state
-        rows[:, 2] = np.minimum(rows[:, 2], now - BAND_GIVE)
-        rows[:, 3] = np.maximum(rows[:, 3], now + BAND_GIVE)
+        out = np.remainder(heading - reference[1, 2] + np.pi, 2.0 * np.pi) - np.pi  # > 0: towards the left edge
+        turn = robot.model.wheelbase / np.tan(robot.model.limits.steer_max) * (1.0 - np.cos(min(abs(out), 0.5 * np.pi)))
+        rows[:, 2] = np.minimum(rows[:, 2], now - BAND_GIVE - (turn if out < 0 else 0.0))
+        rows[:, 3] = np.maximum(rows[:, 3], now + BAND_GIVE + (turn if out > 0 else 0.0))
         return rows
 
     def plan(
@@ -278,7 +284,7 @@ class MpcPlanner:
             weights=cfg.weights(),
             x_ref=reference,
             obstacles=self.barrier_parameters(robot, state, u_prev, obstacles),
-            band=self.band_rows(corridor, reference, state) if cfg.band else np.zeros(0),
+            band=self.band_rows(robot, corridor, reference, state) if cfg.band else np.zeros(0),
         )
         if previous is not None and len(previous.inputs) == cfg.horizon:
             guess = previous.shifted(state)
