@@ -195,9 +195,10 @@ def test_safety_stop_brakes_a_robot_heading_into_another(enabled):
 @given(seed=st.integers(0, 100_000), margin=st.floats(0.0, 1.0))
 def test_safety_check_flags_exactly_what_its_definition_says(seed, margin):
     """The check measures only pairs whose circumscribed discs come within the margin. It flags
-    the same robots as the definition applied to every pair: some robot or obstacle gets closer
-    than ``margin`` on the robot's course, closer than now and than braking at once would get
-    (standing obstacles eased by the margin for robots on a plan)."""
+    the same robots as the definition applied to every pair: at some stage of the robot's
+    course some robot or obstacle gets closer than ``margin``, closer than now and than braking
+    at once would get at that stage (standing obstacles eased by the margin for robots on a
+    plan)."""
     rng = np.random.default_rng(seed)
     n = 5
     robots = [robot(i) for i in range(n)]
@@ -224,9 +225,25 @@ def test_safety_check_flags_exactly_what_its_definition_says(seed, margin):
         braking = rect_clearance_rows(fixed[i], targets[t])
         if planned[i] and t >= 2 * n and standing[t - 2 * n]:
             course, braking = course + margin, braking + margin
-        later = course[1:].min()
-        expected[i] |= later < margin and later < min(course[0], braking[1:].min()) - BRAKING_TIE
+        later = course[1:]
+        expected[i] |= bool(np.any((later < margin) & (later < np.minimum(course[0], braking[1:]) - BRAKING_TIE)))
     np.testing.assert_array_equal(got, expected)
+
+
+def test_safety_stop_keeps_a_car_from_creeping_into_a_crossing_walker():
+    """A car (4 m x 1.8 m) stands 0.48 m from a walker who crosses in front of it, inside her
+    grown region (margin 1 m, reach 1.5 m/s), as in a 15-car LFC run that collided. Late in
+    any course her region swallows the car whatever it does; driving on is still closer than
+    standing at the earlier stages, so it is flagged, and standing still is not. (Comparing
+    only the two courses' closest approaches let the car creep into her.)"""
+    limits = VehicleLimits(a_min=-6.0, a_max=3.0, steer_max=0.5, v_min=0.0, v_max=20.0)
+    car = RobotSpec("car", 4.0, 1.8, BicycleModel(2.6, limits))
+    walker = Obstacle("walker", "pedestrian", np.array([4.04, 0.43]), np.array([0.0, -1.16]), -np.pi / 2, 0.3, 0.5)
+    far = np.array([0.0, 100.0, 0.0, 10.0])  # a car at 10 m/s far away: the courses last 1.9 s
+    world = WorldState(0.0, np.array([[0.0, 0.0, 0.0, 0.0], far]), [car, car], [walker])
+    check = SafetyCheck(world, Fleet([car, car]), MpcConfig(dt=DT, pedestrian_reach=1.5, pedestrian_margin=1.0), np.zeros(2))
+    assert check.unsafe(np.array([0]), np.array([[3.0, 0.0], [0.0, 0.0]]), np.array([False]), 0.3).tolist() == [True]
+    assert check.unsafe(np.array([0]), np.array([[0.0, 0.0], [0.0, 0.0]]), np.array([False]), 0.3).tolist() == [False]
 
 
 # --- LFC --------------------------------------------------------------------------------------

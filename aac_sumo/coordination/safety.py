@@ -3,9 +3,12 @@ is about to apply.
 
 A robot's course is its input once, then braking to a stop while turning towards the heading it
 brakes along (its reference's where it is: a car brakes along its lane, as the planner's
-fallback does). It must brake instead when, on that course, its footprint comes within
-``margin`` [m] of another robot's footprint at the same stage, or of an obstacle moving at
-constant velocity, closer to it than it is now and than braking at once would bring it.
+fallback does). It must brake instead when, at some stage of that course, its footprint comes
+within ``margin`` [m] of another robot's footprint at the same stage, or of an obstacle moving
+at constant velocity, closer to it than it is now and than braking at once would bring it at
+that stage. (Compared stage by stage: a pedestrian's region grows with time, so late in both
+courses it swallows the car whatever it did, and a comparison of the two courses' closest
+approaches let a car creep into a walker.)
 Braking at once is always allowed: a robot standing beside a pedestrian who may start walking
 may drive away from them. The other robots are taken both on their own such course and braking
 at once, since either may happen. A pedestrian's footprint grows on every side by the
@@ -87,12 +90,12 @@ class SafetyCheck:
         if rows_i.size == 0:
             return np.zeros(m, dtype=bool)
         course = rect_clearance_rows(own[rows_i], targets[cols])  # (pairs, K+1)
-        braking = rect_clearance_rows(brake[rows_i], targets[cols])[:, 1:].min(axis=1)
+        braking = rect_clearance_rows(brake[rows_i], targets[cols])[:, 1:]  # (pairs, K)
         eased = planned[rows_i] & np.r_[np.zeros(2 * n, dtype=bool), standing][cols]
         course[eased] += margin
         braking[eased] += margin
-        now, later = course[:, 0], course[:, 1:].min(axis=1)
-        flagged = (later < margin) & (later < np.minimum(now, braking) - BRAKING_TIE)
+        now, later = course[:, :1], course[:, 1:]
+        flagged = np.any((later < margin) & (later < np.minimum(now, braking) - BRAKING_TIE), axis=1)
         out = np.zeros(m, dtype=bool)
         out[rows_i[flagged]] = True
         return out
