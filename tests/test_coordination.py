@@ -327,7 +327,7 @@ def test_straight_behind_is_the_same_in_every_frame(angle, shift):
     rot = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
     states = np.column_stack([local @ rot.T + np.array(shift), np.full(6, angle), np.zeros(6)])
     world = WorldState(0.0, states, [robot(i) for i in range(6)])
-    assert straight_behind(world, 0, np.arange(1, 6)).tolist() == [True, False, False, False, False]
+    assert straight_behind(world, Fleet(world.robots), 0, np.arange(1, 6)).tolist() == [True, False, False, False, False]
 
 
 @pytest.mark.parametrize("ignore", [False, True])

@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aac_sumo.coordination.base import FALLBACKS, Coordinator, Decision, Finished, RobotDecision, straight_behind
+from aac_sumo.coordination.base import Coordinator, Decision, Finished, RobotDecision, check_safety_options, straight_behind
 from aac_sumo.coordination.proximity import ProximityParams, close_pairs, proximity_decision
 from aac_sumo.coordination.tracking import track
 from aac_sumo.mpc.planner import MpcPlanner
@@ -66,10 +66,7 @@ class AacParams:
     seed: int = 0
 
     def __post_init__(self):
-        if self.fallback not in FALLBACKS or (self.fallback == "tracking" and not self.safety_stop):
-            raise ValueError(f"fallback must be one of {FALLBACKS}, and 'tracking' needs the safety stop")
-        if self.ignore_followers and not self.safety_stop:
-            raise ValueError("ignore_followers needs the safety stop")
+        check_safety_options(self.safety_stop, self.fallback, self.ignore_followers)
 
 
 class AacCoordinator(Coordinator):
@@ -122,7 +119,7 @@ class AacCoordinator(Coordinator):
         traj = self.fleet.rollout(others, world.states[others], horizon_inputs, cfg.dt)
         self.used[others] += 1
 
-        avoid = ~straight_behind(world, authority, others) if self.params.ignore_followers else np.ones(len(others), dtype=bool)
+        avoid = ~straight_behind(world, self.fleet, authority, others) if self.params.ignore_followers else np.ones(len(others), dtype=bool)
         regions = self.fleet.swept_regions(others[avoid], traj[avoid], cfg.horizon, cfg.barrier, cfg.fcbf)
         decided = self.solve(world, authority, world.obstacles + regions, reason)
         decided.score, decided.progress = records[authority].score, records[authority].progress

@@ -23,7 +23,16 @@ Finished = Callable[[WorldState], np.ndarray]
 FALLBACKS = ("brake", "tracking")
 
 
-def straight_behind(world: WorldState, i: int, others: np.ndarray) -> np.ndarray:
+def check_safety_options(safety_stop: bool, fallback: str, ignore_followers: bool) -> None:
+    """ValueError unless ``fallback`` is one of FALLBACKS and the options that rely on the
+    safety stop (the tracking fallback, ignoring followers) have it."""
+    if fallback not in FALLBACKS or (fallback == "tracking" and not safety_stop):
+        raise ValueError(f"fallback must be one of {FALLBACKS}, and 'tracking' needs the safety stop")
+    if ignore_followers and not safety_stop:
+        raise ValueError("ignore_followers needs the safety stop")
+
+
+def straight_behind(world: WorldState, fleet: Fleet, i: int, others: np.ndarray) -> np.ndarray:
     """Which of robots ``others`` drive straight behind robot ``i`` (bool, len(others)): their
     footprint centre lies more than half the two lengths behind ``i``'s along ``i``'s heading,
     and less than half the two widths beside it. A coordinator may leave keeping that distance
@@ -33,10 +42,7 @@ def straight_behind(world: WorldState, i: int, others: np.ndarray) -> np.ndarray
     rel = centres[others] - centres[i]
     along = rel[:, 0] * np.cos(heading) + rel[:, 1] * np.sin(heading)
     across = -rel[:, 0] * np.sin(heading) + rel[:, 1] * np.cos(heading)
-    ego = world.robots[i]
-    length = np.array([world.robots[j].length for j in others])
-    width = np.array([world.robots[j].width for j in others])
-    return (along < -0.5 * (ego.length + length)) & (np.abs(across) < 0.5 * (ego.width + width))
+    return (along < -0.5 * (fleet.length[i] + fleet.length[others])) & (np.abs(across) < 0.5 * (fleet.width[i] + fleet.width[others]))
 
 
 @dataclass

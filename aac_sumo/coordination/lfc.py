@@ -18,11 +18,11 @@ it, as AAC's authority with the same option.
 
 from __future__ import annotations
 
-import numpy as np
-
 from dataclasses import dataclass
 
-from aac_sumo.coordination.base import FALLBACKS, Coordinator, Decision, Finished, RobotDecision, straight_behind
+import numpy as np
+
+from aac_sumo.coordination.base import Coordinator, Decision, Finished, RobotDecision, check_safety_options, straight_behind
 from aac_sumo.coordination.tracking import track
 from aac_sumo.mpc.planner import MpcPlanner
 from aac_sumo.references import PathReference
@@ -44,10 +44,7 @@ class LfcParams:
     ignore_followers: bool = False
 
     def __post_init__(self):
-        if self.fallback not in FALLBACKS or (self.fallback == "tracking" and not self.safety_stop):
-            raise ValueError(f"fallback must be one of {FALLBACKS}, and 'tracking' needs the safety stop")
-        if self.ignore_followers and not self.safety_stop:
-            raise ValueError("ignore_followers needs the safety stop")
+        check_safety_options(self.safety_stop, self.fallback, self.ignore_followers)
 
 
 class LfcCoordinator(Coordinator):
@@ -73,7 +70,7 @@ class LfcCoordinator(Coordinator):
                 continue
             others = np.array([j for j in range(n) if j != i], dtype=int)
             if self.params.ignore_followers:
-                others = others[~straight_behind(world, i, others)]
+                others = others[~straight_behind(world, self.fleet, i, others)]
             regions = self.fleet.swept_regions(others, motion[others], cfg.horizon, cfg.barrier, cfg.fcbf)
             records[i] = self.solve(world, i, world.obstacles + regions, "priority")
             plan = self.plans[i]
