@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aac_sumo.geometry import wrap_angle
+
 NX = 4
 NU = 2
 
@@ -37,7 +39,7 @@ def heading_hold_steer(states, heading_ref, dt: float, wheelbase, steer_max, tur
     ``heading_ref`` (...) [rad] with time constant ``turn_time`` [s] under :func:`bicycle_step`,
     within ``steer_max``; zero at standstill. The heading error never changes side."""
     states = np.asarray(states, dtype=float)
-    error = np.angle(np.exp(1j * (np.asarray(heading_ref, dtype=float) - states[..., 2])))
+    error = wrap_angle(np.asarray(heading_ref, dtype=float) - states[..., 2])
     turn = min(1.0, dt / turn_time) * error  # heading change wanted this period
     speed = states[..., 3]
     steer = np.arctan2(np.asarray(wheelbase) * turn * np.sign(speed), np.abs(speed) * dt)

@@ -16,6 +16,11 @@ import numpy as np
 _MAX_BISECTIONS = 1100
 
 
+def wrap_angle(angle) -> np.ndarray:
+    """``angle`` [rad] wrapped into [-pi, pi] (the same direction within one turn)."""
+    return np.angle(np.exp(1j * np.asarray(angle, dtype=float)))
+
+
 @dataclass(frozen=True)
 class Ellipse:
     """Ellipse centred at (cx, cy) [m]; semi-axis ``a`` along local x' (rotated by ``theta`` [rad]
@@ -50,6 +55,7 @@ class OrientedRect:
 # --------------------------------------------------------------------------------------------
 # Ellipse
 # --------------------------------------------------------------------------------------------
+
 
 
 def _bisect_root(r0, q, z0, z1, g):

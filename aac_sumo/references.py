@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from aac_sumo.geometry import polyline_offset
+from aac_sumo.geometry import polyline_offset, wrap_angle
 
 
 class PathReference:
@@ -78,7 +78,7 @@ class PathReference:
         for k in range(steps):
             s[k + 1] = s[k] + self.speed_at(s[k]) * dt
         poses = self.pose_at(s)
-        heading = state[2] + np.angle(np.exp(1j * (poses[:, 2] - state[2])))
+        heading = state[2] + wrap_angle(poses[:, 2] - state[2])
         return np.column_stack([poses[:, :2], heading, self.speed_at(s)])
 
     def finished(self, state, tolerance: float) -> bool:

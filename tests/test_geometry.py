@@ -14,6 +14,7 @@ from aac_sumo.geometry import (
     pairwise_rect_clearance,
     point_rect_signed_distance,
     rect_clearance,
+    wrap_angle,
 )
 
 SIGMA = np.linspace(0.0, 2.0 * np.pi, 200_000, endpoint=False)
@@ -394,3 +395,11 @@ def test_polyline_offset_sign_is_left_positive():
     np.testing.assert_allclose(polyline_offset([[5.0, 2.0], [5.0, -3.0], [12.0, 5.0], [8.0, 5.0]], line), [2.0, -3.0, -2.0, 2.0])
     # beyond the ends the end segments go on: 30 m past the end, 1 m right of the line's extension
     np.testing.assert_allclose(polyline_offset([[11.0, 40.0], [-20.0, -1.0]], line), [-1.0, -1.0])
+
+
+@given(angle=st.floats(-1e3, 1e3, allow_nan=False))
+def test_wrap_angle_lands_in_one_turn_and_keeps_the_direction(angle):
+    wrapped = float(wrap_angle(angle))
+    assert -np.pi <= wrapped <= np.pi
+    assert np.cos(wrapped) == pytest.approx(np.cos(angle), abs=1e-9)
+    assert np.sin(wrapped) == pytest.approx(np.sin(angle), abs=1e-9)

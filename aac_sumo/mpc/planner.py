@@ -15,6 +15,7 @@ import numpy as np
 
 from aac_sumo.barriers import FcbfParams, ObstaclePrediction, RegionTrack, barrier_value, inactive_slot, predict_constant_velocity, safety_ellipses, stage_parameters
 from aac_sumo.dynamics import bicycle_step, heading_hold_steer
+from aac_sumo.geometry import wrap_angle
 from aac_sumo.mpc.problem import OPEN_BAND, ProblemShape, get_problem
 from aac_sumo.references import LateralBand
 from aac_sumo.world import Obstacle, RobotSpec
@@ -248,7 +249,7 @@ class MpcPlanner:
         x, y, heading, v = state
         stage1 = np.array([x, y]) + v * self.config.dt * np.array([np.cos(heading), np.sin(heading)])
         now = rows[:, :2] @ stage1  # the stage-1 rear axle is fixed by the current state
-        out = np.remainder(heading - reference[1, 2] + np.pi, 2.0 * np.pi) - np.pi  # > 0: towards the left edge
+        out = float(wrap_angle(heading - reference[1, 2]))  # > 0: towards the left edge
         turn = robot.model.wheelbase / np.tan(robot.model.limits.steer_max) * (1.0 - np.cos(min(abs(out), 0.5 * np.pi)))
         rows[:, 2] = np.minimum(rows[:, 2], now - BAND_GIVE - (turn if out < 0 else 0.0))
         rows[:, 3] = np.maximum(rows[:, 3], now + BAND_GIVE + (turn if out > 0 else 0.0))
