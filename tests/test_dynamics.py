@@ -294,3 +294,36 @@ def test_braking_with_reverse_allowed_stops_at_zero(speed, a_min, a_max, dt):
     speeds = speed + np.cumsum(limits.stopping_inputs(speed, dt, steps)[:, 0]) * dt
     assert speeds[-1] == pytest.approx(0.0, abs=1e-9)
     assert np.all(speeds * speed >= -1e-9)
+
+
+@settings(max_examples=50, deadline=None)
+@given(seed=st.integers(0, 100_000), use_first=st.booleans(), steps=st.integers(1, 40), dt=dt_st)
+def test_compiled_braking_courses_step_the_bicycle_model_under_the_braking_law(seed, use_first, steps, dt):
+    """The compiled braking course is, step by step, :func:`bicycle_step` (speed clipped into its
+    bounds) under its first input and then the braking law: acceleration ``clip(-v / dt)``,
+    steering from :func:`heading_hold_steer`; it reaches standstill and stays there."""
+    from aac_sumo.dynamics import heading_hold_steer
+    from aac_sumo.kernels import braking_courses
+
+    rng = np.random.default_rng(seed)
+    m = 6
+    states = np.column_stack([rng.uniform(-50, 50, (m, 2)), rng.uniform(-np.pi, np.pi, m), rng.uniform(-2.0, 15.0, m)])
+    states[0, 3] = 0.0
+    first = np.column_stack([rng.uniform(-6, 3, m), rng.uniform(-0.5, 0.5, m)])
+    headings = rng.uniform(-4.0, 4.0, m)
+    wheelbase, steer_max = rng.uniform(0.4, 3.0, m), rng.uniform(0.2, 0.7, m)
+    a_min, a_max = rng.uniform(-8.0, -1.0, m), rng.uniform(0.5, 4.0, m)
+    v_min, v_max = np.where(rng.random(m) < 0.5, 0.0, -3.0), np.full(m, 20.0)
+    got = braking_courses(states, first, use_first, headings, wheelbase, a_min, a_max, v_min, v_max, steer_max, dt, 0.5, steps)
+
+    x = states.copy()
+    for k in range(steps):
+        if k == 0 and use_first:
+            u = first
+        else:
+            u = np.column_stack([np.clip(-x[:, 3] / dt, a_min, a_max), heading_hold_steer(x, headings, dt, wheelbase, steer_max, 0.5)])
+        x = bicycle_step(x, u, dt, wheelbase)
+        x[:, 3] = np.clip(x[:, 3], v_min, v_max)
+        np.testing.assert_allclose(got[:, k + 1], x, rtol=1e-12, atol=1e-9)
+    if steps >= 2 + int(np.ceil(np.max(np.abs(states[:, 3]) + 6.0 * dt) / np.min(-a_min) / dt)):
+        np.testing.assert_allclose(got[:, -1, 3], 0.0, atol=1e-12)

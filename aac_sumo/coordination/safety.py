@@ -23,6 +23,7 @@ import numpy as np
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.dynamics import heading_hold_steer
 from aac_sumo.geometry import rect_clearance_rows
+from aac_sumo.kernels import braking_courses
 from aac_sumo.mpc.planner import FALLBACK_TURN_TIME, MpcConfig
 from aac_sumo.world import WorldState
 
@@ -124,17 +125,13 @@ class SafetyCheck:
     def stopping_course(self, first: np.ndarray | None, steps: int, idx: np.ndarray | None = None) -> np.ndarray:
         """States (m, steps+1, 4) of robots ``idx`` (all by default) applying ``first`` (m, 2)
         once (None: braking at once), then braking to a stop as :meth:`braking_steer` steers."""
-        world, dt, fleet = self.world, self.config.dt, self.fleet
+        world, fleet = self.world, self.fleet
         idx = np.arange(len(world.robots)) if idx is None else idx
-        course = np.empty((len(idx), steps + 1, 4))
-        course[:, 0] = world.states[idx]
-        for k in range(steps):
-            if k == 0 and first is not None:
-                u = first
-            else:
-                u = np.column_stack([np.clip(-course[:, k, 3] / dt, fleet.a_min[idx], fleet.a_max[idx]), self.braking_steer(course[:, k], idx)])
-            course[:, k + 1] = fleet.rollout(idx, course[:, k], u[:, None, :], dt)[:, 1]
-        return course
+        use_first = first is not None
+        first = np.asarray(first, dtype=float) if use_first else np.zeros((len(idx), 2))
+        return braking_courses(world.states[idx], first, use_first, self.headings[idx], fleet.wheelbase[idx], fleet.a_min[idx],
+                               fleet.a_max[idx], fleet.v_min[idx], fleet.v_max[idx], self.steer_max[idx], self.config.dt,
+                               FALLBACK_TURN_TIME, steps)
 
     def _courses(self, inputs: np.ndarray, steps: int) -> np.ndarray:
         """:meth:`stopping_course` of every robot for ``inputs`` (n, 2), rolling out again only
