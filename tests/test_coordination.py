@@ -130,6 +130,39 @@ def test_tree_steps_never_exceed_the_step_length_from_the_start():
     assert np.all(np.hypot(*(result.best_nodes - starts).T) <= PROX.iterations * PROX.step + 1e-9)
 
 
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 100_000), step=st.floats(0.1, 3.0))
+def test_compiled_trees_grow_as_the_nearest_node_rule_says(seed, step):
+    """Each new node steps at most ``step`` from the tree node nearest its sample (the first on
+    ties) towards the sample, and its path cost is its parent's plus ``(1 - d / r)^2`` summed
+    over the blockers foreign to its tree that are within their radius: the rule written out
+    with numpy, one iteration at a time."""
+    from aac_sumo.kernels import grow_trees
+
+    rng = np.random.default_rng(seed)
+    r_count, k, m = 3, 25, 7
+    starts, samples = rng.uniform(-5, 5, (r_count, 2)), rng.uniform(-8, 8, (r_count, k, 2))
+    samples[:, 3] = samples[:, 2]  # a repeated sample: ties between nodes
+    blockers, radius = rng.uniform(-5, 5, (m, 2)), rng.uniform(0.5, 3.0, m)
+    foreign = rng.random((r_count, m)) < 0.7
+    nodes, cost = grow_trees(starts, samples, blockers, radius, foreign, step)
+
+    rows = np.arange(r_count)
+    want, want_cost = np.empty_like(nodes), np.zeros_like(cost)
+    want[:, 0] = starts
+    for it in range(k):
+        rel = samples[:, it, None, :] - want[:, : it + 1]
+        near = np.argmin(np.einsum("rkc,rkc->rk", rel, rel), axis=1)
+        towards = samples[:, it] - want[rows, near]
+        length = np.hypot(*towards.T)
+        new = want[rows, near] + np.where(length > step, step / np.maximum(length, 1e-12), 1.0)[:, None] * towards
+        gap = np.hypot(*(new[:, None, :] - blockers[None]).transpose(2, 0, 1))
+        want[:, it + 1] = new
+        want_cost[:, it + 1] = want_cost[rows, near] + (np.clip(1.0 - gap / radius, 0.0, None) ** 2 * foreign).sum(axis=1)
+    np.testing.assert_allclose(nodes, want, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(cost, want_cost, rtol=1e-12, atol=1e-12)
+
+
 # --- AAC: round robin, candidates, safety stop ------------------------------------------------
 
 

@@ -1,13 +1,13 @@
 """Close pairs and the proximity decision of AAC (paper Algorithm 1, as DESIGN.md reads it).
 
 Positions are world-frame [m]. The decision grows one sampling tree per candidate robot, all
-trees at once with numpy: each iteration draws a seeded random sample within ``sample_radius``
-of every robot, finds each tree's nearest node and steps ``tree_step`` toward the sample. Every
+trees in one compiled loop (:func:`~aac_sumo.kernels.grow_trees`): each iteration draws a
+seeded random sample within ``sample_radius`` of every robot, finds each tree's nearest node and steps ``tree_step`` toward the sample. Every
 new node is scored ``alpha * progress - beta * collision_cost``, where progress is the reduction
 of the distance to the goal from the robot's position (the paper's ``alpha * d(s, g)`` rewards
 moving away from the goal, a sign slip) and the collision cost sums ``(1 - d / r)^2`` over the
-other robots and obstacles closer than ``r``, along the node's path from the root. Each robot's best-scoring node ends its best path;
-the robot whose best path makes the most progress gets authority.
+other robots and obstacles closer than ``r``, along the node's path from the root. Each robot's
+best-scoring node ends its best path; the robot whose best path makes the most progress gets authority.
 """
 
 from __future__ import annotations
@@ -16,6 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
+
+from aac_sumo.kernels import grow_trees
 
 
 def close_pairs(centres: np.ndarray, distance: float) -> np.ndarray:
@@ -67,27 +69,14 @@ def proximity_decision(starts: np.ndarray, goals: np.ndarray, blockers: np.ndarr
     """
     r_count, k = len(starts), params.iterations
     rows = np.arange(r_count)
-    nodes = np.empty((r_count, k + 1, 2))
-    path_cost = np.zeros((r_count, k + 1))
-    nodes[:, 0] = starts
     radius = params.sample_radius * np.sqrt(rng.random((r_count, k)))
     angle = 2.0 * np.pi * rng.random((r_count, k))
     samples = starts[:, None, :] + radius[..., None] * np.stack([np.cos(angle), np.sin(angle)], axis=-1)
     to_goal = rng.random((r_count, k)) < params.goal_bias
     samples[to_goal] = np.broadcast_to(goals[:, None, :], samples.shape)[to_goal]
     foreign = owner[None, :] != rows[:, None]  # (R, M): blockers that cost candidate r
-    for it in range(k):
-        rel = samples[:, it, None, :] - nodes[:, : it + 1]
-        near = np.argmin(np.einsum("rkc,rkc->rk", rel, rel), axis=1)
-        q_near = nodes[rows, near]
-        step = samples[:, it] - q_near
-        length = np.hypot(step[:, 0], step[:, 1])
-        scale = np.where(length > params.step, params.step / np.maximum(length, 1e-12), 1.0)
-        q_new = q_near + scale[:, None] * step
-        gap = np.hypot(*(q_new[:, None, :] - blockers[None, :, :]).transpose(2, 0, 1))  # (R, M)
-        cost = (np.clip(1.0 - gap / blocker_radius, 0.0, None) ** 2 * foreign).sum(axis=1)
-        nodes[:, it + 1] = q_new
-        path_cost[:, it + 1] = path_cost[rows, near] + cost
+    nodes, path_cost = grow_trees(np.asarray(starts, dtype=float), samples, np.asarray(blockers, dtype=float),
+                                  np.asarray(blocker_radius, dtype=float), foreign, float(params.step))
 
     new = nodes[:, 1:]
     progress = np.hypot(*(starts - goals).T)[:, None] - np.hypot(*(new - goals[:, None, :]).transpose(2, 0, 1))
