@@ -82,3 +82,71 @@ def grow_trees(starts, samples, blockers, blocker_radius, foreign, step):
             nodes[r, it + 1, 0], nodes[r, it + 1, 1] = nx, ny
             path_cost[r, it + 1] = path_cost[r, near] + cost
     return nodes, path_cost
+
+
+@numba.njit(cache=True)
+def _vertex_gap(ax, ay, al, aw, ah, bx, by, bl, bw, bh):
+    """Least distance [m] from the corners of rectangle a to rectangle b (0 for a corner inside b)."""
+    ca, sa, cb, sb = math.cos(ah), math.sin(ah), math.cos(bh), math.sin(bh)
+    best = np.inf
+    for su, sv in ((1.0, -1.0), (1.0, 1.0), (-1.0, 1.0), (-1.0, -1.0)):
+        du, dv = 0.5 * al * su, 0.5 * aw * sv
+        dx, dy = ax + ca * du - sa * dv - bx, ay + sa * du + ca * dv - by
+        qu = max(abs(cb * dx + sb * dy) - 0.5 * bl, 0.0)
+        qv = max(abs(-sb * dx + cb * dy) - 0.5 * bw, 0.0)
+        best = min(best, math.hypot(qu, qv))
+    return best
+
+
+@numba.njit(cache=True)
+def rect_clearance(a, b):
+    """Signed clearance [m] between rectangle rows ``a`` and ``b`` ``[cx, cy, length, width,
+    heading]``, as :func:`aac_sumo.geometry.rect_clearance_rows`: the exact gap when apart,
+    minus the penetration depth along the best separating axis when they overlap."""
+    ax, ay, al, aw, ah = a[0], a[1], a[2], a[3], a[4]
+    bx, by, bl, bw, bh = b[0], b[1], b[2], b[3], b[4]
+    dx, dy = bx - ax, by - ay
+    la, wa, lb, wb = 0.5 * al, 0.5 * aw, 0.5 * bl, 0.5 * bw
+    cd, sd = abs(math.cos(bh - ah)), abs(math.sin(bh - ah))
+    ca, sa, cb, sb = math.cos(ah), math.sin(ah), math.cos(bh), math.sin(bh)
+    overlap = min(la + lb * cd + wb * sd - abs(dx * ca + dy * sa),
+                  wa + lb * sd + wb * cd - abs(-dx * sa + dy * ca),
+                  lb + la * cd + wa * sd - abs(dx * cb + dy * sb),
+                  wb + la * sd + wa * cd - abs(-dx * sb + dy * cb))
+    if overlap > 0.0:
+        return -overlap
+    return min(_vertex_gap(ax, ay, al, aw, ah, bx, by, bl, bw, bh), _vertex_gap(bx, by, bl, bw, bh, ax, ay, al, aw, ah))
+
+
+@numba.njit(cache=True)
+def courses_unsafe(own, brake, targets, skip, eased, margin, tie):
+    """Which courses fail the safety stop's rule (bool, m). Robot i's course ``own[i]`` and its
+    braking at once ``brake[i]`` (m, K+1, 5) are footprint rows per stage; ``targets`` (T, K+1,
+    5) are what it must keep clear of, except where ``skip`` (m, T). Course i fails when at some
+    stage k >= 1 its clearance [m] to some target is below ``margin`` and below both the stage-0
+    clearance and braking's clearance at stage k by more than ``tie``; where ``eased`` (m, T),
+    every clearance counts ``margin`` more. Pairs whose circumscribed discs stay ``margin``
+    apart at every stage k >= 1 are not measured."""
+    m, t_count, stages = own.shape[0], targets.shape[0], own.shape[1]
+    out = np.zeros(m, dtype=np.bool_)
+    for i in range(m):
+        r_own = 0.5 * math.hypot(own[i, 0, 2], own[i, 0, 3])
+        for t in range(t_count):
+            if skip[i, t]:
+                continue
+            bound = np.inf
+            for k in range(1, stages):
+                apart = math.hypot(own[i, k, 0] - targets[t, k, 0], own[i, k, 1] - targets[t, k, 1])
+                bound = min(bound, apart - r_own - 0.5 * math.hypot(targets[t, k, 2], targets[t, k, 3]))
+            if bound >= margin:
+                continue
+            extra = margin if eased[i, t] else 0.0
+            now = rect_clearance(own[i, 0], targets[t, 0]) + extra
+            for k in range(1, stages):
+                later = rect_clearance(own[i, k], targets[t, k]) + extra
+                if later < margin and later < now - tie and later < rect_clearance(brake[i, k], targets[t, k]) + extra - tie:
+                    out[i] = True
+                    break
+            if out[i]:
+                break
+    return out

@@ -14,6 +14,7 @@ from aac_sumo.geometry import (
     pairwise_rect_clearance,
     point_rect_signed_distance,
     rect_clearance,
+    rect_clearance_rows,
     wrap_angle,
 )
 
@@ -403,3 +404,14 @@ def test_wrap_angle_lands_in_one_turn_and_keeps_the_direction(angle):
     assert -np.pi <= wrapped <= np.pi
     assert np.cos(wrapped) == pytest.approx(np.cos(angle), abs=1e-9)
     assert np.sin(wrapped) == pytest.approx(np.sin(angle), abs=1e-9)
+
+
+@settings(max_examples=200, deadline=None)
+@given(a=st.tuples(st.floats(-5, 5), st.floats(-5, 5), st.floats(0.1, 5), st.floats(0.1, 3), st.floats(-7, 7)),
+       b=st.tuples(st.floats(-5, 5), st.floats(-5, 5), st.floats(0.1, 5), st.floats(0.1, 3), st.floats(-7, 7)))
+def test_compiled_rect_clearance_equals_the_numpy_one(a, b):
+    """The safety stop's compiled clearance is the geometry module's, apart or overlapping."""
+    from aac_sumo import kernels
+
+    a, b = np.array(a), np.array(b)
+    assert kernels.rect_clearance(a, b) == pytest.approx(float(rect_clearance_rows(a, b)), abs=1e-12)

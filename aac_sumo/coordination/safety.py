@@ -22,8 +22,7 @@ import numpy as np
 
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.dynamics import heading_hold_steer
-from aac_sumo.geometry import rect_clearance_rows
-from aac_sumo.kernels import braking_courses
+from aac_sumo.kernels import braking_courses, courses_unsafe
 from aac_sumo.mpc.planner import FALLBACK_TURN_TIME, MpcConfig
 from aac_sumo.world import WorldState
 
@@ -79,27 +78,10 @@ class SafetyCheck:
         steps, fixed, standing = self.surroundings()
         rows = self.fleet.footprints(np.arange(n), self._courses(inputs, steps))  # (n, K+1, 5)
         targets = np.concatenate([rows, fixed])  # (2 n + obstacles, K+1, 5)
-        own, brake = rows[check], fixed[check]  # (m, K+1, 5): its course, and braking at once
-        # Circumscribed discs bound each gap from below: only pairs whose course may come within
-        # the margin are measured exactly.
-        radius = 0.5 * np.hypot(targets[:, 1:, 2], targets[:, 1:, 3])  # (targets, K) per stage: pedestrians grow
-        apart = np.linalg.norm(own[:, None, 1:, :2] - targets[None, :, 1:, :2], axis=-1)
-        bound = (apart - radius[check][:, None] - radius[None]).min(axis=-1)  # (m, targets)
-        bound[np.arange(m), check] = np.inf
-        bound[np.arange(m), n + check] = np.inf
-        rows_i, cols = np.nonzero(bound < margin)
-        if rows_i.size == 0:
-            return np.zeros(m, dtype=bool)
-        course = rect_clearance_rows(own[rows_i], targets[cols])  # (pairs, K+1)
-        braking = rect_clearance_rows(brake[rows_i], targets[cols])[:, 1:]  # (pairs, K)
-        eased = planned[rows_i] & np.r_[np.zeros(2 * n, dtype=bool), standing][cols]
-        course[eased] += margin
-        braking[eased] += margin
-        now, later = course[:, :1], course[:, 1:]
-        flagged = np.any((later < margin) & (later < np.minimum(now, braking) - BRAKING_TIE), axis=1)
-        out = np.zeros(m, dtype=bool)
-        out[rows_i[flagged]] = True
-        return out
+        skip = np.zeros((m, len(targets)), dtype=bool)
+        skip[np.arange(m), check] = skip[np.arange(m), n + check] = True  # itself, on either course
+        eased = planned[:, None] & np.r_[np.zeros(2 * n, dtype=bool), standing][None, :]
+        return courses_unsafe(rows[check], fixed[check], targets, skip, eased, margin, BRAKING_TIE)
 
     def surroundings(self) -> tuple[int, np.ndarray, np.ndarray]:
         """What every check of this period compares against, computed once: the number of
