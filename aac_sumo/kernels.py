@@ -150,3 +150,19 @@ def courses_unsafe(own, brake, targets, skip, eased, margin, tie):
             if out[i]:
                 break
     return out
+
+
+@numba.njit(cache=True)
+def closest_on_polyline(points, seg_len, t_max, px, py):
+    """The segment ``i`` of polyline ``points`` (M, 2) [m] (segment lengths ``seg_len`` (M-1,))
+    closest to the point ``(px, py)`` (the first on ties), the fraction ``t`` of it, clipped
+    into ``[0, t_max[i]]``, at which the closest point lies, and the distance [m] to it."""
+    best_i, best_t, best_d = 0, 0.0, np.inf
+    for i in range(seg_len.shape[0]):
+        ax, ay = points[i, 0], points[i, 1]
+        dx, dy = points[i + 1, 0] - ax, points[i + 1, 1] - ay
+        t = min(max(((px - ax) * dx + (py - ay) * dy) / seg_len[i] ** 2, 0.0), t_max[i])
+        d = math.hypot(ax + t * dx - px, ay + t * dy - py)
+        if d < best_d:
+            best_i, best_t, best_d = i, t, d
+    return best_i, best_t, best_d

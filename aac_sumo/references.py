@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from aac_sumo.geometry import polyline_offset, wrap_angle
+from aac_sumo.kernels import closest_on_polyline
 
 
 class PathReference:
@@ -29,20 +30,15 @@ class PathReference:
         self.speed = float(speed)
         self.decel = float(decel)
         self.stop_at_end = stop_at_end
-        self._last_open = np.r_[np.ones(len(self.seg_len) - 1), np.inf]  # upper bound of t per segment
+        # upper bound of the fraction of each segment a projection may reach: past the end of a path that does not stop
+        self._t_max = np.r_[np.ones(len(self.seg_len) - 1), 1.0 if stop_at_end else np.inf]
 
     def project(self, point) -> tuple[float, float]:
         """Arc length [m] of the closest path point to ``point`` and the distance [m] to it. A
         path that does not stop goes on straight beyond its end, so a point past the end projects
         onto that extension (arc length above ``length``)."""
-        p = np.asarray(point, dtype=float)
-        a = self.points[:-1]
-        d = np.diff(self.points, axis=0)
-        t = np.clip(np.einsum("ij,ij->i", p - a, d) / self.seg_len**2, 0.0, 1.0 if self.stop_at_end else self._last_open)
-        closest = a + t[:, None] * d
-        dist = np.hypot(*(closest - p).T)
-        i = int(np.argmin(dist))
-        return float(self.s[i] + t[i] * self.seg_len[i]), float(dist[i])
+        i, t, dist = closest_on_polyline(self.points, self.seg_len, self._t_max, float(point[0]), float(point[1]))
+        return float(self.s[i] + t * self.seg_len[i]), float(dist)
 
     def distance(self, points) -> np.ndarray:
         """Distance [m] from each of ``points`` (K, 2) to the path."""
@@ -59,13 +55,21 @@ class PathReference:
         """Rows ``[x, y, heading]`` at arc lengths ``s`` (clamped to the path; extrapolated past
         the end along the last segment when the path does not stop)."""
         s = np.atleast_1d(np.asarray(s, dtype=float))
-        i = np.clip(np.searchsorted(self.s, s, side="right") - 1, 0, len(self.seg_len) - 1)
+        i = self._segment(s)
         local = s - self.s[i]
         if self.stop_at_end:
             local = np.clip(local, 0.0, self.seg_len[i])
         h = self.seg_heading[i]
         xy = self.points[i] + local[:, None] * np.column_stack([np.cos(h), np.sin(h)])
         return np.column_stack([xy, h])
+
+    def heading_at(self, point) -> float:
+        """Heading [rad] of the path where ``point`` [m] projects (of the later segment at a vertex)."""
+        return float(self.seg_heading[self._segment(self.project(point)[0])])
+
+    def _segment(self, s):
+        """Index of the segment each arc length ``s`` [m] lies on (the first or last beyond the ends)."""
+        return np.clip(np.searchsorted(self.s, s, side="right") - 1, 0, len(self.seg_len) - 1)
 
     def horizon(self, state, steps: int, dt: float) -> np.ndarray:
         """Reference states (steps + 1, 4) starting from the projection of ``state``'s position.

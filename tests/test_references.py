@@ -1,6 +1,9 @@
 """Reference paths: projection, horizon windows, and what happens at and beyond the path's end."""
 
 import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from aac_sumo.references import PathReference
 
@@ -27,3 +30,29 @@ def test_a_path_that_goes_on_projects_beyond_its_end_and_leads_forwards():
     np.testing.assert_allclose(ref[:, 0], 25.0 + np.arange(6))
     np.testing.assert_allclose(ref[:, 1], 0.0)
     np.testing.assert_allclose(ref[:, 3], 2.0)
+
+
+@settings(max_examples=100, deadline=None)
+@given(seed=st.integers(0, 100_000), stop=st.booleans())
+def test_projection_is_the_closest_point_of_the_path(seed, stop):
+    """The projection's distance is the least distance from the point to any segment (the last
+    one extended forwards when the path goes on), and the path point at its arc length lies at
+    that distance from the point."""
+    rng = np.random.default_rng(seed)
+    path = PathReference(np.cumsum(rng.uniform(-3, 3, (int(rng.integers(2, 30)), 2)), axis=0), 1.0, stop_at_end=stop)
+    point = rng.uniform(-20, 20, 2)
+    s, d = path.project(point)
+    a, b = path.points[:-1], path.points[1:]
+    t = np.einsum("ij,ij->i", point - a, b - a) / np.einsum("ij,ij->i", b - a, b - a)
+    t = np.clip(t, 0.0, np.r_[np.ones(len(t) - 1), 1.0 if stop else np.inf])
+    assert d == pytest.approx(np.hypot(*(a + t[:, None] * (b - a) - point).T).min(), abs=1e-9)
+    assert np.hypot(*(path.pose_at(s)[0, :2] - point)) == pytest.approx(d, abs=1e-9)
+
+
+def test_heading_at_is_the_horizons_first_heading_up_to_full_turns():
+    """The heading where a point projects is the horizon's first heading, which is only unwrapped
+    to lie near the robot's heading."""
+    path = PathReference([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0], [0.0, 12.0]], 2.0)
+    for x, y, heading in [(3.0, 1.0, 0.0), (12.0, 4.0, 7.0), (5.0, 13.0, -3.0), (10.0, 0.0, 1.0)]:
+        first = path.horizon(np.array([x, y, heading, 1.0]), 0, 0.1)[0, 2]
+        assert np.cos(path.heading_at([x, y]) - first) == pytest.approx(1.0)

@@ -125,8 +125,7 @@ class Coordinator(ABC):
     def safety_check(self, world: WorldState) -> SafetyCheck:
         """The safety stop of this period: robots brake turning towards their reference's heading
         where they are (a car brakes along its lane), as the planner's fallback does."""
-        dt = self.planner.config.dt
-        headings = np.array([task.horizon(state, 0, dt)[0, 2] for task, state in zip(self.tasks, world.states)])
+        headings = np.array([task.heading_at(state[:2]) for task, state in zip(self.tasks, world.states)])
         return SafetyCheck(world, self.fleet, self.planner.config, headings)
 
     def hold_input(self, world: WorldState, i: int) -> np.ndarray:
