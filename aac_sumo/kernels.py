@@ -1,9 +1,13 @@
 """Compiled inner loops (numba) of the coordinators' per-period work, on plain arrays.
 
 Each kernel is the loop form of a numpy definition elsewhere, and a test pins it to that
-definition: :func:`braking_courses` steps :func:`aac_sumo.dynamics.bicycle_step` under the
-braking law (:func:`aac_sumo.dynamics.heading_hold_steer` steering). Units: m, s, rad. Numba
-caches the compiled code beside this file, so only the first run on a machine compiles it.
+definition: :func:`rollouts` and :func:`braking_courses` step
+:func:`aac_sumo.dynamics.bicycle_step` (the latter under the braking law, steering as
+:func:`aac_sumo.dynamics.heading_hold_steer`), :func:`rect_clearance` is
+:func:`aac_sumo.geometry.rect_clearance_rows`, :func:`grow_trees` and
+:func:`closest_on_polyline` the loops of the proximity decision and of path projection.
+Units: m, s, rad. Numba caches the compiled code beside this file, so only the first run on a
+machine compiles it.
 """
 
 from __future__ import annotations
@@ -41,11 +45,32 @@ def braking_courses(states, first, use_first, headings, wheelbase, a_min, a_max,
                     sign = 1.0 if v > 0.0 else -1.0
                     steer = math.atan2(wheelbase[i] * (gain * error) * sign, abs(v) * dt)
                     steer = min(max(steer, -steer_max[i]), steer_max[i])
-            x, y, h, v = (x + v * math.cos(h) * dt, y + v * math.sin(h) * dt,
-                          h + v * math.tan(steer) / wheelbase[i] * dt, v + accel * dt)
-            v = min(max(v, v_min[i]), v_max[i])
+            x, y, h, v = _bicycle_step(x, y, h, v, accel, steer, dt, wheelbase[i], v_min[i], v_max[i])
             out[i, k + 1, 0], out[i, k + 1, 1], out[i, k + 1, 2], out[i, k + 1, 3] = x, y, h, v
     return out
+
+
+@numba.njit(cache=True)
+def rollouts(states, inputs, dt, wheelbase, v_min, v_max):
+    """Rear-axle states (m, K+1, 4) of robots starting from ``states`` (m, 4) under ``inputs``
+    (m, K, 2) ``[accel, steer]``; after every Euler bicycle step the speed is clipped into
+    ``[v_min, v_max]``. Per-robot constants are arrays (m,)."""
+    m, steps = inputs.shape[0], inputs.shape[1]
+    out = np.empty((m, steps + 1, 4))
+    for i in range(m):
+        x, y, h, v = states[i, 0], states[i, 1], states[i, 2], states[i, 3]
+        out[i, 0, 0], out[i, 0, 1], out[i, 0, 2], out[i, 0, 3] = x, y, h, v
+        for k in range(steps):
+            x, y, h, v = _bicycle_step(x, y, h, v, inputs[i, k, 0], inputs[i, k, 1], dt, wheelbase[i], v_min[i], v_max[i])
+            out[i, k + 1, 0], out[i, k + 1, 1], out[i, k + 1, 2], out[i, k + 1, 3] = x, y, h, v
+    return out
+
+
+@numba.njit(cache=True)
+def _bicycle_step(x, y, h, v, accel, steer, dt, wheelbase, v_min, v_max):
+    """One Euler step of :func:`aac_sumo.dynamics.bicycle_step`, the new speed clipped into ``[v_min, v_max]``."""
+    return (x + v * math.cos(h) * dt, y + v * math.sin(h) * dt, h + v * math.tan(steer) / wheelbase * dt,
+            min(max(v + accel * dt, v_min), v_max))
 
 
 @numba.njit(cache=True)

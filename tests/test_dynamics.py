@@ -327,3 +327,24 @@ def test_compiled_braking_courses_step_the_bicycle_model_under_the_braking_law(s
         np.testing.assert_allclose(got[:, k + 1], x, rtol=1e-12, atol=1e-9)
     if steps >= 2 + int(np.ceil(np.max(np.abs(states[:, 3]) + 6.0 * dt) / np.min(-a_min) / dt)):
         np.testing.assert_allclose(got[:, -1, 3], 0.0, atol=1e-12)
+
+
+@settings(max_examples=50, deadline=None)
+@given(seed=st.integers(0, 100_000), steps=st.integers(0, 20), dt=dt_st)
+def test_compiled_rollouts_step_the_bicycle_model(seed, steps, dt):
+    """The compiled rollout is :func:`bicycle_step` under the given inputs, step by step, with
+    the speed clipped into each robot's bounds."""
+    from aac_sumo.kernels import rollouts
+
+    rng = np.random.default_rng(seed)
+    m = 5
+    states = np.column_stack([rng.uniform(-50, 50, (m, 2)), rng.uniform(-np.pi, np.pi, m), rng.uniform(-2.0, 15.0, m)])
+    inputs = np.stack([rng.uniform(-6, 3, (m, steps)), rng.uniform(-0.5, 0.5, (m, steps))], axis=-1)
+    wheelbase, v_min, v_max = rng.uniform(0.4, 3.0, m), np.where(rng.random(m) < 0.5, 0.0, -3.0), rng.uniform(5.0, 20.0, m)
+    got = rollouts(states, inputs, dt, wheelbase, v_min, v_max)
+    x = states.copy()
+    np.testing.assert_array_equal(got[:, 0], states)
+    for k in range(steps):
+        x = bicycle_step(x, inputs[:, k], dt, wheelbase)
+        x[:, 3] = np.clip(x[:, 3], v_min, v_max)
+        np.testing.assert_allclose(got[:, k + 1], x, rtol=1e-12, atol=1e-9)

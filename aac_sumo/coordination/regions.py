@@ -2,7 +2,7 @@
 
 A robot's region at MPC stage k contains the convex hull of its footprints at stages k and k+1
 (the area it sweeps during that period), grown as an F-CBF (or CBF) ellipse. Rollouts are
-vectorised over robots with the same Euler bicycle model the simulator uses.
+compiled (:func:`~aac_sumo.kernels.rollouts`), with the same Euler bicycle model the simulator uses.
 """
 
 from __future__ import annotations
@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from aac_sumo.barriers import FcbfParams, RegionTrack, hull_safety_ellipses
-from aac_sumo.dynamics import bicycle_step
 from aac_sumo.geometry import rect_corners
+from aac_sumo.kernels import rollouts
 from aac_sumo.world import RobotSpec
 
 
@@ -32,13 +32,7 @@ class Fleet:
 
     def rollout(self, idx: np.ndarray, states: np.ndarray, inputs: np.ndarray, dt: float) -> np.ndarray:
         """States (m, K+1, 4) of robots ``idx`` from ``states`` (m, 4) under ``inputs`` (m, K, 2)."""
-        out = np.empty((len(idx), inputs.shape[1] + 1, 4))
-        out[:, 0] = states
-        for k in range(inputs.shape[1]):
-            nxt = bicycle_step(out[:, k], inputs[:, k], dt, self.wheelbase[idx])
-            nxt[:, 3] = np.clip(nxt[:, 3], self.v_min[idx], self.v_max[idx])
-            out[:, k + 1] = nxt
-        return out
+        return rollouts(np.asarray(states, dtype=float), np.asarray(inputs, dtype=float), dt, self.wheelbase[idx], self.v_min[idx], self.v_max[idx])
 
     def footprints(self, idx: np.ndarray, states: np.ndarray) -> np.ndarray:
         """Footprint rows ``[cx, cy, length, width, heading]`` (m, ..., 5) of robots ``idx`` at
