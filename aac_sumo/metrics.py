@@ -26,25 +26,23 @@ def time_to_collision(world: WorldState) -> np.ndarray:
     sum of half-widths laterally. TTC = bumper gap along the heading / closing speed, where the
     closing speed is the ego's speed minus the other's velocity component along the ego heading.
     """
-    centres = world.robot_centres()
-    others = [world.robot_as_obstacle(j) for j in range(len(world.robots))] + list(world.obstacles)
-    out = np.full(len(world.robots), np.nan)
-    for i, robot in enumerate(world.robots):
-        heading, speed = world.states[i, 2], world.states[i, 3]
-        ahead = np.array([np.cos(heading), np.sin(heading)])
-        left = np.array([-ahead[1], ahead[0]])
-        for j, other in enumerate(others):
-            if j == i:
-                continue
-            rel = other.centre - centres[i]
-            lon, lat = rel @ ahead, rel @ left
-            if lon <= 0 or abs(lat) > 0.5 * (robot.width + other.width):
-                continue
-            closing = speed - other.velocity @ ahead
-            gap = max(lon - 0.5 * (robot.length + other.length), 0.0)
-            if closing > 1e-6:
-                out[i] = np.nanmin([out[i], gap / closing])
-    return out
+    n = len(world.robots)
+    centres, heading, speed = world.robot_centres(), world.states[:, 2], world.states[:, 3]
+    ahead = np.column_stack([np.cos(heading), np.sin(heading)])
+    obstacles = world.obstacles
+    other_centres = np.vstack([centres] + [o.centre[None, :] for o in obstacles])
+    other_vel = np.vstack([speed[:, None] * ahead] + [o.velocity[None, :] for o in obstacles])
+    length, width = (np.array([r.length for r in world.robots] + [o.length for o in obstacles]),
+                     np.array([r.width for r in world.robots] + [o.width for o in obstacles]))
+    rel = other_centres[None, :, :] - centres[:, None, :]  # (n, n + obstacles, 2)
+    lon = rel[..., 0] * ahead[:, None, 0] + rel[..., 1] * ahead[:, None, 1]
+    lat = -rel[..., 0] * ahead[:, None, 1] + rel[..., 1] * ahead[:, None, 0]
+    closing = speed[:, None] - np.einsum("jc,ic->ij", other_vel, ahead)
+    gap = np.maximum(lon - 0.5 * (length[:n, None] + length[None, :]), 0.0)
+    valid = (lon > 0) & (np.abs(lat) <= 0.5 * (width[:n, None] + width[None, :])) & (closing > 1e-6)
+    valid[np.arange(n), np.arange(n)] = False
+    ttc = np.where(valid, gap / np.where(valid, closing, 1.0), np.inf).min(axis=1)
+    return np.where(np.isfinite(ttc), ttc, np.nan)
 
 
 def nearest_robot_distance(world: WorldState) -> np.ndarray:

@@ -77,11 +77,12 @@ class WorldState:
     def robot_as_obstacle(self, i: int) -> Obstacle:
         """Controlled robot ``i`` seen by the others, moving at its current velocity."""
         heading, speed = self.states[i, 2], self.states[i, 3]
+        direction = np.array([np.cos(heading), np.sin(heading)])
         return Obstacle(
             name=self.robots[i].name,
             kind="robot",
-            centre=self.robot_centres()[i],
-            velocity=speed * np.array([np.cos(heading), np.sin(heading)]),
+            centre=self.states[i, :2] + self.robots[i].centre_offset * direction,
+            velocity=speed * direction,
             heading=float(heading),
             length=self.robots[i].length,
             width=self.robots[i].width,
