@@ -332,6 +332,19 @@ def test_warm_start_reproduces_first_input():
     np.testing.assert_allclose(second.states, first.states, atol=1e-3)
 
 
+def test_a_warm_start_the_solver_cannot_use_is_retried_cold():
+    """A previous plan that fatrop cannot start from (NaN in it) costs the robot nothing: the
+    same solver is retried from the zero-input rollout and solves, without any ipopt retry, to
+    the plan a cold start gives."""
+    pl = planner(retry=False)
+    ref = straight_reference(0.0, 3.0)
+    cold = pl.plan(ROBOT, WELL_POSED["state"], ref, np.zeros(2), WELL_POSED["obstacles"])
+    broken = Plan(np.full_like(cold.states, np.nan), cold.inputs, "solved", 0.0, "fatrop")
+    retried = pl.plan(ROBOT, WELL_POSED["state"], ref, np.zeros(2), WELL_POSED["obstacles"], previous=broken)
+    assert (retried.status, retried.solver) == ("solved", "fatrop")
+    np.testing.assert_allclose(retried.inputs, cold.inputs, atol=1e-6)
+
+
 @pytest.mark.parametrize("obstacles", [[], WELL_POSED["obstacles"]], ids=["empty", "cone"])
 def test_fatrop_and_ipopt_agree(obstacles):
     """The structure-exploiting fast path and ipopt find the same optimum of a well-posed problem."""

@@ -287,17 +287,17 @@ class MpcPlanner:
             obstacles=self.barrier_parameters(robot, state, u_prev, obstacles),
             band=self.band_rows(robot, corridor, reference, state) if cfg.band else np.zeros(0),
         )
-        if previous is not None and len(previous.inputs) == cfg.horizon:
-            guess = previous.shifted(state)
-        else:
-            guess = self.rollout(robot, state, np.zeros((cfg.horizon, 2)))
+        cold = self.rollout(robot, state, np.zeros((cfg.horizon, 2)))
+        warm = previous.shifted(state) if previous is not None and len(previous.inputs) == cfg.horizon else None
+        # A warm start that fails is retried cold by the same solver (a shifted plan that the moved
+        # regions cut through often traps it), then by ipopt from the first guess.
+        attempts = [(self.problem, warm), (self.problem, cold)] if warm is not None else [(self.problem, cold)]
+        attempts += [(self.retry_problem, warm if warm is not None else cold)] if self.retry_problem is not None else []
         box = np.array([-np.inf, np.inf, -np.inf, np.inf]) if corridor is None or isinstance(corridor, LateralBand) else np.asarray(corridor, dtype=float)
         bounds = ([box[0], box[2], -np.inf, lim.v_min], [box[1], box[3], np.inf, lim.v_max], [lim.a_min, -lim.steer_max], [lim.a_max, lim.steer_max])
 
         total_ms, outcome, used = 0.0, None, cfg.solver
-        for problem in (self.problem, self.retry_problem):
-            if problem is None:
-                continue
+        for problem, guess in attempts:
             lbx, ubx = problem.bounds(state, u_prev, *bounds)
             outcome = problem.solve(problem.parameters(**params), problem.pack(*guess, u_prev), lbx, ubx)
             total_ms += outcome.solve_ms
