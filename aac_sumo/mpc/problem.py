@@ -74,6 +74,12 @@ class MpcProblem:
         self.shape = shape
         n, slots, discs = shape.horizon, shape.slots, shape.discs
         self.n_w = (n + 1) * NZ + n * NU
+        index = np.arange(self.n_w)
+        z_index = np.array([index[self._z_index(k)] for k in range(n + 1)])
+        #: Positions in the decision vector of the states (N+1, NX), the carried inputs m (N+1, NU)
+        #: and the inputs U (N, NU), so that packing and unpacking are single indexing operations.
+        self.state_index, self.carried_index = z_index[:, :NX], z_index[:, NX:]
+        self.input_index = np.array([index[self._u_index(k)] for k in range(n)]).reshape(n, NU)
         self.param_sizes = {
             "wheelbase": 1,
             "gamma": 1,
@@ -154,19 +160,15 @@ class MpcProblem:
     def pack(self, states: np.ndarray, inputs: np.ndarray, u_prev: np.ndarray) -> np.ndarray:
         """Decision vector from states (N+1, 4), inputs (N, 2) and the input applied before them."""
         w = np.empty(self.n_w)
-        before = np.vstack([np.reshape(u_prev, (1, NU)), inputs])
-        for k in range(self.shape.horizon + 1):
-            w[self._z_index(k)] = np.r_[states[k], before[k]]
-            if k < self.shape.horizon:
-                w[self._u_index(k)] = inputs[k]
+        w[self.state_index] = states
+        w[self.carried_index[0]] = u_prev
+        w[self.carried_index[1:]] = inputs
+        w[self.input_index] = inputs
         return w
 
     def unpack(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """States (N+1, 4) and inputs (N, 2) from a decision vector."""
-        n = self.shape.horizon
-        states = np.array([w[self._z_index(k)][:NX] for k in range(n + 1)])
-        inputs = np.array([w[self._u_index(k)] for k in range(n)])
-        return states, inputs
+        return w[self.state_index], w[self.input_index]
 
     def parameters(self, **values) -> np.ndarray:
         """Concatenate named parameter blocks (see ``param_sizes``) into the parameter vector."""
@@ -182,14 +184,10 @@ class MpcProblem:
         """Variable bounds: ``Z0`` pinned to the measured state ``x0`` and the previous input
         ``u_prev``, then per-state (4,) and per-input (2,) limits on the later stages (the
         carried inputs are bounded by the inputs they copy)."""
-        n = self.shape.horizon
-        lower = np.tile(np.asarray(lower_state, dtype=float), (n + 1, 1))
-        upper = np.tile(np.asarray(upper_state, dtype=float), (n + 1, 1))
-        lower[0] = upper[0] = x0
-        lbx = self.pack(lower, np.tile(lower_input, (n, 1)), u_prev)
-        ubx = self.pack(upper, np.tile(upper_input, (n, 1)), u_prev)
-        for k in range(1, n + 1):
-            lbx[self._z_index(k)][NX:], ubx[self._z_index(k)][NX:] = -np.inf, np.inf
+        lbx, ubx = (self.pack(np.broadcast_to(state, self.state_index.shape), np.broadcast_to(inputs, self.input_index.shape), u_prev)
+                    for state, inputs in ((lower_state, lower_input), (upper_state, upper_input)))
+        lbx[self.state_index[0]] = ubx[self.state_index[0]] = x0
+        lbx[self.carried_index[1:]], ubx[self.carried_index[1:]] = -np.inf, np.inf
         return lbx, ubx
 
     def solve(self, params: np.ndarray, w0: np.ndarray, lbx: np.ndarray, ubx: np.ndarray) -> SolveOutcome:
