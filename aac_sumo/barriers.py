@@ -116,13 +116,14 @@ def barrier_value(px, py, cx, cy, cos_phi, sin_phi, inv_a2, inv_b2):
 @dataclass(frozen=True)
 class ObstaclePrediction:
     """Predicted obstacle over the horizon: centres (N+1, 2) [m], velocities (N+1, 2) [m/s],
-    headings (N+1,) [rad], and its footprint length/width [m]."""
+    headings (N+1,) [rad], and its footprint length/width [m]. A batch of M obstacles carries a
+    leading axis: centres (M, N+1, 2), ..., and length/width (M, 1)."""
 
     centres: np.ndarray
     velocities: np.ndarray
     headings: np.ndarray
-    length: float
-    width: float
+    length: float | np.ndarray
+    width: float | np.ndarray
 
 
 def predict_constant_velocity(centre, velocity, heading, length, width, horizon: int, dt: float) -> ObstaclePrediction:
@@ -139,31 +140,43 @@ def predict_constant_velocity(centre, velocity, heading, length, width, horizon:
     )
 
 
+def stack_predictions(preds: list[ObstaclePrediction]) -> ObstaclePrediction:
+    """The batch of ``preds`` (same horizon) along a leading axis."""
+    return ObstaclePrediction(np.stack([p.centres for p in preds]), np.stack([p.velocities for p in preds]), np.stack([p.headings for p in preds]),
+                              np.array([[p.length] for p in preds], dtype=float), np.array([[p.width] for p in preds], dtype=float))
+
+
 def safety_ellipses(pred: ObstaclePrediction, barrier: str, fcbf: FcbfParams) -> np.ndarray:
-    """Safety ellipse per stage as rows ``[cx, cy, a, b, phi]`` (shape (N+1, 5))."""
+    """Safety ellipse per stage as rows ``[cx, cy, a, b, phi]``: (N+1, 5), or (M, N+1, 5) for a batch."""
     if barrier == "fcbf":
         a, b, phi = fcbf_axes(pred.length, pred.width, pred.velocities, pred.headings, fcbf)
     elif barrier == "cbf":
-        a, b, phi = cbf_axes(np.full(len(pred.headings), pred.length), np.full(len(pred.headings), pred.width), pred.headings)
+        shape = np.shape(pred.headings)
+        a, b, phi = cbf_axes(np.broadcast_to(pred.length, shape), np.broadcast_to(pred.width, shape), pred.headings)
     else:
         raise ValueError(f"unknown barrier {barrier!r}; expected one of {BARRIERS}")
-    return np.column_stack([pred.centres, np.broadcast_to(a, phi.shape), np.broadcast_to(b, phi.shape), phi])
+    return np.stack([pred.centres[..., 0], pred.centres[..., 1], np.broadcast_to(a, phi.shape), np.broadcast_to(b, phi.shape), phi], axis=-1)
 
 
-def stage_parameters(ellipses: np.ndarray, d: float, ego=None) -> np.ndarray:
-    """MPC parameters (N+1, 7) of one obstacle slot from ellipses (N+1, 5) and ego clearance ``d``.
+def stage_parameters(ellipses: np.ndarray, d, ego=None) -> np.ndarray:
+    """MPC parameters (..., 7) of obstacle slots from ellipses (..., 5) and ego clearance ``d`` [m].
 
-    ``ego`` (2,) or (N+1, 2), the ego's world position, makes each stage's region tightest on the
-    side facing it (see :func:`inflate_for_disc`); containment holds either way.
+    ``d`` broadcasts against ``ellipses[..., 0]`` (a leading axis of clearances gives one set of
+    parameters each). ``ego`` (..., 2), the ego's world position (broadcast against
+    ``ellipses[..., :2]``), makes each region tightest on the side facing it (see
+    :func:`inflate_for_disc`); containment holds either way.
     """
-    phi = ellipses[:, 4]
+    phi = ellipses[..., 4]
     cos_phi, sin_phi = np.cos(phi), np.sin(phi)
     toward = None
     if ego is not None:
-        rel = np.asarray(ego, dtype=float) - ellipses[:, :2]
-        toward = np.column_stack([cos_phi * rel[:, 0] + sin_phi * rel[:, 1], -sin_phi * rel[:, 0] + cos_phi * rel[:, 1]])
-    big_a, big_b = inflate_for_disc(ellipses[:, 2], ellipses[:, 3], d, toward)
-    return np.column_stack([ellipses[:, 0], ellipses[:, 1], cos_phi, sin_phi, big_a**-2, big_b**-2, np.ones(len(phi))])
+        rel = np.asarray(ego, dtype=float) - ellipses[..., :2]
+        toward = np.stack([cos_phi * rel[..., 0] + sin_phi * rel[..., 1], -sin_phi * rel[..., 0] + cos_phi * rel[..., 1]], axis=-1)
+    big_a, big_b = inflate_for_disc(ellipses[..., 2], ellipses[..., 3], d, toward)
+    out = np.empty(big_a.shape + (N_STAGE_FIELDS,))
+    out[..., 0], out[..., 1], out[..., 2], out[..., 3] = ellipses[..., 0], ellipses[..., 1], cos_phi, sin_phi
+    out[..., 4], out[..., 5], out[..., 6] = big_a**-2, big_b**-2, 1.0
+    return out
 
 
 @dataclass(frozen=True)

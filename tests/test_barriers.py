@@ -26,6 +26,7 @@ from aac_sumo.barriers import (
     predict_constant_velocity,
     safety_ellipses,
     sigmoid,
+    stack_predictions,
     stage_parameters,
 )
 from aac_sumo.geometry import ellipse_signed_distance
@@ -351,6 +352,24 @@ def test_stage_parameters_layout(horizon, d):
     np.testing.assert_allclose(params[:, 4], big_a**-2, rtol=1e-14)
     np.testing.assert_allclose(params[:, 5], big_b**-2, rtol=1e-14)
     assert np.all(params[:, 6] == 1.0)
+
+
+@pytest.mark.parametrize("barrier", ["fcbf", "cbf"])
+def test_batched_ellipses_and_parameters_equal_one_at_a_time(barrier):
+    """A batch of predictions and of clearances gives exactly the per-obstacle, per-clearance rows."""
+    rng = np.random.default_rng(0)
+    preds = [predict_constant_velocity(rng.normal(0, 9, 2), rng.normal(0, 4, 2), rng.uniform(-3, 3), rng.uniform(1, 5), rng.uniform(0.5, 2), 6, 0.1)
+             for _ in range(5)]
+    ells = safety_ellipses(stack_predictions(preds), barrier, FcbfParams())
+    assert ells.shape == (5, 7, 5)
+    ds, ego = np.array([1.1, 0.8]), np.array([2.0, -1.0])
+    params = stage_parameters(ells, ds[:, None, None], ego)
+    assert params.shape == (2, 5, 7, N_STAGE_FIELDS)
+    for m, pred in enumerate(preds):
+        one = safety_ellipses(pred, barrier, FcbfParams())
+        np.testing.assert_array_equal(ells[m], one)
+        for j, d in enumerate(ds):
+            np.testing.assert_array_equal(params[j, m], stage_parameters(one, d, ego))
 
 
 def test_stage_parameters_with_ego_are_tight_on_the_ego_side():

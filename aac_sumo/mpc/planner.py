@@ -13,7 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aac_sumo.barriers import FcbfParams, ObstaclePrediction, RegionTrack, barrier_value, inactive_slot, predict_constant_velocity, safety_ellipses, stage_parameters
+from aac_sumo.barriers import (N_STAGE_FIELDS, FcbfParams, ObstaclePrediction, RegionTrack, barrier_value, inactive_slot, predict_constant_velocity,
+                               safety_ellipses, stack_predictions, stage_parameters)
 from aac_sumo.dynamics import bicycle_step, heading_hold_steer
 from aac_sumo.geometry import wrap_angle
 from aac_sumo.mpc.problem import OPEN_BAND, ProblemShape, get_problem
@@ -128,35 +129,45 @@ class MpcPlanner:
         retry = config.retry_with_ipopt and config.solver != "ipopt"
         self.retry_problem = get_problem(config.shape("ipopt")) if retry else None
 
-    def nearest_regions(self, state: np.ndarray, obstacles: list[Obstacle | ObstaclePrediction | RegionTrack]) -> list[tuple[np.ndarray, bool]]:
-        """Safety ellipses (N+1, 5) per stage of the ``slots`` obstacles nearest to ``state``,
-        each with whether it is a robot's swept region."""
+    def nearest_regions(self, state: np.ndarray, obstacles: list[Obstacle | ObstaclePrediction | RegionTrack]) -> tuple[np.ndarray, np.ndarray]:
+        """Safety ellipses (N+1, k, 5) per stage of the k <= ``slots`` obstacles nearest to
+        ``state`` (by the stage-0 distance [m] from its rear axle to the ellipse's centre less the
+        larger semi-axis; ties keep the given order), and whether each is a robot's swept region (k,)."""
         cfg = self.config
-        regions = [(o.ellipses[: cfg.horizon + 1], True) if isinstance(o, RegionTrack) else
-                   (safety_ellipses(o if isinstance(o, ObstaclePrediction) else predict(o, cfg.horizon, cfg.dt), cfg.barrier, cfg.fcbf), False)
-                   for o in obstacles]
+        swept = np.array([isinstance(o, RegionTrack) for o in obstacles], dtype=bool)
+        ellipses = np.empty((len(obstacles), cfg.horizon + 1, 5))
+        if swept.any():
+            ellipses[swept] = [o.ellipses[: cfg.horizon + 1] for o in obstacles if isinstance(o, RegionTrack)]
+        if not swept.all():
+            preds = [o if isinstance(o, ObstaclePrediction) else predict(o, cfg.horizon, cfg.dt) for o in obstacles if not isinstance(o, RegionTrack)]
+            ellipses[~swept] = safety_ellipses(stack_predictions(preds), cfg.barrier, cfg.fcbf)
         if cfg.pedestrian_reach > 0.0 or cfg.pedestrian_margin > 0.0:
-            growth = cfg.pedestrian_margin + cfg.pedestrian_reach * cfg.dt * np.arange(cfg.horizon + 1)
-            for (e, _), o in zip(regions, obstacles):
-                if isinstance(o, Obstacle) and o.kind == "pedestrian":
-                    e[:, 2:4] += growth[:, None]
-        if len(regions) > cfg.slots:
-            gaps = [np.hypot(*(e[0, :2] - state[:2])) - max(e[0, 2], e[0, 3]) for e, _ in regions]
-            regions = [regions[i] for i in np.argsort(gaps, kind="stable")[: cfg.slots]]
-        return regions
+            walker = np.array([isinstance(o, Obstacle) and o.kind == "pedestrian" for o in obstacles], dtype=bool)
+            ellipses[walker, :, 2:4] += cfg.pedestrian_margin + cfg.pedestrian_reach * cfg.dt * np.arange(cfg.horizon + 1)[:, None]
+        if len(obstacles) > cfg.slots:
+            now = ellipses[:, 0]
+            gaps = np.hypot(now[:, 0] - state[0], now[:, 1] - state[1]) - np.maximum(now[:, 2], now[:, 3])
+            nearest = np.argsort(gaps, kind="stable")[: cfg.slots]
+            ellipses, swept = ellipses[nearest], swept[nearest]
+        return ellipses.transpose(1, 0, 2), swept
 
-    def slot_parameters(self, robot: RobotSpec, state: np.ndarray, regions: list[np.ndarray], d: float) -> np.ndarray:
-        """Stage parameters (N+1, slots, 7) of ``regions`` grown for ego clearance ``d`` [m]."""
+    def slot_parameters(self, robot: RobotSpec, state: np.ndarray, regions: np.ndarray, d) -> np.ndarray:
+        """Stage parameters (..., N+1, slots, 7) of ``regions`` (N+1, k, 5), k <= slots, grown for
+        ego clearance ``d`` [m]: a float, or an array (...) giving one set per clearance. The
+        slots after the k regions are switched off."""
+        cfg = self.config
         centre = state[:2] + robot.centre_offset * np.array([np.cos(state[2]), np.sin(state[2])])
-        slots = [stage_parameters(e, d, centre) for e in regions]
-        slots += [inactive_slot(self.config.horizon)] * (self.config.slots - len(slots))
-        return np.stack(slots, axis=1)
+        d = np.asarray(d, dtype=float)
+        params = np.empty(d.shape + (cfg.horizon + 1, cfg.slots, N_STAGE_FIELDS))
+        params[...] = inactive_slot(cfg.horizon)[:, None, :]
+        params[..., : regions.shape[1], :] = stage_parameters(regions, d[..., None, None], centre)
+        return params
 
     def obstacle_parameters(self, robot: RobotSpec, state: np.ndarray, obstacles: list[Obstacle | ObstaclePrediction | RegionTrack]) -> np.ndarray:
         """Stage parameters (N+1, slots, 7) of the nearest obstacles around ``state``, each
         region grown by the ego's disc radius plus ``d_safe``."""
         _, radius = ego_discs(robot, self.config.discs)
-        regions = [e for e, _ in self.nearest_regions(state, obstacles)]
+        regions, _ = self.nearest_regions(state, obstacles)
         return self.slot_parameters(robot, state, regions, radius + self.config.d_safe)
 
     def barrier_parameters(self, robot: RobotSpec, state: np.ndarray, u_prev: np.ndarray,
@@ -164,13 +175,11 @@ class MpcPlanner:
         """The MPC's obstacle parameters (N+1, slots, 7): the nearest regions, grown for the ego's
         discs, with intrusions held (see :meth:`hold_intrusions`)."""
         _, radius = ego_discs(robot, self.config.discs)
-        nearest = self.nearest_regions(state, obstacles)
-        regions = [e for e, _ in nearest]
-        params = self.slot_parameters(robot, state, regions, radius + self.config.d_safe)
-        floor = self.slot_parameters(robot, state, regions, radius)  # contact: grown by the disc alone
-        for k, (e, swept) in enumerate(nearest):
-            if swept:  # a robot's swept region already contains its footprint with room to spare
-                floor[:, k, 4], floor[:, k, 5] = e[:, 2] ** -2, e[:, 3] ** -2
+        regions, swept = self.nearest_regions(state, obstacles)
+        # floor: contact, grown by the disc alone
+        params, floor = self.slot_parameters(robot, state, regions, radius + np.array([self.config.d_safe, 0.0]))
+        swept = np.flatnonzero(swept)  # a robot's swept region already contains its footprint with room to spare
+        floor[:, swept, 4:6] = regions[:, swept, 2:4] ** -2.0
         room = np.minimum(floor[:, :, 4] / params[:, :, 4], floor[:, :, 5] / params[:, :, 5]).min(axis=0)
         return self.hold_intrusions(self.drop_out_of_reach(params, robot, state), robot, state, u_prev, room)
 
