@@ -99,6 +99,8 @@ COMMON: dict[str, dict[str, Key]] = {
         "horizon": Key(int, 10, "MPC horizon N [steps]", check=lambda n: 1 <= n <= 100, expect="in 1..100"),
         "solver": Key(("fatrop", "sqp", "ipopt"), "fatrop", "NLP solver of the fast path"),
         "retry_with_ipopt": Key(bool, True, "retry a failed fast-path solve once with ipopt"),
+        "warm_start": Key(bool, True, "start each solve from the previous plan shifted by one period (else from the "
+                          "zero-input rollout); a failed warm start is retried cold"),
         "codegen": Key(bool, False, "compile the fast path to C with gcc (cached on disk; ~2x faster solves)"),
         "gamma": Key(float, 0.3, "discrete barrier decay rate", check=lambda g: 0 < g <= 1, expect="in (0, 1]"),
         "d_safe": Key(float, 0.2, "margin added to the ego's covering-disc radius [m]", **NN),

@@ -10,6 +10,7 @@ What a user of :class:`MpcPlanner` may rely on:
 * warm starts and the solver choice do not change a well-posed solution.
 """
 
+import dataclasses
 from functools import lru_cache
 
 import numpy as np
@@ -343,6 +344,22 @@ def test_a_warm_start_the_solver_cannot_use_is_retried_cold():
     retried = pl.plan(ROBOT, WELL_POSED["state"], ref, np.zeros(2), WELL_POSED["obstacles"], previous=broken)
     assert (retried.status, retried.solver) == ("solved", "fatrop")
     np.testing.assert_allclose(retried.inputs, cold.inputs, atol=1e-6)
+
+
+def test_without_warm_start_the_previous_plan_is_ignored():
+    """With ``warm_start`` off, a solve given a previous plan is the cold solve, iteration for
+    iteration; with it on, the same previous plan changes the iterations."""
+    base = planner(retry=False)
+    cold_planner = MpcPlanner(dataclasses.replace(base.config, warm_start=False))
+    ref = straight_reference(0.0, 3.0)
+    args = (ROBOT, WELL_POSED["state"], ref, np.zeros(2), WELL_POSED["obstacles"])
+    cold = cold_planner.plan(*args)
+    previous = Plan(cold.states + 0.3, cold.inputs, "solved", 0.0, "fatrop")
+    ignored = cold_planner.plan(*args, previous=previous)
+    warm = base.plan(*args, previous=previous)
+    assert (ignored.iterations, ignored.status) == (cold.iterations, "solved")
+    np.testing.assert_array_equal(ignored.inputs, cold.inputs)
+    assert warm.iterations != cold.iterations
 
 
 @pytest.mark.parametrize("obstacles", [[], WELL_POSED["obstacles"]], ids=["empty", "cone"])

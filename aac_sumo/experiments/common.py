@@ -58,6 +58,7 @@ def mpc_config(scenario: Scenario) -> MpcConfig:
         q_speed=c["q_speed"], r_accel=c["r_accel"], r_steer=c["r_steer"], s_accel=c["s_accel"],
         s_steer=c["s_steer"], terminal_scale=c["terminal_scale"], max_iter=c["max_iter"],
         max_cpu_time=c["max_cpu_time"], retry_with_ipopt=c["retry_with_ipopt"], codegen=c["codegen"],
+        warm_start=c["warm_start"],
         pedestrian_reach=c["pedestrian_reach"], pedestrian_margin=c["pedestrian_margin"],
     )
 

@@ -44,6 +44,8 @@ class MpcConfig:
     ``pedestrian_reach`` [m/s] grows a pedestrian's region at stage k by ``pedestrian_reach * k *
     dt`` in every direction: a walker may start, stop or turn at any moment; ``pedestrian_margin``
     [m] grows it at every stage (pedestrians have priority: cars keep clear of them).
+    ``warm_start`` starts each solve from the robot's previous plan, shifted by one period,
+    instead of the zero-input rollout (a failed warm start is retried cold either way).
     """
 
     horizon: int = 10
@@ -67,6 +69,7 @@ class MpcConfig:
     max_cpu_time: float = 60.0
     retry_with_ipopt: bool = True
     codegen: bool = False
+    warm_start: bool = True
     band: bool = False
     pedestrian_reach: float = 0.0
     pedestrian_margin: float = 0.0
@@ -297,7 +300,8 @@ class MpcPlanner:
             band=self.band_rows(robot, corridor, reference, state) if cfg.band else np.zeros(0),
         )
         cold = self.rollout(robot, state, np.zeros((cfg.horizon, 2)))
-        warm = previous.shifted(state) if previous is not None and len(previous.inputs) == cfg.horizon else None
+        usable = cfg.warm_start and previous is not None and len(previous.inputs) == cfg.horizon
+        warm = previous.shifted(state) if usable else None
         # A warm start that fails is retried cold by the same solver (a shifted plan that the moved
         # regions cut through often traps it), then by ipopt from the first guess.
         attempts = [(self.problem, warm), (self.problem, cold)] if warm is not None else [(self.problem, cold)]
