@@ -230,8 +230,7 @@ def test_safety_check_flags_exactly_what_its_definition_says(seed, margin):
     """The check measures only pairs whose circumscribed discs come within the margin. It flags
     the same robots as the definition applied to every pair: at some stage of the robot's
     course some robot or obstacle gets closer than ``margin``, closer than now and than braking
-    at once would get at that stage (standing obstacles eased by the margin for robots on a
-    plan)."""
+    at once would get at that stage (standing obstacles count only on contact)."""
     rng = np.random.default_rng(seed)
     n = 5
     robots = [robot(i) for i in range(n)]
@@ -244,8 +243,7 @@ def test_safety_check_flags_exactly_what_its_definition_says(seed, margin):
     config = MpcConfig(dt=DT, pedestrian_reach=1.0, pedestrian_margin=0.2)
     check = SafetyCheck(world, fleet, config, rng.uniform(-np.pi, np.pi, n))
     inputs = np.column_stack([rng.uniform(LIMITS.a_min, LIMITS.a_max, n), rng.uniform(-0.6, 0.6, n)])
-    planned = rng.random(n) < 0.5
-    got = check.unsafe(np.arange(n), inputs, planned, margin)
+    got = check.unsafe(np.arange(n), inputs, margin)
 
     steps, fixed, standing = check.surroundings()
     rows = fleet.footprints(np.arange(n), check.stopping_course(inputs, steps))
@@ -256,7 +254,7 @@ def test_safety_check_flags_exactly_what_its_definition_says(seed, margin):
             continue
         course = rect_clearance_rows(rows[i], targets[t])
         braking = rect_clearance_rows(fixed[i], targets[t])
-        if planned[i] and t >= 2 * n and standing[t - 2 * n]:
+        if t >= 2 * n and standing[t - 2 * n]:
             course, braking = course + margin, braking + margin
         later = course[1:]
         expected[i] |= bool(np.any((later < margin) & (later < np.minimum(course[0], braking[1:]) - BRAKING_TIE)))
@@ -275,8 +273,26 @@ def test_safety_stop_keeps_a_car_from_creeping_into_a_crossing_walker():
     far = np.array([0.0, 100.0, 0.0, 10.0])  # a car at 10 m/s far away: the courses last 1.9 s
     world = WorldState(0.0, np.array([[0.0, 0.0, 0.0, 0.0], far]), [car, car], [walker])
     check = SafetyCheck(world, Fleet([car, car]), MpcConfig(dt=DT, pedestrian_reach=1.5, pedestrian_margin=1.0), np.zeros(2))
-    assert check.unsafe(np.array([0]), np.array([[3.0, 0.0], [0.0, 0.0]]), np.array([False]), 0.3).tolist() == [True]
-    assert check.unsafe(np.array([0]), np.array([[0.0, 0.0], [0.0, 0.0]]), np.array([False]), 0.3).tolist() == [False]
+    assert check.unsafe(np.array([0]), np.array([[3.0, 0.0], [0.0, 0.0]]), 0.3).tolist() == [True]
+    assert check.unsafe(np.array([0]), np.array([[0.0, 0.0], [0.0, 0.0]]), 0.3).tolist() == [False]
+
+
+def test_a_car_stopped_within_the_margin_of_a_cone_may_creep_away_but_not_into_it():
+    """A car (4 m x 1.8 m) stands pointing 35 degrees to the right of its lane, its front 0.25 m
+    from a cone, as in a 15-car AAC run that deadlocked there: it does not reverse, so it can
+    only leave forwards, turning left and coming a little closer to the cone first. A cone
+    cannot come at it, so only contact counts: creeping away passes the check within the
+    0.3 m margin, and the same car at 3 m/s, which cannot stop short of the cone, is flagged."""
+    limits = VehicleLimits(a_min=-6.0, a_max=3.0, steer_max=0.5, v_min=0.0, v_max=20.0)
+    car = RobotSpec("car", 4.0, 1.8, BicycleModel(2.6, limits))
+    heading = -0.615
+    ahead = np.array([np.cos(heading), np.sin(heading)])
+    nose = (car.centre_offset + 2.0) * ahead  # the middle of the front bumper, from the rear axle
+    cone = Obstacle("cone", "cone", nose + (0.25 + 0.2) * ahead, np.zeros(2), heading, 0.4, 0.4)
+    for speed, flagged in ((0.0, False), (3.0, True)):
+        world = WorldState(0.0, np.array([[0.0, 0.0, heading, speed]]), [car], [cone])
+        check = SafetyCheck(world, Fleet([car]), MpcConfig(dt=DT), np.zeros(1))
+        assert check.unsafe(np.array([0]), np.array([[3.0 if speed == 0.0 else 0.0, 0.33]]), 0.3).tolist() == [flagged]
 
 
 # --- LFC --------------------------------------------------------------------------------------

@@ -12,7 +12,8 @@ Each control period exactly one active robot holds authority and solves MPC-(F)C
 4. Optional **safety stop** (beyond the paper, ``safety_stop``; see
    :mod:`~aac_sumo.coordination.safety`): a non-authority robot whose stored input, followed
    by braking to a stop, would bring its footprint within ``safety_margin`` of another robot's
-   or an obstacle's footprint, closer than it is now and than braking at once, brakes instead
+   or a moving obstacle's footprint (a standing one: into contact), closer than it is now and
+   than braking at once, brakes instead
    (as gently as passes the same check, turning towards its reference's heading) and drops its
    plan.
    The authority robot's first planned input gets the same check after its solve, but against
@@ -101,11 +102,10 @@ class AacCoordinator(Coordinator):
         for row, j in enumerate(others):
             horizon_inputs[row], records[j].mode = self.intended_inputs(world, j, done[j], cfg.horizon + 2)
 
-        planned = np.array([records[j].mode == "plan" for j in others], dtype=bool)
         inputs[others] = horizon_inputs[:, 0]
         safety = self.safety_check(world) if self.params.safety_stop else None
         if safety is not None:
-            inputs = safety.safe_inputs(others, inputs, planned, self.params.safety_margin)
+            inputs = safety.safe_inputs(others, inputs, self.params.safety_margin)
         first = inputs[others]
         stops = np.any(first != horizon_inputs[:, 0], axis=1)
         for row in np.flatnonzero(stops):
@@ -128,13 +128,13 @@ class AacCoordinator(Coordinator):
         self.used[authority] = 1
         stopped = int(stops.sum())
         if safety is not None:
-            planned, margin = True, 0.0  # its plan looks only N periods ahead: no contact beyond them
+            margin = 0.0  # its plan looks only N periods ahead: no contact beyond them
             if decided.status != "solved" and self.params.fallback == "tracking":
                 inputs[authority] = track(world.robots[authority], world.states[authority], self.tasks[authority],
                                           self.params.lookahead, self.params.speed_gain)
                 self.used[authority] = len(self.plans[authority].inputs)  # no plan to follow: tracking until its next turn
-                decided.mode, planned, margin = "tracking", False, self.params.safety_margin
-            checked = safety.safe_inputs(np.array([authority]), inputs, np.array([planned]), margin)
+                decided.mode, margin = "tracking", self.params.safety_margin
+            checked = safety.safe_inputs(np.array([authority]), inputs, margin)
             if np.any(checked[authority] != inputs[authority]):
                 inputs[authority], decided.mode = checked[authority], "safety_stop"
                 self.used[authority] = len(self.plans[authority].inputs)

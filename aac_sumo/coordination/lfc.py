@@ -87,8 +87,7 @@ class LfcCoordinator(Coordinator):
         stopped = 0
         if self.params.safety_stop:
             moving = np.flatnonzero([r.mode in ("mpc", "tracking") for r in records])
-            planned = np.array([records[i].mode == "mpc" for i in moving], dtype=bool)
-            checked = self.safety_check(world).safe_inputs(moving, inputs, planned, self.params.safety_margin)
+            checked = self.safety_check(world).safe_inputs(moving, inputs, self.params.safety_margin)
             for i in moving[np.any(checked[moving] != inputs[moving], axis=1)]:
                 records[i].mode = "safety_stop"
                 stopped += 1

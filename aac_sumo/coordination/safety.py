@@ -6,7 +6,9 @@ brakes along (its reference's where it is: a car brakes along its lane, as the p
 fallback does). It must brake instead when, at some stage of that course, its footprint comes
 within ``margin`` [m] of another robot's footprint at the same stage, or of an obstacle moving
 at constant velocity, closer to it than it is now and than braking at once would bring it at
-that stage. (Compared stage by stage: a pedestrian's region grows with time, so late in both
+that stage. Obstacles that surely stand (cones) count only on contact: they cannot come at the
+robot, and a car that has stopped within the margin of a cone, pointing at it, could otherwise
+never leave (it does not reverse). (Compared stage by stage: a pedestrian's region grows with time, so late in both
 courses it swallows the car whatever it did, and a comparison of the two courses' closest
 approaches let a car creep into a walker.)
 Braking at once is always allowed: a robot standing beside a pedestrian who may start walking
@@ -47,7 +49,7 @@ class SafetyCheck:
         idx = slice(None) if idx is None else idx
         return heading_hold_steer(states, self.headings[idx], self.config.dt, self.fleet.wheelbase[idx], self.steer_max[idx], FALLBACK_TURN_TIME)
 
-    def safe_inputs(self, check: np.ndarray, inputs: np.ndarray, planned: np.ndarray, margin: float) -> np.ndarray:
+    def safe_inputs(self, check: np.ndarray, inputs: np.ndarray, margin: float) -> np.ndarray:
         """Every robot's inputs (n, 2) after the check of robots ``check``: one whose intended
         input fails :meth:`unsafe` gets the gentlest braking (coasting, then a third, two thirds
         and all of its strongest braking) that passes, else full braking, steering as braking
@@ -55,23 +57,21 @@ class SafetyCheck:
         world = self.world
         steer = self.braking_steer(world.states)
         chosen = inputs.copy()
-        flagged = self.unsafe(check, chosen, planned, margin)
+        flagged = self.unsafe(check, chosen, margin)
         a_min = self.fleet.a_min[check]
         for share in (0.0, 1 / 3, 2 / 3):
             if not flagged.any():
                 break
             rows = check[flagged]
             chosen[rows] = np.column_stack([np.minimum(inputs[rows, 0], share * a_min[flagged]), steer[rows]])
-            flagged &= self.unsafe(check, chosen, planned, margin)
+            flagged &= self.unsafe(check, chosen, margin)
         for i in check[flagged]:
             chosen[i] = [world.robots[i].model.limits.braking_input(world.states[i, 3], self.config.dt)[0], steer[i]]
         return chosen
 
-    def unsafe(self, check: np.ndarray, inputs: np.ndarray, planned: np.ndarray, margin: float) -> np.ndarray:
+    def unsafe(self, check: np.ndarray, inputs: np.ndarray, margin: float) -> np.ndarray:
         """Which of robots ``check`` must brake instead of applying ``inputs`` (n, 2, every robot's
-        input this period as far as known; zero where not). Robots following an MPC plan
-        (``planned`` rows of ``check``), which already keeps its margin from standing obstacles,
-        stop for those only before an actual contact."""
+        input this period as far as known; zero where not)."""
         n, m = len(self.world.robots), len(check)
         if m == 0:
             return np.zeros(0, dtype=bool)
@@ -80,7 +80,7 @@ class SafetyCheck:
         targets = np.concatenate([rows, fixed])  # (2 n + obstacles, K+1, 5)
         skip = np.zeros((m, len(targets)), dtype=bool)
         skip[np.arange(m), check] = skip[np.arange(m), n + check] = True  # itself, on either course
-        eased = planned[:, None] & np.r_[np.zeros(2 * n, dtype=bool), standing][None, :]
+        eased = np.broadcast_to(np.r_[np.zeros(2 * n, dtype=bool), standing], skip.shape)
         return courses_unsafe(rows[check], fixed[check], targets, skip, eased, margin, BRAKING_TIE)
 
     def surroundings(self) -> tuple[int, np.ndarray, np.ndarray]:
