@@ -334,13 +334,13 @@ def test_warm_start_reproduces_first_input():
 
 
 def test_a_warm_start_the_solver_cannot_use_is_retried_cold():
-    """A previous plan that fatrop cannot start from (NaN in it) costs the robot nothing: the
-    same solver is retried from the zero-input rollout and solves, without any ipopt retry, to
-    the plan a cold start gives."""
+    """A previous plan that fatrop cannot start from (500 m away: it stops after a few
+    iterations) costs the robot nothing: the same solver is retried from the zero-input
+    rollout and solves, without any ipopt retry, to the plan a cold start gives."""
     pl = planner(retry=False)
     ref = straight_reference(0.0, 3.0)
     cold = pl.plan(ROBOT, WELL_POSED["state"], ref, np.zeros(2), WELL_POSED["obstacles"])
-    broken = Plan(np.full_like(cold.states, np.nan), cold.inputs, "solved", 0.0, "fatrop")
+    broken = Plan(cold.states + np.array([500.0, 500.0, 0.0, 0.0]), cold.inputs, "solved", 0.0, "fatrop")
     retried = pl.plan(ROBOT, WELL_POSED["state"], ref, np.zeros(2), WELL_POSED["obstacles"], previous=broken)
     assert (retried.status, retried.solver) == ("solved", "fatrop")
     np.testing.assert_allclose(retried.inputs, cold.inputs, atol=1e-6)
