@@ -13,9 +13,8 @@ Each control period exactly one active robot holds authority and solves MPC-(F)C
    :mod:`~aac_sumo.coordination.safety`): a non-authority robot whose stored input, followed
    by braking to a stop, would bring its footprint within ``safety_margin`` of another robot's
    or a moving obstacle's footprint (a standing one: into contact), closer than it is now and
-   than braking at once, brakes instead
-   (as gently as passes the same check, turning towards its reference's heading) and drops its
-   plan.
+   than braking at once, brakes instead (as gently as passes the same check, turning towards
+   its reference's heading) and drops its plan.
    The authority robot's first planned input gets the same check after its solve, but against
    actual contact only (its MPC keeps its own margins, and looks only N periods ahead).
    When its solve fails it brakes along its lane (the planner's fallback plan, as the paper's

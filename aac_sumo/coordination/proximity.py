@@ -2,12 +2,13 @@
 
 Positions are world-frame [m]. The decision grows one sampling tree per candidate robot, all
 trees in one compiled loop (:func:`~aac_sumo.kernels.grow_trees`): each iteration draws a
-seeded random sample within ``sample_radius`` of every robot, finds each tree's nearest node and steps ``tree_step`` toward the sample. Every
-new node is scored ``alpha * progress - beta * collision_cost``, where progress is the reduction
+seeded random sample within ``sample_radius`` of every robot, finds each tree's nearest node
+and steps ``tree_step`` toward the sample. Every new node is scored ``alpha * progress - beta * collision_cost``, where progress is the reduction
 of the distance to the goal from the robot's position (the paper's ``alpha * d(s, g)`` rewards
 moving away from the goal, a sign slip) and the collision cost sums ``(1 - d / r)^2`` over the
 other robots and obstacles closer than ``r``, along the node's path from the root. Each robot's
-best-scoring node ends its best path; the robot whose best path makes the most progress gets authority.
+best-scoring node ends its best path; the robot whose best path makes the most progress gets
+authority.
 """
 
 from __future__ import annotations

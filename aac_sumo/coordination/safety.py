@@ -6,11 +6,11 @@ brakes along (its reference's where it is: a car brakes along its lane, as the p
 fallback does). It must brake instead when, at some stage of that course, its footprint comes
 within ``margin`` [m] of another robot's footprint at the same stage, or of an obstacle moving
 at constant velocity, closer to it than it is now and than braking at once would bring it at
-that stage. Obstacles that surely stand (cones) count only on contact: they cannot come at the
-robot, and a car that has stopped within the margin of a cone, pointing at it, could otherwise
-never leave (it does not reverse). (Compared stage by stage: a pedestrian's region grows with time, so late in both
+that stage. (Compared stage by stage: a pedestrian's region grows with time, so late in both
 courses it swallows the car whatever it did, and a comparison of the two courses' closest
-approaches let a car creep into a walker.)
+approaches let a car creep into a walker.) Obstacles that surely stand (cones) count only on
+contact: they cannot come at the robot, and a car that has stopped within the margin of a
+cone, pointing at it, could otherwise never leave (it does not reverse).
 Braking at once is always allowed: a robot standing beside a pedestrian who may start walking
 may drive away from them. The other robots are taken both on their own such course and braking
 at once, since either may happen. A pedestrian's footprint grows on every side by the
