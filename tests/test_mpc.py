@@ -18,7 +18,7 @@ import pytest
 from hypothesis import HealthCheck, assume, event, given, note, settings
 from hypothesis import strategies as st
 
-from aac_sumo.barriers import barrier_value, safety_ellipses
+from aac_sumo.barriers import barrier_value, inactive_slot, safety_ellipses
 from aac_sumo.dynamics import BicycleModel, VehicleLimits, bicycle_step
 from aac_sumo.geometry import ellipse_signed_distance
 from aac_sumo.mpc.planner import STATUSES, MpcConfig, MpcPlanner, Plan, ego_discs, predict
@@ -451,3 +451,28 @@ def test_a_standing_robot_on_its_band_edge_can_plan():
     plan = pl.plan(ROBOT, state, straight_reference(0.0, 3.0), np.zeros(2), [], corridor=band)
     assert (plan.status, plan.solver) == ("solved", "fatrop")
     assert plan.states[-1, 0] > 0.1  # it drives off
+
+
+def test_a_compiled_problem_is_reused_without_building_it_again(tmp_path, monkeypatch):
+    """With ``codegen`` the problem's functions are compiled once into a library keyed by the
+    shape, casadi's version and the problem's source; a second build of the same shape loads
+    that library without building the symbolic problem, and solves to the same plan. Another
+    shape gets another library."""
+    from aac_sumo.mpc import problem
+
+    monkeypatch.setenv("AAC_SUMO_CACHE", str(tmp_path))
+    shape = problem.ProblemShape(horizon=3, slots=1, discs=1, solver="fatrop", dt=DT, codegen=True)
+    first = problem.MpcProblem(shape)
+    assert problem.library_path(shape).exists()
+    monkeypatch.setattr(problem.MpcProblem, "_symbolic", lambda self: pytest.fail("built the problem again"))
+    again = problem.MpcProblem(shape)
+    params = first.parameters(wheelbase=0.8, gamma=0.3, disc_offsets=[0.4], weights=np.ones(12),
+                              x_ref=np.column_stack([np.arange(4.0), np.zeros((4, 2)), np.ones(4)]),
+                              obstacles=inactive_slot(3)[:, None, :], band=np.zeros(0))
+    x0 = np.array([0.0, 0.1, 0.0, 1.0])
+    lbx, ubx = first.bounds(x0, np.zeros(2), [-np.inf, -np.inf, -np.inf, 0.0], [np.inf, np.inf, np.inf, 5.0], [-3.0, -0.5], [3.0, 0.5])
+    w0 = first.pack(np.tile(x0, (4, 1)), np.zeros((3, 2)), np.zeros(2))
+    a, b = first.solve(params, w0, lbx, ubx), again.solve(params, w0, lbx, ubx)
+    assert a.status == b.status == "solved"
+    np.testing.assert_allclose(a.inputs, b.inputs, atol=1e-9)
+    assert problem.library_path(shape) != problem.library_path(dataclasses.replace(shape, horizon=4))

@@ -89,6 +89,26 @@ class MpcProblem:
             "obstacles": (n + 1) * slots * N_STAGE_FIELDS,
             "band": n * BAND_FIELDS if shape.band else 0,
         }
+        self.equality = constraint_kinds(shape)
+        self.n_g = len(self.equality)
+        self._lbg = np.zeros(self.n_g)
+        self._ubg = np.where(self.equality, 0.0, np.inf)
+        plugin, options = _solver_plugin(shape), _solver_options(shape, self.equality)
+        library = library_path(shape) if shape.codegen else None
+        if library is not None and library.exists():  # compiled before: no need to build the problem again
+            self.solver = ca.nlpsol("mpc", plugin, str(library), options)
+            return
+        w, p, cost, g = self._symbolic()
+        self.solver = ca.nlpsol("mpc", plugin, {"x": w, "p": p, "f": cost, "g": g}, options)
+        if library is not None:
+            compile_dependencies(self.solver, library)
+            self.solver = ca.nlpsol("mpc", plugin, str(library), options)
+
+    def _symbolic(self) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
+        """Decision vector, parameter vector, cost and constraints (in :func:`constraint_kinds`'
+        order) as casadi SX expressions."""
+        shape = self.shape
+        n, slots, discs = shape.horizon, shape.slots, shape.discs
         p = ca.SX.sym("p", sum(self.param_sizes.values()))
         par = self._split(p)
         w = ca.SX.sym("w", self.n_w)
@@ -102,14 +122,13 @@ class MpcProblem:
         band = ca.reshape(par["band"], BAND_FIELDS, n) if shape.band else None
 
         cost = 0
-        g, equality = [], []
+        g = []
         for k in range(n):
             err = xs[k] - x_ref[:, k]
             du = us[k] - ms[k]
             cost += ca.dot(q, err**2) + ca.dot(r, us[k] ** 2) + ca.dot(s, du**2)
             x_next = bicycle_step(xs[k], us[k], shape.dt, par["wheelbase"], xp=ca)
             g.append(zs[k + 1] - ca.vertcat(x_next, us[k]))
-            equality += [True] * NZ
             # barrier condition of stage k depends on (x_k, u_k) only
             for slot in range(slots):
                 ob_now = obstacles[:, k * slots + slot]
@@ -119,22 +138,14 @@ class MpcProblem:
                     h_next = self._disc_barrier(x_next, par["disc_offsets"][disc], ob_next)
                     active = ob_next[6]
                     g.append(active * (h_next - (1 - par["gamma"]) * h_now) + (1 - active))
-                    equality.append(False)
             if band is not None:  # lateral band of the rear axle at stage k+1: lo <= n . p <= hi
                 across = band[0, k] * x_next[0] + band[1, k] * x_next[1]
                 g += [across - band[2, k], band[3, k] - across]
-                equality += [False, False]
         err = xs[n] - x_ref[:, n]
         cost += ca.dot(pw, err**2)
         g = ca.cse(ca.vertcat(*g))
-        self.n_g = g.shape[0]
-        self.equality = equality
-        self._lbg = np.zeros(len(equality))
-        self._ubg = np.where(equality, 0.0, np.inf)
-        plugin, options = _solver_plugin(shape), _solver_options(shape, equality)
-        self.solver = ca.nlpsol("mpc", plugin, {"x": w, "p": p, "f": cost, "g": g}, options)
-        if shape.codegen:
-            self.solver = ca.nlpsol("mpc", plugin, compiled_dependencies(self.solver), options)
+        assert g.shape[0] == self.n_g, "constraints out of step with constraint_kinds"
+        return w, p, cost, g
 
     def _split(self, p):
         out, i = {}, 0
@@ -236,27 +247,40 @@ def cache_dir() -> Path:
     return Path(os.environ.get("AAC_SUMO_CACHE", Path.home() / ".cache" / "aac-sumo"))
 
 
-def compiled_dependencies(solver: ca.Function) -> str:
-    """Path of a shared library with the solver's generated C functions (objective, constraints
-    and their derivatives), compiled with gcc -O1 once per distinct problem and cached on disk
-    under the hash of the generated source. First build of a horizon-15 problem: ~20 s."""
-    folder = cache_dir()
-    folder.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(dir=folder) as tmp:
-        source = Path(tmp) / "mpc.c"
+def constraint_kinds(shape: ProblemShape) -> list[bool]:
+    """Whether each constraint row is an equality, stage by stage: the NZ dynamics rows, then
+    one barrier condition per slot and ego disc, then the two lateral-band rows if any."""
+    stage = [True] * NZ + [False] * (shape.slots * shape.discs) + ([False, False] if shape.band else [])
+    return stage * shape.horizon
+
+
+#: The modules whose code defines the symbolic problem: a compiled library is reused only while
+#: they, the shape and casadi's version are unchanged.
+_PROBLEM_SOURCES = (Path(__file__), Path(barrier_value.__code__.co_filename), Path(bicycle_step.__code__.co_filename))
+
+
+def library_path(shape: ProblemShape) -> Path:
+    """Where the compiled functions of ``shape``'s problem are cached: under a hash of the shape,
+    casadi's version and the problem's source code, so a cached library is found without
+    building the problem again."""
+    key = repr(shape).encode() + ca.__version__.encode() + b"".join(p.read_bytes() for p in _PROBLEM_SOURCES)
+    return cache_dir() / f"mpc_{hashlib.sha256(key).hexdigest()[:16]}.so"
+
+
+def compile_dependencies(solver: ca.Function, library: Path) -> None:
+    """Compile the solver's generated C functions (objective, constraints and their derivatives)
+    with gcc -O1 into the shared library ``library``. A horizon-15 problem takes ~20 s."""
+    library.parent.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=library.parent) as tmp:
         cwd = os.getcwd()
         try:  # casadi writes generated code into the working directory
             os.chdir(tmp)
             solver.generate_dependencies("mpc.c")
         finally:
             os.chdir(cwd)
-        digest = hashlib.sha256(source.read_bytes() + ca.__version__.encode()).hexdigest()[:16]
-        library = folder / f"mpc_{digest}.so"
-        if not library.exists():
-            built = Path(tmp) / "mpc.so"
-            subprocess.run(["gcc", "-fPIC", "-shared", "-O1", str(source), "-o", str(built), "-lm"], check=True)
-            os.replace(built, library)  # atomic: parallel workers never load a half-written file
-    return str(library)
+        built = Path(tmp) / "mpc.so"
+        subprocess.run(["gcc", "-fPIC", "-shared", "-O1", str(Path(tmp) / "mpc.c"), "-o", str(built), "-lm"], check=True)
+        os.replace(built, library)  # atomic: parallel workers never load a half-written file
 
 
 def _solver_options(shape: ProblemShape, equality: list[bool]) -> dict:
