@@ -299,18 +299,25 @@ class MpcPlanner:
             obstacles=self.barrier_parameters(robot, state, u_prev, obstacles),
             band=self.band_rows(robot, corridor, reference, state) if cfg.band else np.zeros(0),
         )
-        cold = self.rollout(robot, state, np.zeros((cfg.horizon, 2)))
         usable = cfg.warm_start and previous is not None and len(previous.inputs) == cfg.horizon
-        warm = previous.shifted(state) if usable else None
-        # A warm start that fails is retried cold by the same solver (a shifted plan that the moved
-        # regions cut through often traps it), then by ipopt from the first guess.
-        attempts = [(self.problem, warm), (self.problem, cold)] if warm is not None else [(self.problem, cold)]
-        attempts += [(self.retry_problem, warm if warm is not None else cold)] if self.retry_problem is not None else []
+
+        def attempts():
+            """A warm start that fails is retried cold by the same solver (a shifted plan that the
+            moved regions cut through often traps it), then by ipopt from the first guess; the
+            cold guess is rolled out only when needed."""
+            warm = previous.shifted(state) if usable else None
+            if warm is not None:
+                yield self.problem, warm
+            cold = self.rollout(robot, state, np.zeros((cfg.horizon, 2)))
+            yield self.problem, cold
+            if self.retry_problem is not None:
+                yield self.retry_problem, warm if warm is not None else cold
+
         box = np.array([-np.inf, np.inf, -np.inf, np.inf]) if corridor is None or isinstance(corridor, LateralBand) else np.asarray(corridor, dtype=float)
         bounds = ([box[0], box[2], -np.inf, lim.v_min], [box[1], box[3], np.inf, lim.v_max], [lim.a_min, -lim.steer_max], [lim.a_max, lim.steer_max])
 
         total_ms, outcome, used = 0.0, None, cfg.solver
-        for problem, guess in attempts:
+        for problem, guess in attempts():
             lbx, ubx = problem.bounds(state, u_prev, *bounds)
             outcome = problem.solve(problem.parameters(**params), problem.pack(*guess, u_prev), lbx, ubx)
             total_ms += outcome.solve_ms
