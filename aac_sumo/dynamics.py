@@ -72,7 +72,7 @@ class VehicleLimits:
         standstill (0, or ``v_min`` when that is positive), zero steer; it never drives a robot
         through zero speed into the other direction."""
         target = min(max(0.0, self.v_min), self.v_max)
-        return np.array([float(np.clip((target - speed) / dt, self.a_min, self.a_max)), 0.0])
+        return np.array([min(max((target - speed) / dt, self.a_min), self.a_max), 0.0])
 
     def stopping_inputs(self, speed: float, dt: float, steps: int) -> np.ndarray:
         """Inputs (steps, 2) of :meth:`braking_input` applied period after period until standstill."""
@@ -94,4 +94,22 @@ class BicycleModel:
         """Advance with clipped inputs; the speed is kept inside ``[v_min, v_max]``."""
         nxt = bicycle_step(state, self.limits.clip_input(control), dt, self.wheelbase)
         nxt[..., 3] = np.clip(nxt[..., 3], self.limits.v_min, self.limits.v_max)
+        return nxt
+
+
+class FleetModel:
+    """The :meth:`BicycleModel.step` of several robots at once, each with its own geometry and
+    limits (``models``, one per robot), on state rows (n, 4) and input rows (n, 2)."""
+
+    def __init__(self, models: list[BicycleModel]):
+        self.wheelbase = np.array([m.wheelbase for m in models])
+        self.input_lo = np.array([[m.limits.a_min, -m.limits.steer_max] for m in models]).reshape(-1, 2)
+        self.input_hi = np.array([[m.limits.a_max, m.limits.steer_max] for m in models]).reshape(-1, 2)
+        self.v_min = np.array([m.limits.v_min for m in models])
+        self.v_max = np.array([m.limits.v_max for m in models])
+
+    def step(self, states: np.ndarray, inputs: np.ndarray, dt: float) -> np.ndarray:
+        """Next states (n, 4) of every robot, inputs clipped and speeds kept in bounds."""
+        nxt = bicycle_step(states, np.clip(inputs, self.input_lo, self.input_hi), dt, self.wheelbase)
+        nxt[:, 3] = np.clip(nxt[:, 3], self.v_min, self.v_max)
         return nxt

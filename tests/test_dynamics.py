@@ -15,7 +15,7 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from aac_sumo.dynamics import NU, NX, BicycleModel, VehicleLimits, bicycle_step
+from aac_sumo.dynamics import NU, NX, BicycleModel, FleetModel, VehicleLimits, bicycle_step
 
 coord = st.floats(-100.0, 100.0)
 heading_st = st.floats(-np.pi, np.pi)
@@ -227,6 +227,20 @@ def test_model_step_clips_inputs_and_speed(state, control, dt):
     assert LIMITS.v_min <= nxt[3] <= LIMITS.v_max
     # never reverses: the displacement is along the heading, never against it
     assert (nxt[0] - x) * np.cos(heading) + (nxt[1] - y) * np.sin(heading) >= -1e-12
+
+
+@given(seed=st.integers(0, 2**32 - 1), n=st.integers(1, 6), dt=dt_st)
+@settings(max_examples=50)
+def test_fleet_step_is_each_robots_own_model_step(seed, n, dt):
+    """FleetModel steps robots with different wheelbases and limits exactly as each robot's
+    BicycleModel.step would, inputs far outside the limits included."""
+    rng = np.random.default_rng(seed)
+    models = [BicycleModel(rng.uniform(0.3, 4.0), VehicleLimits(-rng.uniform(1, 9), rng.uniform(1, 5), rng.uniform(0.1, 0.8),
+                                                                rng.uniform(-2, 1), rng.uniform(2, 30))) for _ in range(n)]
+    states = np.column_stack([rng.uniform(-50, 50, (n, 2)), rng.uniform(-np.pi, np.pi, n), rng.uniform(0, 20, n)])
+    inputs = rng.uniform(-20, 20, (n, 2))
+    expected = np.array([m.step(s, u, dt) for m, s, u in zip(models, states, inputs)])
+    np.testing.assert_array_equal(FleetModel(models).step(states, inputs, dt), expected)
 
 
 def test_model_step_does_not_mutate_its_arguments():

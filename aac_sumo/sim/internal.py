@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aac_sumo.dynamics import FleetModel
 from aac_sumo.sim.base import ContactReport, Simulator, agent_rows, footprint_contacts
 from aac_sumo.world import Obstacle, RobotSpec, WorldState
 
@@ -56,6 +57,7 @@ class InternalSimulator(Simulator):
         self.statics = list(statics)
         self.t = 0.0
         self.wrecked: set[str] = set()
+        self.model = FleetModel([r.model for r in self.robots])
 
     def observe(self) -> WorldState:
         obstacles = [a.as_obstacle() for a in self.scripted] + self.statics
@@ -63,9 +65,8 @@ class InternalSimulator(Simulator):
 
     def step(self, inputs: np.ndarray) -> ContactReport:
         inputs = np.asarray(inputs, dtype=float)
-        for i, robot in enumerate(self.robots):
-            if robot.name not in self.wrecked:
-                self.states[i] = robot.model.step(self.states[i], inputs[i], self.dt)
+        moving = np.array([r.name not in self.wrecked for r in self.robots], dtype=bool)
+        self.states[moving] = self.model.step(self.states, inputs, self.dt)[moving]
         for agent in self.scripted:
             if agent.name not in self.wrecked:
                 agent.advance(self.t, self.dt)

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from aac_sumo.dynamics import FleetModel
 from aac_sumo.network import sumo_binary
 from aac_sumo.sim.base import ContactReport, Simulator, agent_rows, footprint_contacts
 from aac_sumo.sim.sumo_frames import state_from_sumo, sumo_from_state
@@ -89,6 +90,7 @@ class SumoSimulator(Simulator):
         self._sim_pairs: set[tuple[str, str]] = set()
         self._obstacle_dims: dict[str, tuple[float, float, str]] = {}
         self.t = 0.0
+        self.model = FleetModel([r.model for r in self.robots])
         try:
             self.api.start(options.command(dt))
         except Exception as exc:
@@ -182,11 +184,11 @@ class SumoSimulator(Simulator):
         inputs = np.asarray(inputs, dtype=float)
         with self._sumo_errors("stepping"):
             self._note_removed()  # removed since the last step (by another TraCI client, say)
+            moving = np.array([r.name not in self.removed and r.name not in self.wrecked for r in self.robots], dtype=bool)
+            self.states[moving] = self.model.step(self.states, inputs, self.dt)[moving]
             for i, robot in enumerate(self.robots):
                 if robot.name in self.removed:
                     continue
-                if robot.name not in self.wrecked:
-                    self.states[i] = robot.model.step(self.states[i], inputs[i], self.dt)
                 x, y, angle = sumo_from_state(self.states[i], robot.length, robot.model.wheelbase)
                 self.api.vehicle.moveToXY(robot.name, "", -1, x, y, angle, keepRoute=2)
             self.api.simulationStep()
