@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aac_sumo.kernels import pairwise_clearance, polyline_offsets
+
 # Bisection cap: enough halvings to shrink any positive double interval to adjacent floats
 # (Eberly's digits - min_exponent); the loop stops as soon as every interval has collapsed.
 _MAX_BISECTIONS = 1100
@@ -245,10 +247,9 @@ def rect_clearance_rows(rects_a, rects_b) -> np.ndarray:
 
 def pairwise_rect_clearance(rects_a, rects_b) -> np.ndarray:
     """Clearance matrix (n, m) [m] between rows (n, 5) and (m, 5) of
-    ``[cx, cy, length, width, heading]``; entry (i, j) equals ``rect_clearance(a_i, b_j)``."""
-    ra = np.asarray(rects_a, dtype=float).reshape(-1, 5)
-    rb = np.asarray(rects_b, dtype=float).reshape(-1, 5)
-    return _clearance(ra[:, None, :], rb[None, :, :])
+    ``[cx, cy, length, width, heading]``; entry (i, j) equals ``rect_clearance(a_i, b_j)``
+    (compiled: :func:`~aac_sumo.kernels.pairwise_clearance`)."""
+    return pairwise_clearance(np.asarray(rects_a, dtype=float).reshape(-1, 5), np.asarray(rects_b, dtype=float).reshape(-1, 5))
 
 
 def point_rect_signed_distance(points, rect: OrientedRect) -> np.ndarray:
@@ -299,18 +300,6 @@ def containing_ellipse(points, theta) -> np.ndarray:
 def polyline_offset(points, polyline) -> np.ndarray:
     """Signed distance [m] from each of ``points`` (K, 2) to the polyline (M, 2), M >= 2, whose
     first and last segments go on straight beyond its ends: positive to the left of its
-    direction of travel, negative to the right (side of the nearest segment)."""
-    p = np.asarray(points, dtype=float)[:, None, :]
-    a, b = np.asarray(polyline, dtype=float)[:-1], np.asarray(polyline, dtype=float)[1:]
-    d = b - a
-    length2 = np.maximum(np.einsum("ij,ij->i", d, d), 1e-18)
-    lo, hi = np.zeros(len(d)), np.ones(len(d))
-    lo[0], hi[-1] = -np.inf, np.inf
-    t = np.clip(np.einsum("kij,ij->ki", p - a, d) / length2, lo, hi)
-    gap = p - (a + t[..., None] * d)
-    dist = np.sqrt(np.einsum("kij,kij->ki", gap, gap))
-    nearest = np.argmin(dist, axis=1)
-    rows = np.arange(len(dist))
-    rel = p[:, 0, :] - a[nearest]
-    side = np.sign(d[nearest, 0] * rel[:, 1] - d[nearest, 1] * rel[:, 0])
-    return np.where(side < 0, -1.0, 1.0) * dist[rows, nearest]
+    direction of travel, negative to the right (side of the nearest segment). Compiled
+    (:func:`~aac_sumo.kernels.polyline_offsets`)."""
+    return polyline_offsets(np.asarray(points, dtype=float).reshape(-1, 2), np.asarray(polyline, dtype=float))

@@ -144,6 +144,17 @@ def rect_clearance(a, b):
 
 
 @numba.njit(cache=True)
+def pairwise_clearance(a, b):
+    """Clearance matrix (n, m) [m] of :func:`rect_clearance` between rectangle rows ``a`` (n, 5)
+    and ``b`` (m, 5)."""
+    out = np.empty((a.shape[0], b.shape[0]))
+    for i in range(a.shape[0]):
+        for j in range(b.shape[0]):
+            out[i, j] = rect_clearance(a[i], b[j])
+    return out
+
+
+@numba.njit(cache=True)
 def courses_unsafe(own, brake, targets, skip, eased, margin, tie):
     """Which courses fail the safety stop's rule (bool, m). Robot i's course ``own[i]`` and its
     braking at once ``brake[i]`` (m, K+1, 5) are footprint rows per stage; ``targets`` (T, K+1,
@@ -191,3 +202,31 @@ def closest_on_polyline(points, seg_len, t_max, px, py):
         if d < best_d:
             best_i, best_t, best_d = i, t, d
     return best_i, best_t, best_d
+
+
+@numba.njit(cache=True)
+def polyline_offsets(points, polyline):
+    """Signed distance [m] (K,) of each of ``points`` (K, 2) to ``polyline`` (M, 2), M >= 2, its
+    end segments carried on straight: positive to the left of its direction of travel, on the
+    side of the nearest segment (the first on ties), as :func:`aac_sumo.geometry.polyline_offset`."""
+    out = np.empty(points.shape[0])
+    last = polyline.shape[0] - 2
+    for k in range(points.shape[0]):
+        px, py = points[k, 0], points[k, 1]
+        best, best_i = np.inf, 0
+        for i in range(last + 1):
+            ax, ay = polyline[i, 0], polyline[i, 1]
+            dx, dy = polyline[i + 1, 0] - ax, polyline[i + 1, 1] - ay
+            t = ((px - ax) * dx + (py - ay) * dy) / max(dx * dx + dy * dy, 1e-18)
+            if i > 0:
+                t = max(t, 0.0)
+            if i < last:
+                t = min(t, 1.0)
+            gx, gy = px - (ax + t * dx), py - (ay + t * dy)
+            dist = math.sqrt(gx * gx + gy * gy)
+            if dist < best:
+                best, best_i = dist, i
+        ax, ay = polyline[best_i, 0], polyline[best_i, 1]
+        dx, dy = polyline[best_i + 1, 0] - ax, polyline[best_i + 1, 1] - ay
+        out[k] = -best if dx * (py - ay) - dy * (px - ax) < 0.0 else best
+    return out
