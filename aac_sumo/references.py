@@ -25,6 +25,7 @@ class PathReference:
         seg = np.diff(self.points, axis=0)
         self.seg_len = np.hypot(seg[:, 0], seg[:, 1])
         self.seg_heading = np.arctan2(seg[:, 1], seg[:, 0])
+        self._seg_dir = np.column_stack([np.cos(self.seg_heading), np.sin(self.seg_heading)])
         self.s = np.r_[0.0, np.cumsum(self.seg_len)]
         self.length = float(self.s[-1])
         self.speed = float(speed)
@@ -58,18 +59,20 @@ class PathReference:
         i = self._segment(s)
         local = s - self.s[i]
         if self.stop_at_end:
-            local = np.clip(local, 0.0, self.seg_len[i])
-        h = self.seg_heading[i]
-        xy = self.points[i] + local[:, None] * np.column_stack([np.cos(h), np.sin(h)])
-        return np.column_stack([xy, h])
+            local = np.minimum(np.maximum(local, 0.0), self.seg_len[i])
+        xy = self.points[i] + local[:, None] * self._seg_dir[i]
+        return np.column_stack([xy, self.seg_heading[i]])
 
     def heading_at(self, point) -> float:
         """Heading [rad] of the path where ``point`` [m] projects (of the later segment at a vertex)."""
-        return float(self.seg_heading[self._segment(self.project(point)[0])])
+        i, t, _ = closest_on_polyline(self.points, self.seg_len, self._t_max, float(point[0]), float(point[1]))
+        if i + 1 < len(self.seg_len) and self.s[i] + t * self.seg_len[i] >= self.s[i + 1]:
+            i += 1  # at the vertex that ends segment i (the projection never passes it)
+        return float(self.seg_heading[i])
 
     def _segment(self, s):
         """Index of the segment each arc length ``s`` [m] lies on (the first or last beyond the ends)."""
-        return np.clip(np.searchsorted(self.s, s, side="right") - 1, 0, len(self.seg_len) - 1)
+        return np.minimum(np.maximum(np.searchsorted(self.s, s, side="right") - 1, 0), len(self.seg_len) - 1)
 
     def horizon(self, state, steps: int, dt: float) -> np.ndarray:
         """Reference states (steps + 1, 4) starting from the projection of ``state``'s position.

@@ -56,3 +56,14 @@ def test_heading_at_is_the_horizons_first_heading_up_to_full_turns():
     for x, y, heading in [(3.0, 1.0, 0.0), (12.0, 4.0, 7.0), (5.0, 13.0, -3.0), (10.0, 0.0, 1.0)]:
         first = path.horizon(np.array([x, y, heading, 1.0]), 0, 0.1)[0, 2]
         assert np.cos(path.heading_at([x, y]) - first) == pytest.approx(1.0)
+
+
+@settings(max_examples=100, deadline=None)
+@given(seed=st.integers(0, 100_000), stop=st.booleans(), at_vertex=st.booleans())
+def test_heading_at_is_the_heading_of_the_pose_where_the_point_projects(seed, stop, at_vertex):
+    """heading_at agrees with pose_at at the projection's arc length everywhere, at a vertex too
+    (the later segment's heading)."""
+    rng = np.random.default_rng(seed)
+    path = PathReference(np.cumsum(rng.uniform(-3, 3, (int(rng.integers(2, 30)), 2)), axis=0), 1.0, stop_at_end=stop)
+    point = path.points[rng.integers(len(path.points))] if at_vertex else rng.uniform(-20, 20, 2)
+    assert path.heading_at(point) == path.pose_at(path.project(point)[0])[0, 2]

@@ -23,4 +23,4 @@ def track(robot: RobotSpec, state: np.ndarray, task: PathReference, lookahead: f
         alpha = np.arctan2(rel[1], rel[0]) - state[2]
         steer = float(np.arctan2(2.0 * robot.model.wheelbase * np.sin(alpha), dist))
     accel = speed_gain * (float(task.speed_at(s0)) - state[3])
-    return lim.clip_input(np.array([accel, steer]))
+    return np.array([min(max(accel, lim.a_min), lim.a_max), min(max(steer, -lim.steer_max), lim.steer_max)])

@@ -15,8 +15,9 @@ import numpy as np
 
 from aac_sumo.barriers import (N_STAGE_FIELDS, FcbfParams, ObstaclePrediction, RegionTrack, barrier_value, inactive_slot, predict_constant_velocity,
                                safety_ellipses, stack_predictions, stage_parameters)
-from aac_sumo.dynamics import bicycle_step, heading_hold_steer
+from aac_sumo.dynamics import heading_hold_steer
 from aac_sumo.geometry import wrap_angle
+from aac_sumo.kernels import rollouts
 from aac_sumo.mpc.problem import OPEN_BAND, ProblemShape, get_problem
 from aac_sumo.references import LateralBand
 from aac_sumo.world import Obstacle, RobotSpec
@@ -308,7 +309,7 @@ class MpcPlanner:
             warm = previous.shifted(state) if usable else None
             if warm is not None:
                 yield self.problem, warm
-            cold = self.rollout(robot, state, np.zeros((cfg.horizon, 2)))
+            cold = self.coasting(robot, state)
             yield self.problem, cold
             if self.retry_problem is not None:
                 yield self.retry_problem, warm if warm is not None else cold
@@ -343,10 +344,11 @@ class MpcPlanner:
             states[k + 1] = robot.model.step(x, inputs[k], cfg.dt)
         return states, inputs
 
-    def rollout(self, robot: RobotSpec, state: np.ndarray, inputs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """States (N+1, 4) from applying ``inputs`` (N, 2) with the planner's model, and the inputs."""
-        states = np.empty((len(inputs) + 1, 4))
-        states[0] = state
-        for k, u in enumerate(inputs):
-            states[k + 1] = bicycle_step(states[k], u, self.config.dt, robot.model.wheelbase)
+    def coasting(self, robot: RobotSpec, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """States (N+1, 4) of coasting from ``state`` (zero inputs: straight on at constant
+        speed) with the planner's model, and those inputs (N, 2): the cold first guess."""
+        inputs = np.zeros((self.config.horizon, 2))
+        lim = robot.model.limits
+        states = rollouts(state[None, :], inputs[None], self.config.dt, np.array([robot.model.wheelbase]),
+                          np.array([lim.v_min]), np.array([lim.v_max]))[0]
         return states, inputs
