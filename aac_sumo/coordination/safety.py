@@ -76,7 +76,7 @@ class SafetyCheck:
         if m == 0:
             return np.zeros(0, dtype=bool)
         steps, fixed, standing = self.surroundings()
-        rows = self.fleet.footprints(np.arange(n), self._courses(inputs, steps))  # (n, K+1, 5)
+        rows = self._course_footprints(inputs, steps)  # (n, K+1, 5)
         targets = np.concatenate([rows, fixed])  # (2 n + obstacles, K+1, 5)
         skip = np.zeros((m, len(targets)), dtype=bool)
         skip[np.arange(m), check] = skip[np.arange(m), n + check] = True  # itself, on either course
@@ -115,16 +115,17 @@ class SafetyCheck:
                                fleet.a_max[idx], fleet.v_min[idx], fleet.v_max[idx], self.steer_max[idx], self.config.dt,
                                FALLBACK_TURN_TIME, steps)
 
-    def _courses(self, inputs: np.ndarray, steps: int) -> np.ndarray:
-        """:meth:`stopping_course` of every robot for ``inputs`` (n, 2), rolling out again only
-        the robots whose input changed since the last call of this period."""
+    def _course_footprints(self, inputs: np.ndarray, steps: int) -> np.ndarray:
+        """Footprint rows (n, K+1, 5) along every robot's :meth:`stopping_course` for ``inputs``
+        (n, 2), rolling out again only the robots whose input changed since the last call of
+        this period."""
         if self._last is None:
-            course = self.stopping_course(inputs, steps)
+            rows = self.fleet.footprints(np.arange(len(inputs)), self.stopping_course(inputs, steps))
         else:
-            last_inputs, course = self._last
+            last_inputs, rows = self._last
             changed = np.flatnonzero(np.any(inputs != last_inputs, axis=1))
             if changed.size:
-                course = course.copy()
-                course[changed] = self.stopping_course(inputs[changed], steps, changed)
-        self._last = inputs.copy(), course
-        return course
+                rows = rows.copy()
+                rows[changed] = self.fleet.footprints(changed, self.stopping_course(inputs[changed], steps, changed))
+        self._last = inputs.copy(), rows
+        return rows
