@@ -67,6 +67,22 @@ def rollouts(states, inputs, dt, wheelbase, v_min, v_max):
 
 
 @numba.njit(cache=True)
+def footprint_rows(states, offset, length, width):
+    """Footprint rows ``[cx, cy, length, width, heading]`` (m, K, 5) of robots at rear-axle
+    ``states`` (m, K, 4) whose footprint centre lies ``offset`` (m,) [m] ahead of the rear axle
+    and whose footprint measures ``length`` x ``width`` (m,) [m]."""
+    m, stages = states.shape[0], states.shape[1]
+    out = np.empty((m, stages, 5))
+    for i in range(m):
+        for k in range(stages):
+            h = states[i, k, 2]
+            out[i, k, 0] = states[i, k, 0] + offset[i] * math.cos(h)
+            out[i, k, 1] = states[i, k, 1] + offset[i] * math.sin(h)
+            out[i, k, 2], out[i, k, 3], out[i, k, 4] = length[i], width[i], h
+    return out
+
+
+@numba.njit(cache=True)
 def _bicycle_step(x, y, h, v, accel, steer, dt, wheelbase, v_min, v_max):
     """One Euler step of :func:`aac_sumo.dynamics.bicycle_step`, the new speed clipped into ``[v_min, v_max]``."""
     return (x + v * math.cos(h) * dt, y + v * math.sin(h) * dt, h + v * math.tan(steer) / wheelbase * dt,

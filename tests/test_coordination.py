@@ -254,11 +254,27 @@ def test_safety_check_flags_exactly_what_its_definition_says(seed, margin):
             continue
         course = rect_clearance_rows(rows[i], targets[t])
         braking = rect_clearance_rows(fixed[i], targets[t])
-        if t >= 2 * n and standing[t - 2 * n]:
+        if standing[t]:
             course, braking = course + margin, braking + margin
         later = course[1:]
         expected[i] |= bool(np.any((later < margin) & (later < np.minimum(course[0], braking[1:]) - BRAKING_TIE)))
     np.testing.assert_array_equal(got, expected)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 100_000), stages=st.integers(1, 6))
+def test_fleet_footprints_are_the_worlds_footprints_at_every_stage(seed, stages):
+    """The compiled footprint rows of robots along trajectories are, stage by stage, what the
+    world reports for robots at those states (centre ahead of the rear axle, size, heading)."""
+    rng = np.random.default_rng(seed)
+    n = 4
+    robots = [RobotSpec(f"r{i}", rng.uniform(0.5, 5), rng.uniform(0.3, 2), BicycleModel(rng.uniform(0.2, 0.4), LIMITS)) for i in range(n)]
+    traj = np.concatenate([rng.uniform(-9, 9, (n, stages, 2)), rng.uniform(-7, 7, (n, stages, 1)), rng.uniform(0, 5, (n, stages, 1))], axis=2)
+    idx = rng.permutation(n)
+    rows = Fleet(robots).footprints(idx, traj)
+    for k in range(stages):
+        world = WorldState(0.0, traj[:, k], [robots[i] for i in idx])
+        np.testing.assert_array_equal(rows[:, k], world.robot_footprints())
 
 
 def test_safety_stop_keeps_a_car_from_creeping_into_a_crossing_walker():

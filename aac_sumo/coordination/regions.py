@@ -11,7 +11,7 @@ import numpy as np
 
 from aac_sumo.barriers import FcbfParams, RegionTrack, hull_safety_ellipses
 from aac_sumo.geometry import rect_corners
-from aac_sumo.kernels import rollouts
+from aac_sumo.kernels import footprint_rows, rollouts
 from aac_sumo.world import RobotSpec
 
 
@@ -35,14 +35,9 @@ class Fleet:
         return rollouts(np.asarray(states, dtype=float), np.asarray(inputs, dtype=float), dt, self.wheelbase[idx], self.v_min[idx], self.v_max[idx])
 
     def footprints(self, idx: np.ndarray, states: np.ndarray) -> np.ndarray:
-        """Footprint rows ``[cx, cy, length, width, heading]`` (m, ..., 5) of robots ``idx`` at
-        rear-axle ``states`` (m, ..., 4)."""
-        shape = states.shape[:-1]
-        extra = (slice(None),) + (None,) * (len(shape) - 1)
-        h = states[..., 2]
-        off = self.offset[idx][extra]
-        return np.stack([states[..., 0] + off * np.cos(h), states[..., 1] + off * np.sin(h),
-                         np.broadcast_to(self.length[idx][extra], shape), np.broadcast_to(self.width[idx][extra], shape), h], axis=-1)
+        """Footprint rows ``[cx, cy, length, width, heading]`` (m, K, 5) of robots ``idx`` at
+        rear-axle ``states`` (m, K, 4)."""
+        return footprint_rows(np.asarray(states, dtype=float), self.offset[idx], self.length[idx], self.width[idx])
 
     def swept_regions(self, idx: np.ndarray, traj: np.ndarray, horizon: int, barrier: str, fcbf: FcbfParams) -> list[RegionTrack]:
         """One region track per robot ``idx`` from its trajectory ``traj`` (m, >= horizon+2, 4):

@@ -43,6 +43,7 @@ class SafetyCheck:
         self.steer_max = np.array([r.model.limits.steer_max for r in world.robots])
         self._around = None
         self._last = None
+        self._steer = None
 
     def braking_steer(self, states: np.ndarray, idx: np.ndarray | None = None) -> np.ndarray:
         """Steering (m,) [rad] of robots ``idx`` (all by default) braking from ``states`` (m, 4)."""
@@ -55,7 +56,9 @@ class SafetyCheck:
         and all of its strongest braking) that passes, else full braking, steering as braking
         robots do."""
         world = self.world
-        steer = self.braking_steer(world.states)
+        if self._steer is None:
+            self._steer = self.braking_steer(world.states)
+        steer = self._steer
         chosen = inputs.copy()
         flagged = self.unsafe(check, chosen, margin)
         a_min = self.fleet.a_min[check]
@@ -80,14 +83,15 @@ class SafetyCheck:
         targets = np.concatenate([rows, fixed])  # (2 n + obstacles, K+1, 5)
         skip = np.zeros((m, len(targets)), dtype=bool)
         skip[np.arange(m), check] = skip[np.arange(m), n + check] = True  # itself, on either course
-        eased = np.broadcast_to(np.r_[np.zeros(2 * n, dtype=bool), standing], skip.shape)
+        eased = np.broadcast_to(standing, skip.shape)
         return courses_unsafe(rows[check], fixed[check], targets, skip, eased, margin, BRAKING_TIE)
 
     def surroundings(self) -> tuple[int, np.ndarray, np.ndarray]:
         """What every check of this period compares against, computed once: the number of
         stages, the footprints (n + obstacles, K+1, 5) of every robot braking at once and of
-        every obstacle moving at constant velocity (pedestrians grown), and which obstacles
-        stand still for sure."""
+        every obstacle moving at constant velocity (pedestrians grown), and which of the
+        :meth:`unsafe` targets (2 n + obstacles: the robots on their courses, then these) are
+        obstacles that stand still for sure."""
         if self._around is None:
             world, cfg, fleet = self.world, self.config, self.fleet
             n = len(world.robots)
@@ -101,7 +105,8 @@ class SafetyCheck:
             walkers &= cfg.pedestrian_reach > 0.0 or cfg.pedestrian_margin > 0.0
             growth = cfg.pedestrian_margin + cfg.pedestrian_reach * cfg.dt * np.arange(steps + 1)
             moving[walkers, :, 2:4] += 2.0 * growth[None, :, None]
-            self._around = steps, np.concatenate([halt, moving]), (np.hypot(vel[:, 0], vel[:, 1]) == 0.0) & ~walkers
+            standing = (np.hypot(vel[:, 0], vel[:, 1]) == 0.0) & ~walkers
+            self._around = steps, np.concatenate([halt, moving]), np.r_[np.zeros(2 * n, dtype=bool), standing]
         return self._around
 
     def stopping_course(self, first: np.ndarray | None, steps: int, idx: np.ndarray | None = None) -> np.ndarray:
