@@ -171,6 +171,27 @@ def pairwise_clearance(a, b):
 
 
 @numba.njit(cache=True)
+def times_to_collision(centres, ahead, speed, other_centres, other_vel, length, width):
+    """Per robot i (centres, unit headings ``ahead`` (n, 2), speeds (n,)), the least bumper gap
+    over closing speed [s] to the others (centres, velocities (M, 2), the first n being the
+    robots themselves; lengths and widths (M,)) that lie ahead of it within the two half-widths
+    sideways and close in; inf when none does."""
+    n, m = centres.shape[0], other_centres.shape[0]
+    out = np.full(n, np.inf)
+    for i in range(n):
+        for j in range(m):
+            if j == i:
+                continue
+            rx, ry = other_centres[j, 0] - centres[i, 0], other_centres[j, 1] - centres[i, 1]
+            lon = rx * ahead[i, 0] + ry * ahead[i, 1]
+            lat = -rx * ahead[i, 1] + ry * ahead[i, 0]
+            closing = speed[i] - (other_vel[j, 0] * ahead[i, 0] + other_vel[j, 1] * ahead[i, 1])
+            if lon > 0 and abs(lat) <= 0.5 * (width[i] + width[j]) and closing > 1e-6:
+                out[i] = min(out[i], max(lon - 0.5 * (length[i] + length[j]), 0.0) / closing)
+    return out
+
+
+@numba.njit(cache=True)
 def courses_unsafe(own, brake, targets, skip, eased, margin, tie):
     """Which courses fail the safety stop's rule (bool, m). Robot i's course ``own[i]`` and its
     braking at once ``brake[i]`` (m, K+1, 5) are footprint rows per stage; ``targets`` (T, K+1,

@@ -6,6 +6,7 @@ import numpy as np
 import pandas as pd
 
 from aac_sumo.geometry import pairwise_rect_clearance
+from aac_sumo.kernels import times_to_collision
 from aac_sumo.world import WorldState
 
 #: metrics.json keys, in the order they are written.
@@ -26,7 +27,6 @@ def time_to_collision(world: WorldState) -> np.ndarray:
     sum of half-widths laterally. TTC = bumper gap along the heading / closing speed, where the
     closing speed is the ego's speed minus the other's velocity component along the ego heading.
     """
-    n = len(world.robots)
     centres, heading, speed = world.robot_centres(), world.states[:, 2], world.states[:, 3]
     ahead = np.column_stack([np.cos(heading), np.sin(heading)])
     obstacles = world.obstacles
@@ -34,14 +34,7 @@ def time_to_collision(world: WorldState) -> np.ndarray:
     other_vel = np.vstack([speed[:, None] * ahead] + [o.velocity[None, :] for o in obstacles])
     length, width = (np.array([r.length for r in world.robots] + [o.length for o in obstacles]),
                      np.array([r.width for r in world.robots] + [o.width for o in obstacles]))
-    rel = other_centres[None, :, :] - centres[:, None, :]  # (n, n + obstacles, 2)
-    lon = rel[..., 0] * ahead[:, None, 0] + rel[..., 1] * ahead[:, None, 1]
-    lat = -rel[..., 0] * ahead[:, None, 1] + rel[..., 1] * ahead[:, None, 0]
-    closing = speed[:, None] - np.einsum("jc,ic->ij", other_vel, ahead)
-    gap = np.maximum(lon - 0.5 * (length[:n, None] + length[None, :]), 0.0)
-    valid = (lon > 0) & (np.abs(lat) <= 0.5 * (width[:n, None] + width[None, :])) & (closing > 1e-6)
-    valid[np.arange(n), np.arange(n)] = False
-    ttc = np.where(valid, gap / np.where(valid, closing, 1.0), np.inf).min(axis=1)
+    ttc = times_to_collision(centres, ahead, speed, other_centres, other_vel, length, width)
     return np.where(np.isfinite(ttc), ttc, np.nan)
 
 
