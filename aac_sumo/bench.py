@@ -59,6 +59,8 @@ class BenchRecord:
     ratio: float | None = None
     proximity_median_ms: float | None = None
     realtime_factor: float | None = None
+    realtime_factor_range: tuple[float, float] | None = None
+    runs: int | None = None
 
     def as_json(self) -> dict:
         out = dict(self.__dict__)
@@ -184,9 +186,12 @@ def write(out: Path, mpc: BenchReport | None = None, aac: BenchReport | None = N
     if aac is not None:
         text += ("\n" if text else "") + (
             "# Coordinator time per control period: AAC against LFC\n\n"
-            "Full runs of each bundled scenario with its own settings, AAC then LFC, in this process. The time is the "
-            "coordinator's wall time per period: authority choice, predictions and every MPC solve (LFC solves once per "
-            "unfinished robot). AAC speed-up = LFC median / AAC median.\n\n" + markdown_aac(aac)
+            "Full runs of each bundled scenario with its own settings, AAC then LFC, each repeated in this process (the "
+            "runs are identical but for their timing). The time is the coordinator's wall time per period: authority "
+            "choice, predictions and every MPC solve (LFC solves once per unfinished robot); the medians pool the periods "
+            "of all runs. The real-time factor is simulated time over the whole run's wall time (start-up and simulator "
+            "included): the median over the runs, and its range. AAC speed-up = LFC median / AAC median.\n\n"
+            + markdown_aac(aac)
         )
     (out / "bench.md").write_text(text)
     return text
@@ -197,14 +202,12 @@ def write(out: Path, mpc: BenchReport | None = None, aac: BenchReport | None = N
 AAC_SCENARIOS = ("swarm_rescue", "lane_change")
 
 
-def bench_aac(horizons=HORIZONS, scenarios=AAC_SCENARIOS, progress=None) -> BenchReport:
-    """Coordinator wall time per control period, AAC and LFC, in full runs of each bundled
-    scenario at each horizon, one after the other in this process. ``failures`` counts
-    infeasible or failed MPC solves; ``ratio`` on the AAC record is LFC's median over AAC's
-    (AAC's speed-up); ``proximity_median_ms`` is the median time of the proximity decision
-    over the periods that ran one; ``realtime_factor`` is simulated time over the run's wall
-    time (simulator included)."""
-    from aac_sumo import config, runner
+def bench_aac(horizons=HORIZONS, scenarios=AAC_SCENARIOS, repeats=3, progress=None) -> BenchReport:
+    """Coordinator wall time per control period, AAC and LFC, in ``repeats`` full runs of each
+    bundled scenario at each horizon, one after the other in this process (see
+    :func:`_coordinator_record`). ``ratio`` on the AAC record is LFC's median over AAC's (AAC's
+    speed-up)."""
+    from aac_sumo import config
 
     report = BenchReport()
     for scenario in scenarios:
@@ -214,43 +217,65 @@ def bench_aac(horizons=HORIZONS, scenarios=AAC_SCENARIOS, progress=None) -> Benc
             report.notes.append(f"{scenario}: no such bundled scenario; skipped")
             continue
         for horizon in horizons:
-            records = {}
-            for name in ("aac", "lfc"):
-                if progress:
-                    progress(f"{name}/{scenario} N={horizon}")
-                result = runner.run(config.load(scenario, [f"controller.coordinator={name}", f"controller.horizon={horizon}"]))
-                m, times = result.metrics, result.periods["compute_ms"].to_numpy()
-                if m.get("error"):
-                    report.notes.append(f"{name}/{scenario} N={horizon}: run failed: {m['error']}")
-                elif not m["completed"]:
-                    report.notes.append(f"{name}/{scenario} N={horizon}: {m.get('incomplete_reason', 'not completed')}")
-                prox = result.periods.get("proximity_ms")
-                prox = prox[prox > 0].to_numpy() if prox is not None else np.array([])
-                records[name] = BenchRecord(
-                    name=f"{name}/{scenario}", horizon=horizon, samples=len(times), median_ms=float(np.median(times)),
-                    p95_ms=float(np.percentile(times, 95)), failures=int(m["infeasible_solves"]),
-                    solver=result.scenario["controller.solver"] + ("-c" if result.scenario["controller.codegen"] else ""),
-                    slots=result.scenario["controller.obstacle_slots"], mean_ms=float(np.mean(times)),
-                    proximity_median_ms=float(np.median(prox)) if prox.size else None,
-                    realtime_factor=m["realtime_factor"],
-                )
-            aac, lfc = records["aac"], records["lfc"]
+            aac, lfc = (_coordinator_record(name, scenario, horizon, repeats, report.notes, progress) for name in ("aac", "lfc"))
             aac.ratio_to, aac.ratio = lfc.name, lfc.median_ms / aac.median_ms if aac.median_ms > 0 else None
             report.records += [aac, lfc]
     return report
 
 
+def _coordinator_record(name: str, scenario: str, horizon: int, repeats: int, notes: list[str], progress=None) -> BenchRecord:
+    """``repeats`` runs of ``scenario`` with coordinator ``name`` at ``horizon``; the runs are
+    identical but for their timing (a note says so otherwise). ``samples`` counts the periods of
+    all runs and the medians pool them; ``failures`` counts the infeasible or failed MPC solves
+    of one run; ``proximity_median_ms`` is the median time of the proximity decision over the
+    periods that ran one; ``realtime_factor`` is the median over the runs of simulated time over
+    the run's wall time (simulator included), ``realtime_factor_range`` its least and greatest."""
+    from aac_sumo import config, runner
+
+    label = f"{name}/{scenario} N={horizon}"
+    times, prox, rtf, metrics = [], [], [], []
+    for run in range(repeats):
+        if progress:
+            progress(label + (f" (run {run + 1} of {repeats})" if repeats > 1 else ""))
+        result = runner.run(config.load(scenario, [f"controller.coordinator={name}", f"controller.horizon={horizon}"]))
+        metrics.append(result.metrics)
+        times.append(result.periods["compute_ms"].to_numpy())
+        p = result.periods.get("proximity_ms")
+        prox.append(p[p > 0].to_numpy() if p is not None else np.array([]))
+        if result.metrics["realtime_factor"] is not None:
+            rtf.append(result.metrics["realtime_factor"])
+    first = metrics[0]
+    if first.get("error"):
+        notes.append(f"{label}: run failed: {first['error']}")
+    elif not first["completed"]:
+        notes.append(f"{label}: {first.get('incomplete_reason', 'not completed')}")
+    if any(m["infeasible_solves"] != first["infeasible_solves"] or len(t) != len(times[0]) for m, t in zip(metrics, times)):
+        notes.append(f"{label}: the runs differ (infeasible solves {[m['infeasible_solves'] for m in metrics]})")
+    times, prox = np.concatenate(times), np.concatenate(prox)
+    return BenchRecord(
+        name=f"{name}/{scenario}", horizon=horizon, samples=len(times), median_ms=float(np.median(times)),
+        p95_ms=float(np.percentile(times, 95)), failures=int(first["infeasible_solves"]),
+        solver=result.scenario["controller.solver"] + ("-c" if result.scenario["controller.codegen"] else ""),
+        slots=result.scenario["controller.obstacle_slots"], mean_ms=float(np.mean(times)),
+        proximity_median_ms=float(np.median(prox)) if prox.size else None,
+        realtime_factor=float(np.median(rtf)) if rtf else None,
+        realtime_factor_range=(min(rtf), max(rtf)) if rtf else None, runs=repeats,
+    )
+
+
 def markdown_aac(report: BenchReport) -> str:
     """The coordinator records as a markdown table, plus notes."""
     lines = [
-        "| name | N | periods | median [ms] | p95 [ms] | mean [ms] | proximity median [ms] | infeasible solves | real-time factor | AAC speed-up |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---|",
+        "| name | N | runs | periods | median [ms] | p95 [ms] | mean [ms] | proximity median [ms] | infeasible solves per run | real-time factor: median (range) | AAC speed-up |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|",
     ]
     for r in report.records:
         prox = f"{r.proximity_median_ms:.2f}" if r.proximity_median_ms is not None else "—"
         ratio = f"{r.ratio:.2f}x vs {r.ratio_to}" if r.ratio is not None else ""
         rtf = f"{r.realtime_factor:.1f}" if r.realtime_factor is not None else "—"
-        lines.append(f"| {r.name} | {r.horizon} | {r.samples} | {r.median_ms:.2f} | {r.p95_ms:.2f} | {r.mean_ms:.2f} | {prox} | "
+        if r.realtime_factor_range is not None and r.runs and r.runs > 1:
+            rtf += f" ({r.realtime_factor_range[0]:.1f}–{r.realtime_factor_range[1]:.1f})"
+        lines.append(f"| {r.name} | {r.horizon} | {r.runs} | {r.samples} | {r.median_ms:.2f} | {r.p95_ms:.2f} | {r.mean_ms:.2f} | {prox} | "
                      f"{r.failures} | {rtf} | {ratio} |")
     text = "\n".join(lines) + "\n"
     if report.notes:

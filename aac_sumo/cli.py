@@ -115,6 +115,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--samples", type=_positive_int, default=100, metavar="S", help="timed solves per configuration (default 100)")
     p.add_argument("--horizons", type=_int_list, default=None, metavar="N1,N2,...", help="MPC horizons (default 5,10,15)")
     p.add_argument("--solvers", default=None, metavar="S1,S2,...", help="solver configurations (default fatrop-c,fatrop,ipopt,sqp)")
+    p.add_argument("--repeats", type=_positive_int, default=3, metavar="R",
+                   help="aac: runs per coordinator, scenario and horizon; medians pool them (default 3)")
 
     p = sub.add_parser("net", help="SUMO networks: net build DIR runs netconvert on DIR's plain-XML sources")
     p.add_argument("action", choices=("build",), metavar="{build}")
@@ -299,7 +301,7 @@ def cmd_bench(args) -> int:
     _check_out(args.out)
     progress = lambda what: print(f"timing {what} ...", file=sys.stderr, flush=True)  # noqa: E731
     mpc = bench.bench_mpc(args.samples, horizons, solvers, progress=progress) if args.target in ("mpc", "all") else None
-    aac = bench.bench_aac(horizons, progress=progress) if args.target in ("aac", "all") else None
+    aac = bench.bench_aac(horizons, repeats=args.repeats, progress=progress) if args.target in ("aac", "all") else None
     print(bench.write(args.out, mpc, aac), end="")
     print(f"outputs: {args.out / 'bench.json'}, {args.out / 'bench.md'}")
     return 0

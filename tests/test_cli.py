@@ -161,3 +161,21 @@ def test_table_resumes_from_its_results(capsys, tmp_path):
     assert main(argv + ["--resume"]) == 0
     assert (tmp_path / "results.csv").read_text() == first
     assert main(argv[:-2] + ["--set", "scenario.duration=0.4", "--out", str(tmp_path), "--resume"]) == 2  # another sweep
+
+
+def test_bench_aac_pools_repeated_runs(tmp_path):
+    """Each coordinator runs ``repeats`` times: the periods of all runs are pooled, the failures
+    are one run's, and the real-time factor is the runs' median within their range."""
+    from aac_sumo import bench
+
+    report = bench.bench_aac((5,), ("braking",), repeats=2)
+    aac, lfc = report.records
+    assert (aac.name, lfc.name) == ("aac/braking", "lfc/braking")
+    single = bench.bench_aac((5,), ("braking",), repeats=1).records[0]
+    for r in (aac, lfc):
+        assert r.runs == 2 and r.samples == 2 * single.samples
+        lo, hi = r.realtime_factor_range
+        assert lo <= r.realtime_factor <= hi
+    assert aac.failures == single.failures
+    assert aac.ratio == pytest.approx(lfc.median_ms / aac.median_ms)
+    assert "| aac/braking | 5 | 2 |" in bench.markdown_aac(report)
