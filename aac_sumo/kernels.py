@@ -226,6 +226,52 @@ def courses_unsafe(own, brake, targets, skip, eased, margin, tie):
 
 
 @numba.njit(cache=True)
+def stop_flags(check, rows, fixed, standing, margin, tie):
+    """Which of robots ``check`` (m,) fail the safety stop's rule (bool, m): :func:`courses_unsafe`
+    of their courses' footprint rows ``rows`` (n, K+1, 5), every robot's, against every robot's
+    course, then ``fixed`` (n + obstacles, K+1, 5: every robot braking at once, then the
+    obstacles), skipping itself on either course; ``standing`` (2 n + obstacles) marks the
+    targets that count only on contact."""
+    n, m = rows.shape[0], check.shape[0]
+    targets = np.concatenate((rows, fixed))
+    skip = np.zeros((m, targets.shape[0]), dtype=np.bool_)
+    eased = np.empty((m, targets.shape[0]), dtype=np.bool_)
+    for r in range(m):
+        skip[r, check[r]] = True
+        skip[r, n + check[r]] = True
+        eased[r, :] = standing
+    return courses_unsafe(rows[check], fixed[check], targets, skip, eased, margin, tie)
+
+
+@numba.njit(cache=True)
+def gentlest_stops(check, inputs, steer, states, headings, wheelbase, a_min, a_max, v_min, v_max, steer_max, offset,
+                   length, width, dt, turn_time, steps, fixed, standing, margin, tie):
+    """The safety stop's choice for robots ``check`` (m,) given every robot's ``inputs`` (n, 2):
+    a robot that fails :func:`stop_flags` on its :func:`braking_courses` course (``steps``
+    stages, footprints by :func:`footprint_rows`) gets ``[min(input, share * a_min), steer]``
+    for share 0, 1/3 and 2/3 in turn, until it passes; after each round every robot of
+    ``check`` still flagged is checked again against the others' new courses. Returns the
+    inputs (n, 2) and which robots of ``check`` still fail (bool, m). Per-robot arrays are (n,)."""
+    rows = footprint_rows(braking_courses(states, inputs, True, headings, wheelbase, a_min, a_max, v_min, v_max, steer_max,
+                                          dt, turn_time, steps), offset, length, width)
+    chosen = inputs.copy()
+    flagged = stop_flags(check, rows, fixed, standing, margin, tie)
+    for share in (0.0, 1.0 / 3.0, 2.0 / 3.0):
+        if not flagged.any():
+            break
+        for r in range(check.shape[0]):
+            if flagged[r]:
+                i = check[r]
+                chosen[i, 0], chosen[i, 1] = min(inputs[i, 0], share * a_min[i]), steer[i]
+                course = braking_courses(states[i:i + 1], chosen[i:i + 1], True, headings[i:i + 1], wheelbase[i:i + 1],
+                                         a_min[i:i + 1], a_max[i:i + 1], v_min[i:i + 1], v_max[i:i + 1], steer_max[i:i + 1],
+                                         dt, turn_time, steps)
+                rows[i] = footprint_rows(course, offset[i:i + 1], length[i:i + 1], width[i:i + 1])[0]
+        flagged &= stop_flags(check, rows, fixed, standing, margin, tie)
+    return chosen, flagged
+
+
+@numba.njit(cache=True)
 def closest_on_polyline(points, seg_len, t_max, px, py):
     """The segment ``i`` of polyline ``points`` (M, 2) [m] (segment lengths ``seg_len`` (M-1,))
     closest to the point ``(px, py)`` (the first on ties), the fraction ``t`` of it, clipped

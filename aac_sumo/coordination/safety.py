@@ -24,7 +24,7 @@ import numpy as np
 
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.dynamics import heading_hold_steer
-from aac_sumo.kernels import braking_courses, courses_unsafe
+from aac_sumo.kernels import braking_courses, gentlest_stops, stop_flags
 from aac_sumo.mpc.planner import FALLBACK_TURN_TIME, MpcConfig
 from aac_sumo.world import WorldState
 
@@ -42,7 +42,6 @@ class SafetyCheck:
         self.world, self.fleet, self.config, self.headings = world, fleet, config, np.asarray(headings, dtype=float)
         self.steer_max = np.array([r.model.limits.steer_max for r in world.robots])
         self._around = None
-        self._last = None
         self._steer = None
 
     def braking_steer(self, states: np.ndarray, idx: np.ndarray | None = None) -> np.ndarray:
@@ -54,37 +53,26 @@ class SafetyCheck:
         """Every robot's inputs (n, 2) after the check of robots ``check``: one whose intended
         input fails :meth:`unsafe` gets the gentlest braking (coasting, then a third, two thirds
         and all of its strongest braking) that passes, else full braking, steering as braking
-        robots do."""
-        world = self.world
+        robots do (compiled: :func:`~aac_sumo.kernels.gentlest_stops`)."""
+        world, fleet = self.world, self.fleet
         if self._steer is None:
             self._steer = self.braking_steer(world.states)
-        steer = self._steer
-        chosen = inputs.copy()
-        flagged = self.unsafe(check, chosen, margin)
-        a_min = self.fleet.a_min[check]
-        for share in (0.0, 1 / 3, 2 / 3):
-            if not flagged.any():
-                break
-            rows = check[flagged]
-            chosen[rows] = np.column_stack([np.minimum(inputs[rows, 0], share * a_min[flagged]), steer[rows]])
-            flagged &= self.unsafe(check, chosen, margin)
+        steps, fixed, standing = self.surroundings()
+        check = np.asarray(check, dtype=np.int64)
+        chosen, flagged = gentlest_stops(check, np.asarray(inputs, dtype=float), self._steer, world.states, self.headings,
+                                         fleet.wheelbase, fleet.a_min, fleet.a_max, fleet.v_min, fleet.v_max, self.steer_max,
+                                         fleet.offset, fleet.length, fleet.width, self.config.dt, FALLBACK_TURN_TIME, steps,
+                                         fixed, standing, margin, BRAKING_TIE)
         for i in check[flagged]:
-            chosen[i] = [world.robots[i].model.limits.braking_input(world.states[i, 3], self.config.dt)[0], steer[i]]
+            chosen[i] = [world.robots[i].model.limits.braking_input(world.states[i, 3], self.config.dt)[0], self._steer[i]]
         return chosen
 
     def unsafe(self, check: np.ndarray, inputs: np.ndarray, margin: float) -> np.ndarray:
         """Which of robots ``check`` must brake instead of applying ``inputs`` (n, 2, every robot's
         input this period as far as known; zero where not)."""
-        n, m = len(self.world.robots), len(check)
-        if m == 0:
-            return np.zeros(0, dtype=bool)
         steps, fixed, standing = self.surroundings()
-        rows = self._course_footprints(inputs, steps)  # (n, K+1, 5)
-        targets = np.concatenate([rows, fixed])  # (2 n + obstacles, K+1, 5)
-        skip = np.zeros((m, len(targets)), dtype=bool)
-        skip[np.arange(m), check] = skip[np.arange(m), n + check] = True  # itself, on either course
-        eased = np.broadcast_to(standing, skip.shape)
-        return courses_unsafe(rows[check], fixed[check], targets, skip, eased, margin, BRAKING_TIE)
+        rows = self.fleet.footprints(np.arange(len(self.world.robots)), self.stopping_course(inputs, steps))  # (n, K+1, 5)
+        return stop_flags(np.asarray(check, dtype=np.int64), rows, fixed, standing, margin, BRAKING_TIE)
 
     def surroundings(self) -> tuple[int, np.ndarray, np.ndarray]:
         """What every check of this period compares against, computed once: the number of
@@ -119,18 +107,3 @@ class SafetyCheck:
         return braking_courses(world.states[idx], first, use_first, self.headings[idx], fleet.wheelbase[idx], fleet.a_min[idx],
                                fleet.a_max[idx], fleet.v_min[idx], fleet.v_max[idx], self.steer_max[idx], self.config.dt,
                                FALLBACK_TURN_TIME, steps)
-
-    def _course_footprints(self, inputs: np.ndarray, steps: int) -> np.ndarray:
-        """Footprint rows (n, K+1, 5) along every robot's :meth:`stopping_course` for ``inputs``
-        (n, 2), rolling out again only the robots whose input changed since the last call of
-        this period."""
-        if self._last is None:
-            rows = self.fleet.footprints(np.arange(len(inputs)), self.stopping_course(inputs, steps))
-        else:
-            last_inputs, rows = self._last
-            changed = np.flatnonzero(np.any(inputs != last_inputs, axis=1))
-            if changed.size:
-                rows = rows.copy()
-                rows[changed] = self.fleet.footprints(changed, self.stopping_course(inputs[changed], steps, changed))
-        self._last = inputs.copy(), rows
-        return rows
