@@ -262,6 +262,38 @@ def test_safety_check_flags_exactly_what_its_definition_says(seed, margin):
 
 
 @settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 100_000), margin=st.floats(0.0, 1.0))
+def test_safe_inputs_are_the_gentlest_braking_that_passes_the_check(seed, margin):
+    """The compiled stop equals its definition in rounds: robots that pass keep their inputs;
+    a flagged robot coasts, then brakes with a third and two thirds of its strongest braking
+    (never harder than it meant to), each time checked again with the others' new inputs
+    (once it passes it keeps that input), and brakes fully if it never passes."""
+    rng = np.random.default_rng(seed)
+    n = 6
+    robots = [robot(i) for i in range(n)]
+    states = np.column_stack([rng.uniform(-3, 3, (n, 2)), rng.uniform(-np.pi, np.pi, n), rng.uniform(0, LIMITS.v_max, n)])
+    obstacles = [Obstacle("walker", "pedestrian", rng.uniform(-2, 2, 2), rng.uniform(-1, 1, 2), 0.0, 0.3, 0.5)]
+    check = SafetyCheck(WorldState(0.0, states, robots, obstacles), Fleet(robots), MpcConfig(dt=DT, pedestrian_reach=1.0),
+                        rng.uniform(-np.pi, np.pi, n))
+    inputs = np.column_stack([rng.uniform(LIMITS.a_min, LIMITS.a_max, n), rng.uniform(-0.6, 0.6, n)])
+    checked = np.sort(rng.choice(n, size=int(rng.integers(1, n + 1)), replace=False))
+    got = check.safe_inputs(checked, inputs, margin)
+
+    steer = check.braking_steer(states)
+    expected = inputs.copy()
+    flagged = check.unsafe(checked, expected, margin)
+    for share in (0.0, 1 / 3, 2 / 3):
+        if not flagged.any():
+            break
+        for i in checked[flagged]:
+            expected[i] = [min(inputs[i, 0], share * LIMITS.a_min), steer[i]]
+        flagged &= check.unsafe(checked, expected, margin)
+    for i in checked[flagged]:
+        expected[i] = [LIMITS.braking_input(states[i, 3], DT)[0], steer[i]]
+    np.testing.assert_array_equal(got, expected)
+
+
+@settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 100_000), stages=st.integers(1, 6))
 def test_fleet_footprints_are_the_worlds_footprints_at_every_stage(seed, stages):
     """The compiled footprint rows of robots along trajectories are, stage by stage, what the
