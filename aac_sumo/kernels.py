@@ -1,11 +1,15 @@
 """Compiled inner loops (numba) of the coordinators' per-period work, on plain arrays.
 
-Each kernel is the loop form of a numpy definition elsewhere, and a test pins it to that
-definition: :func:`rollouts` and :func:`braking_courses` step
+Each kernel is the loop form of a numpy definition elsewhere, or of the function it replaced,
+and a test pins it to that definition: :func:`rollouts` and :func:`braking_courses` step
 :func:`aac_sumo.dynamics.bicycle_step` (the latter under the braking law, steering as
-:func:`aac_sumo.dynamics.heading_hold_steer`), :func:`rect_clearance` is
-:func:`aac_sumo.geometry.rect_clearance_rows`, :func:`grow_trees` and
-:func:`closest_on_polyline` the loops of the proximity decision and of path projection.
+:func:`aac_sumo.dynamics.heading_hold_steer`), :func:`footprint_rows` gives
+:meth:`aac_sumo.world.WorldState.robot_footprints` along trajectories, :func:`rect_clearance`
+(and :func:`pairwise_clearance`) is :func:`aac_sumo.geometry.rect_clearance_rows`,
+:func:`stop_flags` and :func:`gentlest_stops` are the safety stop's rule and its rounds of
+gentler braking, :func:`grow_trees`, :func:`closest_on_polyline`, :func:`polyline_offsets` and
+:func:`times_to_collision` the loops of the proximity decision, path projection, the lateral
+band's offsets and the time to collision. They import nothing else of this package.
 Units: m, s, rad. Numba caches the compiled code beside this file, so only the first run on a
 machine compiles it.
 """

@@ -97,13 +97,11 @@ class SafetyCheck:
             self._around = steps, np.concatenate([halt, moving]), np.r_[np.zeros(2 * n, dtype=bool), standing]
         return self._around
 
-    def stopping_course(self, first: np.ndarray | None, steps: int, idx: np.ndarray | None = None) -> np.ndarray:
-        """States (m, steps+1, 4) of robots ``idx`` (all by default) applying ``first`` (m, 2)
-        once (None: braking at once), then braking to a stop as :meth:`braking_steer` steers."""
+    def stopping_course(self, first: np.ndarray | None, steps: int) -> np.ndarray:
+        """States (n, steps+1, 4) of every robot applying ``first`` (n, 2) once (None: braking at
+        once), then braking to a stop as :meth:`braking_steer` steers."""
         world, fleet = self.world, self.fleet
-        idx = np.arange(len(world.robots)) if idx is None else idx
         use_first = first is not None
-        first = np.asarray(first, dtype=float) if use_first else np.zeros((len(idx), 2))
-        return braking_courses(world.states[idx], first, use_first, self.headings[idx], fleet.wheelbase[idx], fleet.a_min[idx],
-                               fleet.a_max[idx], fleet.v_min[idx], fleet.v_max[idx], self.steer_max[idx], self.config.dt,
-                               FALLBACK_TURN_TIME, steps)
+        first = np.asarray(first, dtype=float) if use_first else np.zeros((len(world.robots), 2))
+        return braking_courses(world.states, first, use_first, self.headings, fleet.wheelbase, fleet.a_min, fleet.a_max,
+                               fleet.v_min, fleet.v_max, self.steer_max, self.config.dt, FALLBACK_TURN_TIME, steps)
