@@ -44,10 +44,9 @@ class SafetyCheck:
         self._around = None
         self._steer = None
 
-    def braking_steer(self, states: np.ndarray, idx: np.ndarray | None = None) -> np.ndarray:
-        """Steering (m,) [rad] of robots ``idx`` (all by default) braking from ``states`` (m, 4)."""
-        idx = slice(None) if idx is None else idx
-        return heading_hold_steer(states, self.headings[idx], self.config.dt, self.fleet.wheelbase[idx], self.steer_max[idx], FALLBACK_TURN_TIME)
+    def braking_steer(self, states: np.ndarray) -> np.ndarray:
+        """Steering (n,) [rad] of every robot braking from ``states`` (n, 4)."""
+        return heading_hold_steer(states, self.headings, self.config.dt, self.fleet.wheelbase, self.steer_max, FALLBACK_TURN_TIME)
 
     def safe_inputs(self, check: np.ndarray, inputs: np.ndarray, margin: float) -> np.ndarray:
         """Every robot's inputs (n, 2) after the check of robots ``check``: one whose intended
