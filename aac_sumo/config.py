@@ -42,6 +42,8 @@ class Key:
     def expected(self) -> str:
         if isinstance(self.type, tuple):
             return "one of " + ", ".join(self.type)
+        if self.type is object:
+            return self.expect
         base = {float: "a number", int: "an integer", bool: "true or false", str: "a string", list: "a list"}[self.type]
         return f"{base} {self.expect}".strip()
 
@@ -49,6 +51,8 @@ class Key:
         """The value converted to the key's type, or ``ValueError``."""
         if isinstance(self.type, tuple):
             ok = isinstance(value, str) and value in self.type
+        elif self.type is object:  # any value its check accepts
+            ok = True
         elif self.type is float:
             ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
             value = float(value) if ok else value
@@ -86,7 +90,7 @@ NN = dict(check=_non_negative, expect=">= 0")
 COMMON: dict[str, dict[str, Key]] = {
     "scenario": {
         "name": Key(str, "unnamed", "label written into metrics.json"),
-        "kind": Key(("braking", "swarm_rescue", "circle_swap", "lane_change"), "braking", "which experiment builds the world"),
+        "kind": Key(("braking", "swarm_rescue", "circle_swap", "lane_change", "random_crossing"), "braking", "which experiment builds the world"),
         "seed": Key(int, 0, "seed of every random choice in the run", **NN),
         "dt": Key(float, 0.1, "control period and simulation step [s]", **P),
         "duration": Key(float, 20.0, "time limit [s]", **P),
@@ -150,6 +154,16 @@ COMMON: dict[str, dict[str, Key]] = {
                         "(the tracking law through the safety stop; needs safety_stop)"),
         "ignore_followers": Key(bool, False, "the authority does not avoid robots straight behind it: they keep their distance "
                                 "through the safety stop (needs safety_stop)"),
+        "commit": Key(bool, True, "committed plans: every robot drives the plan of its last turn, ending in a stopping tail, "
+                      "and a new plan replaces it only when it keeps commit_margin from every other commitment (collision-free "
+                      "by construction); false: the paper's stored plan, then the tracking law"),
+        "authorities": Key(object, 1, "robots holding authority per period: 1 (the paper), a larger integer, or \"clusters\" "
+                           "(one per group of robots that can interact within the horizon; needs commit)",
+                           check=lambda a: a == "clusters" or (isinstance(a, int) and not isinstance(a, bool) and a >= 1),
+                           expect="a positive integer or \"clusters\""),
+        "tail_brake": Key(float, 0.5, "deceleration of a commitment's stopping tail, as a share of the strongest braking |robot.a_min|",
+                          check=lambda x: 0 < x <= 1, expect="in (0, 1]"),
+        "commit_margin": Key(float, 0.05, "footprint gap every two commitments keep at every period [m]", **NN),
     },
     "lfc": {
         "safety_stop": Key(bool, False, "every robot's first planned input passes AAC's safety stop (the paper's LFC has none)"),
@@ -199,6 +213,23 @@ KIND_SECTIONS["circle_swap"] = {
     "cruise_speed": Key(float, 1.0, "reference speed along the straight path to the goal [m/s]", **P),
     "goal_tolerance": Key(float, 0.3, "a robot has arrived when its rear axle is this close to its goal [m]", **P),
     "start_jitter": Key(float, 0.05, "the seed shifts every start position uniformly within +- this [m]", **NN),
+}
+KIND_SECTIONS["random_crossing"] = {
+    "n_robots": Key(int, 20, "robots, each with a seeded random start and a goal far across the area",
+                    check=lambda n: 2 <= n <= 200, expect="in 2..200"),
+    "area_per_robot": Key(float, 6.0, "the square area's side is sqrt(n_robots * area_per_robot): the density stays "
+                          "constant as n grows [m^2]", **P),
+    "min_travel_fraction": Key(float, 0.6, "each goal is at least this fraction of the area side from its start, so "
+                               "paths cross the middle", check=lambda f: 0 <= f <= 1.2, expect="in [0, 1.2]"),
+    "clearance": Key(float, 0.5, "gap kept between start footprints, between goals' reach discs (the footprint at the goal "
+                     "in any heading) and from every debris footprint [m]", **NN),
+    "path_clearance": Key(float, 0.5, "distance every straight start-goal path (rear-axle line) keeps from every debris "
+                          "footprint [m]", **NN),
+    "debris_density": Key(float, 2.0, "random debris rectangles per 100 m^2 of area (rounded)", **NN),
+    "debris_min_size": Key(float, 0.4, "smallest debris length or width [m]", **P),
+    "debris_max_size": Key(float, 1.2, "largest debris length or width [m]", **P),
+    "cruise_speed": Key(float, 1.0, "reference speed along the straight path to the goal [m/s]", **P),
+    "goal_tolerance": Key(float, 0.3, "a robot has arrived when its rear axle is this close to its goal [m]", **P),
 }
 KIND_SECTIONS["lane_change"] = {
     "vehicles": Key(int, 15, "controlled vehicles, dealt to the lanes in turn (vehicle k starts in lane k mod lanes)", **P),

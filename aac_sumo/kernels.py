@@ -317,3 +317,49 @@ def polyline_offsets(points, polyline):
         dx, dy = polyline[best_i + 1, 0] - ax, polyline[best_i + 1, 1] - ay
         out[k] = -best if dx * (py - ay) - dy * (px - ax) < 0.0 else best
     return out
+
+
+@numba.njit(cache=True)
+def braking_tail(state, heading, decel, wheelbase, v_min, v_max, steer_max, dt, turn_time, max_steps):
+    """Inputs (K, 2) and rear-axle states (K+1, 4) of one robot braking from ``state`` (4,) to
+    standstill: acceleration ``clip(-v / dt, -decel, decel)`` [m/s^2] and steering that turns
+    its heading towards ``heading`` [rad] with time constant ``turn_time`` [s] within
+    ``steer_max`` (as :func:`braking_courses`), until the speed is within 1e-12 m/s of zero or
+    after ``max_steps`` periods."""
+    states = np.empty((max_steps + 1, 4))
+    inputs = np.empty((max_steps, 2))
+    x, y, h, v = state[0], state[1], state[2], state[3]
+    states[0, 0], states[0, 1], states[0, 2], states[0, 3] = x, y, h, v
+    gain = min(1.0, dt / turn_time)
+    k = 0
+    while k < max_steps and abs(v) > 1e-12:
+        accel = min(max(-v / dt, -decel), decel)
+        error = heading - h
+        error = math.atan2(math.sin(error), math.cos(error))
+        sign = 1.0 if v > 0.0 else -1.0
+        steer = min(max(math.atan2(wheelbase * (gain * error) * sign, abs(v) * dt), -steer_max), steer_max)
+        x, y, h, v = _bicycle_step(x, y, h, v, accel, steer, dt, wheelbase, v_min, v_max)
+        inputs[k, 0], inputs[k, 1] = accel, steer
+        k += 1
+        states[k, 0], states[k, 1], states[k, 2], states[k, 3] = x, y, h, v
+    return states[: k + 1], inputs[:k]
+
+
+@numba.njit(cache=True)
+def course_clearance(own, others, margin):
+    """Least footprint clearance [m] between the course ``own`` (K, 5) and the courses
+    ``others`` (M, K, 5), stage by stage (footprint rows ``[cx, cy, length, width, heading]``),
+    as :func:`rect_clearance`. Stages where two circumscribed discs lie at least ``margin``
+    apart are not measured exactly (they count as that disc gap, a lower bound above
+    ``margin``), so the result is exact wherever it is below ``margin``; inf without others."""
+    best = np.inf
+    r_own = 0.5 * math.hypot(own[0, 2], own[0, 3])
+    for j in range(others.shape[0]):
+        r_other = 0.5 * math.hypot(others[j, 0, 2], others[j, 0, 3])
+        for k in range(own.shape[0]):
+            apart = math.hypot(own[k, 0] - others[j, k, 0], own[k, 1] - others[j, k, 1]) - r_own - r_other
+            if apart >= margin:
+                best = min(best, apart)
+            else:
+                best = min(best, rect_clearance(own[k], others[j, k]))
+    return best

@@ -39,6 +39,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from aac_sumo.coordination.base import Coordinator, Decision, Finished, RobotDecision, check_safety_options, straight_behind
+from aac_sumo.coordination.commitments import CommitmentBook, clusters, reach_radii, stopping_commitment
 from aac_sumo.coordination.proximity import ProximityParams, close_pairs, proximity_decision
 from aac_sumo.coordination.tracking import track
 from aac_sumo.mpc.planner import MpcPlanner
@@ -64,9 +65,17 @@ class AacParams:
     fallback: str = "brake"
     ignore_followers: bool = False
     seed: int = 0
+    commit: bool = True
+    authorities: int | str = 1
+    tail_brake: float = 0.5
+    commit_margin: float = 0.05
 
     def __post_init__(self):
         check_safety_options(self.safety_stop, self.fallback, self.ignore_followers)
+        if self.authorities != "clusters" and not (isinstance(self.authorities, int) and self.authorities >= 1):
+            raise ValueError("authorities must be a positive integer or 'clusters'")
+        if self.authorities != 1 and not self.commit:
+            raise ValueError("more than one authority per period needs committed plans (commit = true)")
 
 
 class AacCoordinator(Coordinator):
@@ -79,8 +88,13 @@ class AacCoordinator(Coordinator):
         self.rng = np.random.default_rng(params.seed)
         self.cursor = -1
         self.used = np.zeros(len(tasks), dtype=int)  # inputs already applied from each stored plan
+        self.period = 0
+        self.book: CommitmentBook | None = None
+        self.last_turn = np.full(len(tasks), -1)  # period of each robot's last authority
 
     def _decide(self, world: WorldState) -> Decision:
+        if self.params.commit:
+            return self._decide_committed(world)
         n, cfg = len(world.robots), self.planner.config
         done = np.asarray(self.finished(world), dtype=bool)
         parked = done & np.array([task.stop_at_end for task in self.tasks])
@@ -177,3 +191,146 @@ class AacCoordinator(Coordinator):
             return out, "plan"
         out[0] = track(world.robots[j], world.states[j], task, self.params.lookahead, self.params.speed_gain)
         return out, "tracking"
+
+    # ----- committed plans (aac.commit = true) -----
+
+    def _decide_committed(self, world: WorldState) -> Decision:
+        """Every robot drives its commitment; each group (all active robots, or each cluster)
+        gives one robot authority, which plans around the others' commitments and commits to its
+        plan only when the plan with its stopping tail passes the exact check."""
+        n, cfg, fleet = len(world.robots), self.planner.config, self.fleet
+        period = self.period
+        self.period += 1
+        statics = np.array([o.footprint() for o in world.obstacles if o.kind in ("static", "cone")]).reshape(-1, 5)
+        if self.book is None:
+            self.book = CommitmentBook(fleet, [self.commitment(world, i, period, np.zeros((0, 2))) for i in range(n)],
+                                       self.params.commit_margin)
+        done = np.asarray(self.finished(world), dtype=bool)
+        parked = done & np.array([task.stop_at_end for task in self.tasks])
+        records = [RobotDecision(False, mode=c.stage(period)) for c in self.book.items]
+        holders, reasons, cuts, kept = [], [], 0, 0
+        for members, candidates in self.groups(world, parked):
+            i, reason = self.choose_committed(world, members, candidates, records, period)
+            others = members[members != i]
+            decided, cut, keep = self.plan_committed(world, i, others, reason, period, statics)
+            decided.score, decided.progress = records[i].score, records[i].progress
+            records[i] = decided
+            holders.append(world.robots[i].name)
+            reasons.append(reason)
+            cuts += cut
+            kept += keep
+        inputs = self.book.inputs(period)
+        stopped = 0
+        if self.params.safety_stop:
+            stopped = self.committed_safety_stop(world, inputs, records, period, statics)
+        notes = dict(authority=" ".join(holders), reason=" ".join(sorted(set(reasons))) if reasons else "all finished",
+                     safety_stops=stopped, authorities=len(holders), commit_cuts=cuts, commit_kept=kept)
+        return Decision(inputs, records, notes=notes)
+
+    def tail_decel(self) -> np.ndarray:
+        """Each robot's stopping-tail deceleration [m/s^2]: ``tail_brake`` of its strongest braking."""
+        return self.params.tail_brake * -self.fleet.a_min
+
+    def commitment(self, world: WorldState, i: int, period: int, head: np.ndarray):
+        """Robot ``i``'s commitment from now: the inputs ``head`` (m, 2), then its stopping tail
+        turning towards its reference's heading where the head ends."""
+        fleet, cfg = self.fleet, self.planner.config
+        end = fleet.rollout(np.array([i]), world.states[[i]], np.asarray(head, dtype=float).reshape(1, -1, 2), cfg.dt)[0, -1]
+        heading = self.tasks[i].heading_at(end[:2])
+        return stopping_commitment(fleet, i, period, world.states[i], head, heading, self.tail_decel()[i],
+                                   world.robots[i].model.limits.steer_max, cfg.dt)
+
+    def groups(self, world: WorldState, parked: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+        """``(members, candidates)`` per authority of this period: with one authority, every
+        robot and the active ones; else the clusters of robots that can interact over the
+        horizon (:func:`~aac_sumo.coordination.commitments.clusters`) that hold an active robot,
+        the longest-waiting first, at most ``authorities`` of them."""
+        n, cfg = len(world.robots), self.planner.config
+        active = np.flatnonzero(~parked)
+        if active.size == 0:
+            return []
+        if self.params.authorities == 1:
+            return [(np.arange(n), active)]
+        radii = reach_radii(self.fleet, world.states, cfg.horizon, cfg.dt, self.tail_decel())
+        out = [(g, g[~parked[g]]) for g in clusters(world.robot_centres(), radii, self.params.commit_margin)]
+        out = [(g, c) for g, c in out if c.size]
+        if self.params.authorities != "clusters":
+            out = sorted(out, key=lambda gc: (self.last_turn[gc[1]].min(), gc[0][0]))[: self.params.authorities]
+            out.sort(key=lambda gc: gc[0][0])
+        return out
+
+    def choose_committed(self, world: WorldState, members: np.ndarray, candidates: np.ndarray, records: list[RobotDecision],
+                         period: int) -> tuple[int, str]:
+        """The authority among ``candidates`` and why: with close pairs among them, the proximity
+        decision (blockers: the group's ``members`` and the obstacles; its samples seeded by the
+        scenario seed, the period and the candidates' states, so that a group's decision depends
+        on nothing outside it); without, the candidate that held authority longest ago (round
+        robin; ties go to the lowest index)."""
+        centres = world.robot_centres()
+        pairs = close_pairs(centres[candidates], self.params.close_distance)
+        if len(pairs) == 0:
+            i, reason = int(candidates[np.argmin(self.last_turn[candidates])]), "round_robin"
+        else:
+            near = candidates[np.unique(pairs)]
+            blockers = np.vstack([centres[members]] + [o.centre[None, :] for o in world.obstacles])
+            r = self.params.proximity.collision_radius
+            radius = np.r_[np.full(len(members), r), [r + 0.5 * np.hypot(o.length, o.width) for o in world.obstacles]]
+            owner = np.full(len(blockers), -1)
+            owner[np.searchsorted(members, near)] = np.arange(len(near))
+            goals = np.array([self.tasks[j].points[-1] for j in near])
+            entropy = np.frombuffer(np.ascontiguousarray(world.states[near]).tobytes(), dtype=np.uint32)
+            rng = np.random.default_rng([self.params.seed, period, *entropy.tolist()])
+            result = proximity_decision(world.states[near, :2], goals, blockers, radius, owner, self.params.proximity, rng)
+            for row, j in enumerate(near):
+                records[j].score, records[j].progress = float(result.scores[row]), float(result.progress[row])
+            i, reason = int(near[result.winner]), "proximity"
+        self.last_turn[i] = period
+        return i, reason
+
+    def plan_committed(self, world: WorldState, i: int, others: np.ndarray, reason: str, period: int,
+                       statics: np.ndarray) -> tuple[RobotDecision, int, int]:
+        """Robot ``i`` plans around ``others``' commitments (swept regions of stages k and k+1)
+        and the obstacles, warm-started from its own commitment. It commits to the longest
+        prefix of its plan (all N inputs first, one fewer each time down to braking at once)
+        whose stopping tail passes the exact check; a failed solve, or no prefix passing, keeps
+        its old commitment. Returns its record, whether the plan was cut, and whether the old
+        commitment was kept."""
+        cfg, book = self.planner.config, self.book
+        traj = book.courses(period, others, cfg.horizon + 1)
+        regions = self.fleet.swept_regions(others, traj, cfg.horizon, cfg.barrier, cfg.fcbf)
+        ref = self.reference(world, i)
+        own = book.items[i]
+        plan = self.planner.plan(world.robots[i], world.states[i], ref, self.last_inputs[i], world.obstacles + regions, None,
+                                 self.corridors[i], guess=(own.course(period, cfg.horizon), own.inputs_ahead(period, cfg.horizon)))
+        self.plans[i] = plan
+        record = RobotDecision(True, plan.status, plan.solve_ms, plan.solver, ref, reason=reason, mode=own.stage(period))
+        if plan.status != "solved":
+            return record, 0, 1
+        for m in range(cfg.horizon, -1, -1):
+            candidate = self.commitment(world, i, period, plan.inputs[:m])
+            if book.clearance(i, candidate, period, statics) >= book.margin:
+                book.items[i] = candidate
+                record.mode = "mpc"
+                return record, int(m < cfg.horizon), 0
+        return record, 1, 1
+
+    def committed_safety_stop(self, world: WorldState, inputs: np.ndarray, records: list[RobotDecision], period: int,
+                              statics: np.ndarray) -> int:
+        """The optional safety stop on committed inputs (``inputs`` changed in place): a robot
+        it would stop brakes (its input once, then braking at its strongest) only when that
+        braking course itself passes the commitments' exact check, and it is then committed to
+        it; so the layer never breaks the invariant. Returns how many robots it stopped."""
+        moving = np.flatnonzero(np.abs(world.states[:, 3]) > 0.0)
+        if moving.size == 0:
+            return 0
+        checked = self.safety_check(world).safe_inputs(moving, inputs, self.params.safety_margin)
+        stopped, cfg = 0, self.planner.config
+        for i in moving[np.any(checked[moving] != inputs[moving], axis=1)]:
+            lim = world.robots[i].model.limits
+            braking = stopping_commitment(self.fleet, i, period, world.states[i], checked[i][None], self.tasks[i].heading_at(world.states[i, :2]),
+                                          -lim.a_min, lim.steer_max, cfg.dt)
+            if self.book.clearance(i, braking, period, statics) >= self.book.margin:
+                self.book.items[i] = braking
+                inputs[i], records[i].mode = checked[i], "safety_stop"
+                stopped += 1
+        return stopped

@@ -71,6 +71,7 @@ def aac_params(scenario: Scenario) -> AacParams:
         proximity=ProximityParams(a["proximity_iterations"], a["alpha"], a["beta"], a["tree_step"], a["sample_radius"], a["collision_radius"]),
         safety_stop=a["safety_stop"], safety_margin=a["safety_margin"], lookahead=a["lookahead"], speed_gain=a["speed_gain"],
         fallback=a["fallback"], ignore_followers=a["ignore_followers"], seed=scenario["scenario.seed"],
+        commit=a["commit"], authorities=a["authorities"], tail_brake=a["tail_brake"], commit_margin=a["commit_margin"],
     )
 
 
@@ -82,6 +83,8 @@ def lfc_params(scenario: Scenario) -> LfcParams:
 
 def _check_safety_options(scenario: Scenario, section: str) -> None:
     """Exit-2 error when an option of ``section`` that relies on its safety stop is on without it."""
+    if section == "aac" and scenario["aac.authorities"] != 1 and not scenario["aac.commit"]:
+        raise ScenarioError(scenario.source, "aac.authorities", "1 unless aac.commit is true", scenario["aac.authorities"])
     if scenario[f"{section}.safety_stop"]:
         return
     if scenario[f"{section}.fallback"] == "tracking":

@@ -277,13 +277,16 @@ class MpcPlanner:
         obstacles: list[Obstacle | ObstaclePrediction | RegionTrack],
         previous: Plan | None = None,
         corridor: np.ndarray | LateralBand | None = None,
+        guess: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> Plan:
         """Plan for ``robot`` at ``state`` tracking ``reference`` (N+1, 4) around ``obstacles``.
 
         ``corridor`` optionally bounds the planned rear-axle positions: to the world-frame box
         ``[x_min, x_max, y_min, y_max]`` [m] (a straight lane, say), or across the reference
         to a :class:`~aac_sumo.references.LateralBand` (a road of any shape); a band the robot
-        is already outside of is widened so that it may not go further out than now."""
+        is already outside of is widened so that it may not go further out than now.
+        ``guess`` (states (N+1, 4), inputs (N, 2)) is the warm start when given (a committed
+        course), instead of ``previous`` shifted by one period."""
         cfg = self.config
         if isinstance(corridor, LateralBand) and not cfg.band:
             raise ValueError("a LateralBand corridor needs a planner built with MpcConfig(band=True)")
@@ -307,6 +310,8 @@ class MpcPlanner:
             moved regions cut through often traps it), then by ipopt from the first guess; the
             cold guess is rolled out only when needed."""
             warm = previous.shifted(state) if usable else None
+            if cfg.warm_start and guess is not None:
+                warm = (np.vstack([state[None], guess[0][1:]]), guess[1])
             if warm is not None:
                 yield self.problem, warm
             cold = self.coasting(robot, state)

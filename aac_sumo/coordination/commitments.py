@@ -1,0 +1,162 @@
+"""Committed plans: what makes AAC collision-free by construction (beyond the paper).
+
+A robot's **commitment** is the course it drives until it next holds authority: the inputs of
+its last MPC plan (possibly cut short), then a **stopping tail** that brakes it to standstill at
+``tail_decel`` [m/s^2] while turning towards its reference's heading; after the tail it stands.
+The states of a commitment are the exact rollout of its inputs with the simulator's Euler model,
+so a robot that executes its commitment is where the commitment says, period after period.
+
+A commitment replaces the old one only after an exact check: its footprint keeps at least
+``margin`` [m] from every other robot's current commitment (each standing still after its end)
+and from every standing obstacle, at every period, until both stand. Initially every robot is
+committed to braking to a stop where it is. Hence, by induction, no two commitments ever come
+closer than the margin, and the old commitment, shifted by the periods since it was made, is
+always a safe fallback: a solve that fails, or a plan whose tail fails the check, changes
+nothing. See ``docs/coordination.md`` for the argument and its limits.
+
+Frames and units: world frame [m], headings [rad], speeds [m/s], periods of ``dt`` [s].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from aac_sumo.coordination.regions import Fleet
+from aac_sumo.kernels import braking_tail, course_clearance, footprint_rows
+
+#: Time constant [s] with which a stopping tail turns the heading towards the reference's.
+TAIL_TURN_TIME = 0.5
+
+
+@dataclass
+class Commitment:
+    """Inputs (T, 2) from period ``start`` on, and the rear-axle states (T+1, 4) they give
+    (``states[0]`` at ``start``); ``planned`` of the inputs come from an MPC plan, the rest
+    are the stopping tail. After period ``start + T`` the robot stands still."""
+
+    start: int
+    states: np.ndarray
+    inputs: np.ndarray
+    planned: int
+
+    def input_at(self, period: int) -> np.ndarray:
+        """The input [accel, steer] of ``period``: zero once the commitment has ended."""
+        k = period - self.start
+        return self.inputs[k] if k < len(self.inputs) else np.zeros(2)
+
+    def stage(self, period: int) -> str:
+        """``plan`` in the planned part, ``tail`` while braking, ``hold`` once standing."""
+        k = period - self.start
+        return "plan" if k < self.planned else "tail" if k < len(self.inputs) else "hold"
+
+    def remaining(self, period: int) -> int:
+        """Periods of the commitment left from ``period``."""
+        return max(len(self.inputs) - (period - self.start), 0)
+
+    def course(self, period: int, steps: int) -> np.ndarray:
+        """States (steps+1, 4) from ``period`` on, the last state repeated once it has ended."""
+        k = period - self.start
+        idx = np.minimum(np.arange(k, k + steps + 1), len(self.states) - 1)
+        return self.states[idx]
+
+    def inputs_ahead(self, period: int, steps: int) -> np.ndarray:
+        """Inputs (steps, 2) from ``period`` on, zero once it has ended."""
+        out = np.zeros((steps, 2))
+        rest = self.inputs[period - self.start:][:steps]
+        out[: len(rest)] = rest
+        return out
+
+
+def stopping_commitment(fleet: Fleet, i: int, start: int, state: np.ndarray, head: np.ndarray, heading: float,
+                        tail_decel: float, steer_max: float, dt: float) -> Commitment:
+    """Robot ``i``'s commitment from ``state`` at period ``start``: the inputs ``head`` (m, 2),
+    then a stopping tail at ``tail_decel`` turning towards ``heading``."""
+    head = np.asarray(head, dtype=float).reshape(-1, 2)
+    states = fleet.rollout(np.array([i]), np.asarray(state, dtype=float)[None], head[None], dt)[0]
+    last = states[-1]
+    max_steps = int(np.ceil(abs(last[3]) / tail_decel / dt)) + 2
+    tail_states, tail_inputs = braking_tail(last, float(heading), float(tail_decel), fleet.wheelbase[i], fleet.v_min[i],
+                                            fleet.v_max[i], float(steer_max), dt, TAIL_TURN_TIME, max_steps)
+    return Commitment(start, np.vstack([states, tail_states[1:]]), np.vstack([head, tail_inputs]), len(head))
+
+
+class CommitmentBook:
+    """Every robot's commitment, the fleet's footprints along them, and the exact check."""
+
+    def __init__(self, fleet: Fleet, commitments: list[Commitment], margin: float):
+        self.fleet, self.items, self.margin = fleet, list(commitments), float(margin)
+
+    def inputs(self, period: int) -> np.ndarray:
+        """Every robot's committed input (n, 2) of ``period``."""
+        return np.array([c.input_at(period) for c in self.items]).reshape(-1, 2)
+
+    def courses(self, period: int, idx: np.ndarray, steps: int) -> np.ndarray:
+        """States (m, steps+1, 4) of robots ``idx`` along their commitments from ``period``."""
+        return np.array([self.items[j].course(period, steps) for j in idx]).reshape(len(idx), steps + 1, 4)
+
+    def clearance(self, i: int, candidate: Commitment, period: int, statics: np.ndarray) -> float:
+        """Least footprint clearance [m] of robot ``i`` along ``candidate`` to every other
+        robot along its commitment and to the standing obstacles ``statics`` (S, 5), from
+        ``period`` until all stand still (exact below ``margin``)."""
+        n = len(self.items)
+        others = np.array([j for j in range(n) if j != i], dtype=int)
+        steps = max([candidate.remaining(period)] + [self.items[j].remaining(period) for j in others]) + 1
+        own = footprint_rows(candidate.course(period, steps)[None], self.fleet.offset[[i]], self.fleet.length[[i]],
+                             self.fleet.width[[i]])[0]
+        rows = self.fleet.footprints(others, self.courses(period, others, steps)) if len(others) else np.empty((0, steps + 1, 5))
+        fixed = np.repeat(np.asarray(statics, dtype=float).reshape(-1, 1, 5), steps + 1, axis=1)
+        return course_clearance(own, np.concatenate([rows, fixed]), self.margin)
+
+    def pairwise_clearance(self, period: int, statics: np.ndarray | None = None) -> np.ndarray:
+        """Least clearance [m] (n, n) between every two commitments from ``period`` on (inf on
+        the diagonal), and to ``statics`` in an extra last column when given."""
+        n = len(self.items)
+        steps = max(c.remaining(period) for c in self.items) + 1
+        rows = self.fleet.footprints(np.arange(n), self.courses(period, np.arange(n), steps))
+        out = np.full((n, n + (statics is not None)), np.inf)
+        for i in range(n):
+            for j in range(i + 1, n):
+                out[i, j] = out[j, i] = course_clearance(rows[i], rows[j][None], np.inf)
+            if statics is not None and len(statics):
+                fixed = np.repeat(np.asarray(statics, dtype=float).reshape(-1, 1, 5), steps + 1, axis=1)
+                out[i, n] = course_clearance(rows[i], fixed, np.inf)
+        return out
+
+
+def reach_radii(fleet: Fleet, states: np.ndarray, horizon: int, dt: float, tail_decel: float) -> np.ndarray:
+    """Per robot, a radius [m] around its footprint centre that contains its footprint along any
+    course it can commit to from ``states`` (n, 4), and along the rest of its current
+    commitment: ``horizon`` periods accelerating as hard as it can, then a stopping tail at
+    ``tail_decel`` (the farthest any such course goes), plus twice the rear-axle-to-centre
+    offset (turning) and the footprint's half diagonal."""
+    speed = np.abs(states[:, 3])
+    accel = np.maximum(fleet.a_max, -fleet.a_min)
+    top = np.maximum(fleet.v_max, -fleet.v_min)
+    k = np.arange(horizon)
+    speeds = np.minimum(top[:, None], speed[:, None] + accel[:, None] * dt * k[None, :])  # speed at the start of each period
+    end = np.minimum(top, speed + accel * dt * horizon)
+    travel = speeds.sum(axis=1) * dt + end**2 / (2.0 * tail_decel) + end * dt
+    return travel + 2.0 * np.abs(fleet.offset) + 0.5 * np.hypot(fleet.length, fleet.width)
+
+
+def clusters(centres: np.ndarray, radii: np.ndarray, margin: float) -> list[np.ndarray]:
+    """Connected components (each sorted robot indices, ordered by their first index) of the
+    graph whose edges join robots whose reach discs (``centres`` (n, 2), ``radii`` (n,)) come
+    within ``margin`` of each other: robots in different components cannot interact over the
+    courses they can commit to now."""
+    n = len(centres)
+    if n == 0:
+        return []
+    pairs = cKDTree(centres).query_pairs(2.0 * float(radii.max()) + margin, output_type="ndarray")
+    if len(pairs):
+        gap = np.hypot(*(centres[pairs[:, 0]] - centres[pairs[:, 1]]).T) - radii[pairs[:, 0]] - radii[pairs[:, 1]]
+        pairs = pairs[gap < margin]
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)) if len(pairs) else coo_matrix((n, n))
+    _, label = connected_components(graph, directed=False)
+    groups = [np.flatnonzero(label == c) for c in np.unique(label)]
+    return sorted(groups, key=lambda g: g[0])
