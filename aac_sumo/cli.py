@@ -100,11 +100,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, help="output directory (default out/tune/<scenario name>)")
     add_executor(p, resume=False)
 
-    from aac_sumo.tables import TABLES
+    from aac_sumo.tables import LAYER_CHOICES, TABLES
 
-    p = sub.add_parser("table", help="one of the paper's tables, ours beside the paper's values")
+    p = sub.add_parser("table", help="one of the paper's tables, ours beside the paper's values; or the circle swap",
+                       description="swarm: Table I (AAC vs LFC, horizons 5/10/15); lane-change: Table II (SUMO); "
+                       "braking: Table III (CBF vs F-CBF); circle-swap: AAC vs LFC with 8/16/24 robots on radii 4/6/8 m "
+                       "(not in the paper). swarm and circle-swap give AAC and LFC the same emergency layers in every "
+                       "run (the safety_layers column): off = neither has the safety stop (the paper), on = both have it.")
     p.add_argument("name", choices=TABLES, metavar="{" + ",".join(TABLES) + "}")
     p.add_argument("--seeds", type=_positive_int, default=1, metavar="K", help="seeds per cell (default 1)")
+    p.add_argument("--layers", choices=LAYER_CHOICES, metavar="{" + ",".join(LAYER_CHOICES) + "}",
+                   help="swarm and circle-swap: aac.safety_stop and lfc.safety_stop, set together: off (the paper), "
+                   "on, or both settings (default: both for swarm, off for circle-swap)")
     add_set(p)
     p.add_argument("--out", type=Path, help="output directory (default out/table/<name>)")
     add_executor(p, resume=True)
@@ -273,9 +280,15 @@ def cmd_table(args) -> int:
     from aac_sumo import tables
 
     out = args.out if args.out is not None else Path("out") / "table" / args.name
+    extra = {}
+    if args.layers is not None:
+        if args.name not in tables.LAYERED:
+            raise UsageError(f"table {args.name}: --layers: expected one of the tables {', '.join(tables.LAYERED)} "
+                             f"(table {args.name} does not switch emergency layers)")
+        extra["layers"] = args.layers
     _check_out(out)
     _, text, runs = tables.BUILDERS[args.name](args.seeds, args.workers, out, list(args.sets), progress=not args.no_progress,
-                                                scheduler=args.scheduler, resume=args.resume)
+                                                scheduler=args.scheduler, resume=args.resume, **extra)
     print(text, end="")
     print(f"outputs: {out / 'table.csv'}, {out / 'table.md'}, {out / 'results.csv'}")
     return _report_failures(runs)

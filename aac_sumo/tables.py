@@ -1,19 +1,74 @@
 """The paper's tables, ours beside the paper's values: ``aac-sumo table NAME``.
 
 Table I (swarm rescue) and Table II (lane change) compare AAC with LFC at MPC horizons 5, 10 and
-15; Table III (emergency braking) compares CBF with F-CBF over the initial speed. The runs go
-through the same process pool as ``aac-sumo sweep`` (and leave the same ``results.csv``).
+15; Table III (emergency braking) compares CBF with F-CBF over the initial speed. The circle-swap
+table (not in the paper) compares AAC with LFC over the number of robots. The runs go through the
+same process pool as ``aac-sumo sweep`` (and leave the same ``results.csv``).
+
+Table I and the circle swap run AAC and LFC with the same emergency layers (the ``safety_layers``
+column): ``off`` is the paper's setting (no safety stop for either coordinator), ``on`` gives both
+the safety stop. The paper's values stand beside the ``off`` rows only.
 """
 
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 from pathlib import Path
 
 from aac_sumo import config, sweep
 
-TABLES = ("swarm", "lane-change", "braking")
+TABLES = ("swarm", "lane-change", "braking", "circle-swap")
+
+# --- Emergency layers: the same setting for both coordinators ----------------------------------
+
+#: ``safety_layers`` values: ``off`` = neither coordinator has an emergency layer (the paper),
+#: ``on`` = both brake through the safety stop (the safer variant).
+SAFETY_LAYERS = ("off", "on")
+#: What ``--layers`` accepts: one setting, or both (``off`` rows first).
+LAYER_CHOICES = ("off", "on", "both")
+#: The keys each setting fixes, for AAC and LFC together, in every run of a layered table.
+LAYER_KEYS = ("aac.safety_stop", "lfc.safety_stop")
+LAYER_TITLES = {
+    "off": "Safety layers off: neither coordinator has an emergency layer (the paper's setting)",
+    "on": "Safety layers on: both coordinators brake through the safety stop (the safer variant)",
+}
+
+
+def layer_sets(layer: str) -> list[str]:
+    """The ``--set`` overrides of one ``safety_layers`` value, the same for AAC and LFC."""
+    value = {"off": "false", "on": "true"}[layer]
+    return [f"{key}={value}" for key in LAYER_KEYS]
+
+
+def layers_of(choice: str) -> tuple[str, ...]:
+    """``--layers off|on|both`` as the settings to run, ``off`` first."""
+    if choice not in LAYER_CHOICES:
+        raise sweep.SweepError(f"--layers {choice}: expected one of {', '.join(LAYER_CHOICES)}")
+    return SAFETY_LAYERS if choice == "both" else (choice,)
+
+
+def check_table_sets(sets: list[str], fixed: tuple[str, ...], name: str) -> None:
+    """Refuse a ``--set`` of a key the table itself sets in every run (it would be overridden)."""
+    for text in sets:
+        key = text.split("=", 1)[0].strip()
+        if key in fixed:
+            hint = " (choose with --layers off|on|both)" if key in LAYER_KEYS else ""
+            raise sweep.SweepError(f"--set {text}: {key}: expected a key that table {name} does not set itself; "
+                                   f"it sets {', '.join(fixed)} in every run{hint}")
+
+
+def plan_bundled_tasks(scenario: str, sets: list[str], bundles, grid, seeds: int) -> tuple[list[sweep.Task], list[str]]:
+    """Tasks for keys that vary together: each bundle is ``(values, bundle_sets)``, with
+    ``values`` the ``(column, value)`` pairs it records in ``results.csv`` and ``bundle_sets``
+    the overrides it applies after ``sets``; every bundle runs the whole ``grid`` x ``seeds``.
+    Returns the tasks (indexed in order) and the grid keys (bundle columns, then ``grid``'s)."""
+    tasks: list[sweep.Task] = []
+    for values, bundle_sets in bundles:
+        for t in sweep.plan_tasks(scenario, list(sets) + list(bundle_sets), grid, seeds):
+            tasks.append(dataclasses.replace(t, index=len(tasks), grid=tuple(values) + t.grid))
+    return tasks, [k for k, _ in bundles[0][0]] + [k for k, _ in grid]
 
 BRAKING_SPEEDS = (5, 10, 15, 20, 25)
 BRAKING_BARRIERS = ("cbf", "fcbf")
@@ -156,50 +211,85 @@ PAPER_TABLE_I: dict[tuple[str, int], tuple[float, float, float]] = {
 PAPER_I_METRICS = ("task_duration_s", "compute_ms_mean", "min_distance_m")
 
 
+#: Yes/no metrics that a table row gives as the share of runs (``completed``: completed rate).
+SHARE_METRICS = ("completed", "deadlock")
+
+
+def fill_metrics(row: dict, group: list[dict], seeds: int, metrics) -> dict:
+    """Means (and stds when ``seeds`` > 1) over the runs of ``group`` that ran without error, plus
+    ``runs`` and ``errors``; yes/no metrics become shares, and a metric that is null in a run
+    (task duration of an incomplete run) is averaged over the others."""
+    good = [r for r in group if r.get("status") == "ok"]
+    for m in metrics:
+        values = [float(bool(r.get(m))) if m in SHARE_METRICS else r.get(m) for r in good]
+        mean, std, _ = sweep.mean_std(values)
+        row[m] = mean
+        if seeds > 1:
+            row[f"{m}_std"] = std
+    row["runs"] = len(good)
+    row["errors"] = len(group) - len(good)
+    return row
+
+
+def _layer_rank(row: dict) -> int:
+    return SAFETY_LAYERS.index(row["safety_layers"]) if row.get("safety_layers") in SAFETY_LAYERS else -1
+
+
+def _coordinator_rank(row: dict) -> int:
+    return COORDINATORS.index(row["coordinator"]) if row["coordinator"] in COORDINATORS else 9
+
+
 def horizon_rows(runs: list[dict], seeds: int, metrics, paper: dict, paper_metrics) -> list[dict]:
-    """One table.csv row per (coordinator, horizon): means (and stds) over the seeds that ran
-    without error; ``completed`` becomes the share of completed runs and task duration is
-    averaged over the completed ones (it is null otherwise)."""
+    """One table.csv row per (coordinator, horizon), and per ``safety_layers`` value when the
+    runs carry one: means (and stds) over the seeds that ran without error; ``completed``
+    becomes the share of completed runs and task duration is averaged over the completed ones
+    (it is null otherwise). The paper's values go to the rows of its setting only: every row
+    of a table without ``safety_layers``, the ``off`` rows of one with it."""
+    layered = any("safety_layers" in r for r in runs)
+    keys = ["controller.horizon", "controller.coordinator"] + (["safety_layers"] if layered else [])
     table = []
-    for (horizon, coordinator), group in sweep.groups(runs, ["controller.horizon", "controller.coordinator"]):
-        good = [r for r in group if r.get("status") == "ok"]
+    for values, group in sweep.groups(runs, keys):
+        horizon, coordinator = values[:2]
         row: dict = {"coordinator": coordinator, "horizon": int(horizon)}
-        for m in metrics:
-            values = [float(bool(r.get(m))) if m == "completed" else r.get(m) for r in good]
-            mean, std, _ = sweep.mean_std(values)
-            row[m] = mean
-            if seeds > 1:
-                row[f"{m}_std"] = std
-        for m, value in zip(paper_metrics, paper.get((coordinator, int(horizon)), (None,) * len(paper_metrics))):
+        if layered:
+            row["safety_layers"] = values[2]
+        fill_metrics(row, group, seeds, metrics)
+        paper_values = paper.get((coordinator, int(horizon))) if row.get("safety_layers", "off") == "off" else None
+        for m, value in zip(paper_metrics, paper_values or (None,) * len(paper_metrics)):
             row[f"paper_{m}"] = value
-        row["runs"] = len(good)
-        row["errors"] = len(group) - len(good)
         table.append(row)
-    return sorted(table, key=lambda r: (r["horizon"], COORDINATORS.index(r["coordinator"]) if r["coordinator"] in COORDINATORS else 9))
+    return sorted(table, key=lambda r: (_layer_rank(r), r["horizon"], _coordinator_rank(r)))
 
 
-def horizon_columns(seeds: int, metrics, paper_metrics) -> list[str]:
-    cols = ["coordinator", "horizon"]
+def horizon_columns(seeds: int, metrics, paper_metrics, layered: bool = False) -> list[str]:
+    cols = ["coordinator", "horizon"] + (["safety_layers"] if layered else [])
     for m in metrics:
         cols += [m] + ([f"{m}_std"] if seeds > 1 else [])
     return cols + [f"paper_{m}" for m in paper_metrics] + ["runs", "errors"]
 
 
 def run_grid(scenario: str, grid, seeds: int, workers: int | None, out: Path, sets: list[str] | None,
-             progress: bool, desc: str, scheduler: str | None = None, resume: bool = False) -> list[dict]:
+             progress: bool, desc: str, scheduler: str | None = None, resume: bool = False, bundles=None) -> list[dict]:
     """Every grid combination x seeds run of ``scenario`` through the sweep executor (local
-    processes, or the Dask scheduler at ``scheduler``; ``resume`` skips finished runs)."""
+    processes, or the Dask scheduler at ``scheduler``; ``resume`` skips finished runs); with
+    ``bundles`` (see :func:`plan_bundled_tasks`) the grid runs once per bundle."""
     sets = list(sets or [])
-    tasks = sweep.plan_tasks(scenario, sets, grid, seeds)
-    return sweep.run_tasks(tasks, [k for k, _ in grid], out, workers, progress, desc=desc, scheduler=scheduler,
+    if bundles:
+        tasks, keys = plan_bundled_tasks(scenario, sets, bundles, grid, seeds)
+    else:
+        tasks, keys = sweep.plan_tasks(scenario, sets, grid, seeds), [k for k, _ in grid]
+    return sweep.run_tasks(tasks, keys, out, workers, progress, desc=desc, scheduler=scheduler,
                            resume=resume, manifest=sweep.sweep_manifest(tasks[0].source, sets))
 
 
 def run_horizon_table(scenario: str, seeds: int, workers: int | None, out: Path, sets: list[str] | None,
-                      progress: bool, desc: str, scheduler: str | None = None, resume: bool = False) -> list[dict]:
-    """Every (horizon, coordinator) x seeds run of ``scenario``; the per-run rows."""
+                      progress: bool, desc: str, scheduler: str | None = None, resume: bool = False,
+                      layers: tuple[str, ...] | None = None) -> list[dict]:
+    """Every (horizon, coordinator) x seeds run of ``scenario``; the per-run rows. With ``layers``
+    (``safety_layers`` values) the grid runs once per setting, AAC and LFC alike in each."""
     grid = [("controller.horizon", [str(h) for h in HORIZONS]), ("controller.coordinator", list(COORDINATORS))]
-    return run_grid(scenario, grid, seeds, workers, out, sets, progress, desc, scheduler, resume)
+    bundles = [((("safety_layers", layer),), layer_sets(layer)) for layer in layers] if layers else None
+    return run_grid(scenario, grid, seeds, workers, out, sets, progress, desc, scheduler, resume, bundles)
 
 
 SWARM_COLUMNS = (
@@ -212,21 +302,44 @@ SWARM_COLUMNS = (
 )
 
 
-def horizon_markdown(title: str, intro: str, columns, rows: list[dict]) -> str:
-    """A markdown table of (coordinator, horizon) rows; ``columns`` are (header, key, kind) with
-    kind as in :func:`_fmt`. Ours carry their std (not rates); the paper's never do."""
-    lines = [f"# {title}", "", intro, "",
-             "| " + " | ".join(["Controller", "N"] + [h for h, _, _ in columns]) + " |",
-             "|---|---:|" + "---:|" * len(columns)]
+def markdown_table(rows: list[dict], first, columns) -> list[str]:
+    """The lines of a markdown table: ``first`` are (header, key) columns shown as they are (the
+    coordinator by its label), ``columns`` (header, key, kind) with kind as in :func:`_fmt`. Ours
+    carry their std (not rates); the paper's never do."""
+    lines = ["| " + " | ".join([h for h, _ in first] + [h for h, _, _ in columns]) + " |",
+             "|---|" + "---:|" * (len(first) - 1 + len(columns))]
     for r in rows:
-        cells = [COORDINATOR_LABELS.get(r["coordinator"], r["coordinator"]), str(r["horizon"])]
+        cells = [COORDINATOR_LABELS.get(r[key], r[key]) if key == "coordinator" else str(r[key]) for _, key in first]
         for _, key, kind in columns:
             plain = key.startswith("paper_") or kind == "pct"
             cells.append(_fmt(r[key], None if plain else r.get(f"{key}_std"), kind))
         if r["errors"]:
             cells[0] += f" ({r['errors']} failed run{'s' if r['errors'] > 1 else ''})"
         lines.append("| " + " | ".join(cells) + " |")
+    return lines
+
+
+def layered_markdown(title: str, intro: str, first, columns, rows: list[dict]) -> str:
+    """A markdown table per ``safety_layers`` value under its own heading (one table when the
+    rows carry none); the paper's columns only where the paper's setting ran (``off``)."""
+    lines = [f"# {title}", "", intro]
+    layers = [layer for layer in SAFETY_LAYERS if any(r.get("safety_layers") == layer for r in rows)]
+    if not layers:
+        return "\n".join(lines + [""] + markdown_table(rows, first, columns)) + "\n"
+    for layer in layers:
+        part = [r for r in rows if r.get("safety_layers") == layer]
+        shown = columns if layer == "off" else [c for c in columns if not c[1].startswith("paper_")]
+        lines += ["", f"## {LAYER_TITLES[layer]}", "",
+                  f"`safety_layers = {layer}`: " + ", ".join(f"`{k} = {layer == 'on'}`".lower() for k in LAYER_KEYS)
+                  + " in every run of this table" + ("" if layer == "off" else "; the paper has no such rows") + ".", ""]
+        lines += markdown_table(part, first, shown)
     return "\n".join(lines) + "\n"
+
+
+def horizon_markdown(title: str, intro: str, columns, rows: list[dict]) -> str:
+    """A markdown table of (coordinator, horizon) rows, one per ``safety_layers`` value if the rows
+    carry one; ``columns`` are (header, key, kind) with kind as in :func:`_fmt`."""
+    return layered_markdown(title, intro, (("Controller", "coordinator"), ("N", "horizon")), columns, rows)
 
 
 def swarm_markdown(rows: list[dict], scenario: config.Scenario, seeds: int) -> str:
@@ -234,21 +347,101 @@ def swarm_markdown(rows: list[dict], scenario: config.Scenario, seeds: int) -> s
     intro = (
         f"{len(s['starts'])} robots with crossing paths among {len(s['debris'])} debris pieces, dt = {scenario['scenario.dt']} s, "
         f"MPC-{c['barrier'].upper()} with {c['solver']}{' compiled to C' if c['codegen'] else ''}; both coordinators use the same "
-        f"planner, solver and weights. " + (f"Ours: mean ± sample std over {seeds} seeds." if seeds > 1 else "Ours: one seed.")
+        f"planner, solver, weights, prediction and emergency layers (each section below states which). "
+        + (f"Ours: mean ± sample std over {seeds} seeds." if seeds > 1 else "Ours: one seed.")
         + " Compute is the coordinator's wall time per control period (every MPC solve of the period included). Min distance"
         " is the smallest centre-to-centre distance between two robots. Task duration is averaged over completed runs only."
-        " The paper reports only task duration, compute time and minimum distance; — marks a missing value."
+        " The paper reports only task duration, compute time and minimum distance, with no emergency layer; — marks a"
+        " missing value."
     )
     return horizon_markdown("Table I: swarm rescue, AAC vs LFC", intro, SWARM_COLUMNS, rows)
 
 
 def swarm_table(seeds: int, workers: int | None, out: Path, sets: list[str] | None = None,
-                progress: bool = True, scheduler: str | None = None, resume: bool = False) -> tuple[list[dict], str, list[dict]]:
-    """Run Table I (horizons x coordinators x seeds) and write results.csv, table.csv and table.md."""
-    runs = run_horizon_table("swarm_rescue", seeds, workers, out, sets, progress, "table swarm", scheduler, resume)
+                progress: bool = True, scheduler: str | None = None, resume: bool = False,
+                layers: str = "both") -> tuple[list[dict], str, list[dict]]:
+    """Run Table I (safety layers x horizons x coordinators x seeds) and write results.csv,
+    table.csv and table.md. ``layers`` (``off``, ``on`` or ``both``) sets ``aac.safety_stop``
+    and ``lfc.safety_stop`` together in every run."""
+    sets = list(sets or [])
+    check_table_sets(sets, LAYER_KEYS, "swarm")
+    runs = run_horizon_table("swarm_rescue", seeds, workers, out, sets, progress, "table swarm", scheduler, resume,
+                             layers=layers_of(layers))
     rows = horizon_rows(runs, seeds, SWARM_METRICS, PAPER_TABLE_I, PAPER_I_METRICS)
-    write_csv(rows, horizon_columns(seeds, SWARM_METRICS, PAPER_I_METRICS), out / "table.csv")
-    text = swarm_markdown(rows, config.load("swarm_rescue", list(sets or [])), seeds)
+    write_csv(rows, horizon_columns(seeds, SWARM_METRICS, PAPER_I_METRICS, layered=True), out / "table.csv")
+    text = swarm_markdown(rows, config.load("swarm_rescue", sets), seeds)
+    (out / "table.md").write_text(text)
+    return rows, text, runs
+
+
+# --- Circle swap: AAC against LFC over the number of robots ------------------------------------
+
+#: (robots, circle radius [m]) of the circle-swap table.
+CIRCLE_SIZES = ((8, 4.0), (16, 6.0), (24, 8.0))
+CIRCLE_KEYS = ("circle_swap.n_robots", "circle_swap.radius")
+CIRCLE_METRICS = ("completed", "task_duration_s", "collisions", "deadlock", "min_distance_m", "min_clearance_m",
+                  "compute_ms_mean", "compute_ms_median", "infeasibility_rate", "safety_stops", "authority_jain",
+                  "delay_max_s")
+CIRCLE_COLUMNS = (
+    ("Completed", "completed", "pct"), ("Task duration [s]", "task_duration_s", "f2"), ("Collisions", "collisions", "count"),
+    ("Deadlock", "deadlock", "pct"), ("Min distance [m]", "min_distance_m", "f2"), ("Min clearance [m]", "min_clearance_m", "f2"),
+    ("Compute [ms] mean", "compute_ms_mean", "f2"), ("median", "compute_ms_median", "f2"),
+    ("Infeasible", "infeasibility_rate", "pct"), ("Safety stops", "safety_stops", "count"),
+    ("authority_jain", "authority_jain", "f2"), ("delay_max_s [s]", "delay_max_s", "f2"),
+)
+
+
+def circle_rows(runs: list[dict], seeds: int) -> list[dict]:
+    """One table.csv row per (coordinator, robots, radius, safety layers): means (and stds) over the
+    seeds that ran without error; ``completed`` and ``deadlock`` are shares of the runs. The paper
+    has no circle swap, so there are no ``paper_`` values."""
+    table = []
+    keys = ["controller.coordinator", *CIRCLE_KEYS, "safety_layers"]
+    for (coordinator, n, radius, layer), group in sweep.groups(runs, keys):
+        row = {"coordinator": coordinator, "n_robots": int(n), "radius": float(radius), "safety_layers": layer}
+        table.append(fill_metrics(row, group, seeds, CIRCLE_METRICS))
+    return sorted(table, key=lambda r: (_layer_rank(r), r["n_robots"], _coordinator_rank(r)))
+
+
+def circle_columns(seeds: int) -> list[str]:
+    cols = ["coordinator", "n_robots", "radius", "safety_layers"]
+    for m in CIRCLE_METRICS:
+        cols += [m] + ([f"{m}_std"] if seeds > 1 else [])
+    return cols + ["runs", "errors"]
+
+
+def circle_markdown(rows: list[dict], scenario: config.Scenario, seeds: int) -> str:
+    c, cs = scenario.data["controller"], scenario.data["circle_swap"]
+    intro = (
+        f"n robots evenly spaced on a circle of the given radius drive to the antipodal points at {cs['cruise_speed']} m/s: "
+        f"every straight path meets at the centre. dt = {scenario['scenario.dt']} s, time limit {scenario['scenario.duration']} s, "
+        f"MPC-{c['barrier'].upper()} with {c['solver']}{' compiled to C' if c['codegen'] else ''}, N = {c['horizon']}; "
+        "both coordinators use the same planner, solver, weights, prediction and emergency layers (each section below states "
+        "which). " + (f"Mean ± sample std over {seeds} seeds" if seeds > 1 else "One seed")
+        + f" (the seed moves the starts by up to ±{cs['start_jitter']} m and seeds AAC's proximity decision)."
+        " Completed and deadlock are shares of the runs; task duration is averaged over completed runs only. Compute is"
+        " the coordinator's wall time per control period. The paper has no circle swap; — marks a missing value."
+    )
+    first = (("Controller", "coordinator"), ("Robots", "n_robots"), ("Radius [m]", "radius"))
+    return layered_markdown("Circle swap: AAC vs LFC over the number of robots", intro, first, CIRCLE_COLUMNS, rows)
+
+
+def circle_swap_table(seeds: int, workers: int | None, out: Path, sets: list[str] | None = None,
+                      progress: bool = True, scheduler: str | None = None, resume: bool = False,
+                      layers: str = "off") -> tuple[list[dict], str, list[dict]]:
+    """Run the circle-swap table (safety layers x (robots, radius) of :data:`CIRCLE_SIZES` x
+    coordinators x seeds) and write results.csv, table.csv and table.md. ``layers`` (``off``
+    by default, ``on`` or ``both``) sets ``aac.safety_stop`` and ``lfc.safety_stop`` together."""
+    sets = list(sets or [])
+    check_table_sets(sets, LAYER_KEYS + CIRCLE_KEYS, "circle-swap")
+    bundles = [((("safety_layers", layer), ("circle_swap.n_robots", n), ("circle_swap.radius", radius)),
+                layer_sets(layer) + [f"circle_swap.n_robots={n}", f"circle_swap.radius={radius}"])
+               for layer in layers_of(layers) for n, radius in CIRCLE_SIZES]
+    grid = [("controller.coordinator", list(COORDINATORS))]
+    runs = run_grid("circle_swap", grid, seeds, workers, out, sets, progress, "table circle-swap", scheduler, resume, bundles)
+    rows = circle_rows(runs, seeds)
+    write_csv(rows, circle_columns(seeds), out / "table.csv")
+    text = circle_markdown(rows, config.load("circle_swap", sets), seeds)
     (out / "table.md").write_text(text)
     return rows, text, runs
 
@@ -300,4 +493,7 @@ def lane_change_table(seeds: int, workers: int | None, out: Path, sets: list[str
     return rows, text, runs
 
 
-BUILDERS = {"swarm": swarm_table, "lane-change": lane_change_table, "braking": braking_table}
+BUILDERS = {"swarm": swarm_table, "lane-change": lane_change_table, "braking": braking_table,
+            "circle-swap": circle_swap_table}
+#: The tables that run AAC and LFC with switchable emergency layers, and their ``--layers`` default.
+LAYERED = {"swarm": "both", "circle-swap": "off"}
