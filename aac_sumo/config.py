@@ -164,6 +164,9 @@ COMMON: dict[str, dict[str, Key]] = {
         "tail_brake": Key(float, 0.5, "deceleration of a commitment's stopping tail, as a share of the strongest braking |robot.a_min|",
                           check=lambda x: 0 < x <= 1, expect="in (0, 1]"),
         "commit_margin": Key(float, 0.05, "footprint gap every two commitments keep at every period [m]", **NN),
+        "keep_right": Key(float, 0.0, "right-hand rule: the authority's reference shifts this far to the right while another "
+                          "robot is ahead within keep_right_range (0: off, the paper) [m]", **NN),
+        "keep_right_range": Key(float, 3.0, "distance within which a robot ahead triggers keep_right [m]", **P),
     },
     "lfc": {
         "safety_stop": Key(bool, False, "every robot's first planned input passes AAC's safety stop (the paper's LFC has none)"),

@@ -13,9 +13,10 @@ from aac_sumo.kernels import closest_on_polyline
 
 class PathReference:
     """Path ``waypoints`` (M, 2) [m] driven at ``speed`` [m/s]; decelerates at ``decel`` [m/s^2]
-    to stop at the last waypoint when ``stop_at_end`` is set."""
+    to stop at the last waypoint when ``stop_at_end`` is set. Within ``approach`` [m] of that
+    goal the reference runs straight from the robot to the goal instead (see :meth:`horizon`)."""
 
-    def __init__(self, waypoints, speed: float, decel: float = 1.5, stop_at_end: bool = True):
+    def __init__(self, waypoints, speed: float, decel: float = 1.5, stop_at_end: bool = True, approach: float = 0.0):
         pts = np.asarray(waypoints, dtype=float)
         if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2:
             raise ValueError("a path needs at least two (x, y) waypoints")
@@ -31,6 +32,7 @@ class PathReference:
         self.speed = float(speed)
         self.decel = float(decel)
         self.stop_at_end = stop_at_end
+        self.approach = float(approach)
         # upper bound of the fraction of each segment a projection may reach: past the end of a path that does not stop
         self._t_max = np.r_[np.ones(len(self.seg_len) - 1), 1.0 if stop_at_end else np.inf]
 
@@ -77,8 +79,26 @@ class PathReference:
     def horizon(self, state, steps: int, dt: float) -> np.ndarray:
         """Reference states (steps + 1, 4) starting from the projection of ``state``'s position.
 
-        Headings are unwrapped to lie within pi of the robot's heading.
+        Headings are unwrapped to lie within pi of the robot's heading. Within ``approach`` of
+        the goal of a path that stops, the reference runs straight from the robot's position to
+        the goal at the path's stopping speed profile, headed along that line (backwards when the
+        goal lies behind the robot): a robot that reaches the goal's neighbourhood off the path
+        (it avoided someone) steers onto the goal instead of stopping beside it, where a short
+        horizon cannot undo a sideways error of a car-like robot.
         """
+        goal = self.points[-1]
+        rel = goal - np.asarray(state[:2], dtype=float)
+        dist = float(np.hypot(rel[0], rel[1]))
+        if self.stop_at_end and 1e-9 < dist <= self.approach:
+            speed = min(self.speed, float(np.sqrt(2.0 * self.decel * dist)))
+            ahead = np.minimum(np.arange(steps + 1) * dt * speed, dist)
+            bearing = np.arctan2(rel[1], rel[0])
+            if abs(wrap_angle(bearing - state[2])) > 0.5 * np.pi:
+                bearing += np.pi
+            xy = np.asarray(state[:2], dtype=float) + ahead[:, None] * (rel / dist)
+            backwards = abs(wrap_angle(bearing - np.arctan2(rel[1], rel[0]))) > 0.5 * np.pi
+            speeds = np.sqrt(2.0 * self.decel * (dist - ahead)).clip(max=self.speed) * (-1.0 if backwards else 1.0)
+            return np.column_stack([xy, np.full(steps + 1, state[2] + wrap_angle(bearing - state[2])), speeds])
         s0, _ = self.project(state[:2])
         s = np.empty(steps + 1)
         s[0] = s0

@@ -69,6 +69,8 @@ class AacParams:
     authorities: int | str = 1
     tail_brake: float = 0.5
     commit_margin: float = 0.05
+    keep_right: float = 0.0
+    keep_right_range: float = 3.0
 
     def __post_init__(self):
         check_safety_options(self.safety_stop, self.fallback, self.ignore_followers)
@@ -191,6 +193,30 @@ class AacCoordinator(Coordinator):
             return out, "plan"
         out[0] = track(world.robots[j], world.states[j], task, self.params.lookahead, self.params.speed_gain)
         return out, "tracking"
+
+    def reference(self, world: WorldState, i: int) -> np.ndarray:
+        """Robot ``i``'s reference (N+1, 4), shifted ``keep_right`` [m] to the right of its
+        direction while another robot's footprint centre lies ahead of it (in the half-plane in
+        front, along the reference's heading) within ``keep_right_range`` [m]: a right-hand rule
+        that turns head-on meetings and crowded crossings into passing on the right, a
+        roundabout in effect. The shift fades out between 4 and 2.5 times ``keep_right`` from
+        the goal, so that the robot arrives on its path."""
+        ref = super().reference(world, i)
+        shift = self.params.keep_right
+        if shift <= 0.0:
+            return ref
+        centres = world.robot_centres()
+        rel = centres - centres[i]
+        along = rel @ np.array([np.cos(ref[0, 2]), np.sin(ref[0, 2])])
+        near = (along > 0.0) & (np.hypot(rel[:, 0], rel[:, 1]) < self.params.keep_right_range)
+        near[i] = False
+        if not near.any():
+            return ref
+        to_goal = float(np.hypot(*(world.states[i, :2] - self.tasks[i].points[-1])))
+        shift *= float(np.clip((to_goal - 2.5 * shift) / (1.5 * shift), 0.0, 1.0)) if self.tasks[i].stop_at_end else 1.0
+        out = ref.copy()
+        out[:, :2] += shift * np.column_stack([np.sin(ref[:, 2]), -np.cos(ref[:, 2])])
+        return out
 
     # ----- committed plans (aac.commit = true) -----
 

@@ -21,6 +21,10 @@ from aac_sumo.references import PathReference
 from aac_sumo.sim.internal import InternalSimulator
 from aac_sumo.world import Obstacle, WorldState
 
+#: Within this many goal tolerances of its goal a robot's reference runs straight at the goal
+#: (:class:`~aac_sumo.references.PathReference` ``approach``).
+GOAL_APPROACH = 3.0
+
 
 def build_swarm_rescue(scenario: Scenario) -> Setup:
     s = scenario.data["swarm_rescue"]
@@ -61,7 +65,8 @@ def _goal_setup(scenario: Scenario, section: str, starts: np.ndarray, goals: np.
     speed, tol = p["cruise_speed"], p["goal_tolerance"]
     if speed > robots[0].model.limits.v_max:
         raise ScenarioError(scenario.source, f"{section}.cruise_speed", f"at most robot.v_max ({robots[0].model.limits.v_max})", speed)
-    tasks = [PathReference([start[:2], goal], speed, decel=0.5 * robots[0].model.limits.a_max) for start, goal in zip(starts, goals)]
+    tasks = [PathReference([start[:2], goal], speed, decel=0.5 * robots[0].model.limits.a_max, approach=GOAL_APPROACH * tol)
+             for start, goal in zip(starts, goals)]
 
     def finished(world: WorldState) -> np.ndarray:
         return np.hypot(*(world.states[:, :2] - goals).T) <= tol
