@@ -47,6 +47,10 @@ from aac_sumo.references import PathReference
 from aac_sumo.world import WorldState
 
 
+#: Periods a robot whose tracking extension failed the check waits before it tries again.
+EXTENSION_RETRY = 3
+
+
 @dataclass(frozen=True)
 class AacParams:
     """AAC settings: close-pair distance [m], proximity decision, safety stop (on/off, margin
@@ -93,6 +97,7 @@ class AacCoordinator(Coordinator):
         self.period = 0
         self.book: CommitmentBook | None = None
         self.last_turn = np.full(len(tasks), -1)  # period of each robot's last authority
+        self.next_extension = np.zeros(len(tasks), dtype=int)  # first period a robot may try a tracking extension again
 
     def _decide(self, world: WorldState) -> Decision:
         if self.params.commit:
@@ -245,12 +250,13 @@ class AacCoordinator(Coordinator):
             reasons.append(reason)
             cuts += cut
             kept += keep
+        extended = self.extend_by_tracking(world, period, parked, holders, records, statics)
         inputs = self.book.inputs(period)
         stopped = 0
         if self.params.safety_stop:
             stopped = self.committed_safety_stop(world, inputs, records, period, statics)
         notes = dict(authority=" ".join(holders), reason=" ".join(sorted(set(reasons))) if reasons else "all finished",
-                     safety_stops=stopped, authorities=len(holders), commit_cuts=cuts, commit_kept=kept)
+                     safety_stops=stopped, authorities=len(holders), commit_cuts=cuts, commit_kept=kept, extensions=extended)
         return Decision(inputs, records, notes=notes)
 
     def tail_decel(self) -> np.ndarray:
@@ -339,6 +345,41 @@ class AacCoordinator(Coordinator):
                 record.mode = "mpc"
                 return record, int(m < cfg.horizon), 0
         return record, 1, 1
+
+    def extend_by_tracking(self, world: WorldState, period: int, parked: np.ndarray, holders: list[str],
+                           records: list[RobotDecision], statics: np.ndarray) -> int:
+        """Robots without authority whose planned course runs out (at most one planned period
+        left) go on as the paper's robots without a plan do, on the tracking law, but only when
+        that course (N periods of the law, then a stopping tail) passes the same exact check as a
+        plan; a robot whose try failed waits ``EXTENSION_RETRY`` periods before the next one.
+        Returns how many robots extended their commitment."""
+        cfg, book = self.planner.config, self.book
+        extended = 0
+        for j in range(len(world.robots)):
+            c = book.items[j]
+            if parked[j] or world.robots[j].name in holders or self.next_extension[j] > period:
+                continue
+            if c.stage(period) == "plan" and c.start + c.planned - period > 1:
+                continue
+            head = self.tracking_inputs(world, j, cfg.horizon)
+            candidate = self.commitment(world, j, period, head)
+            if book.clearance(j, candidate, period, statics) >= book.margin:
+                book.items[j] = candidate
+                records[j].mode = "tracking"
+                extended += 1
+            else:
+                self.next_extension[j] = period + EXTENSION_RETRY
+        return extended
+
+    def tracking_inputs(self, world: WorldState, j: int, steps: int) -> np.ndarray:
+        """Inputs (steps, 2) of robot ``j`` following the tracking law from where it is."""
+        robot, cfg = world.robots[j], self.planner.config
+        state = world.states[j].copy()
+        out = np.empty((steps, 2))
+        for k in range(steps):
+            out[k] = track(robot, state, self.tasks[j], self.params.lookahead, self.params.speed_gain)
+            state = robot.model.step(state, out[k], cfg.dt)
+        return out
 
     def committed_safety_stop(self, world: WorldState, inputs: np.ndarray, records: list[RobotDecision], period: int,
                               statics: np.ndarray) -> int:
