@@ -16,6 +16,10 @@ def build(scenario: Scenario) -> Setup:
         from aac_sumo.experiments import swarm
 
         return getattr(swarm, f"build_{scenario.kind}")(scenario)
+    if scenario.kind == "random_crossing":
+        from aac_sumo.experiments.random_crossing import build_random_crossing
+
+        return build_random_crossing(scenario)
     if scenario.kind == "lane_change":
         from aac_sumo.experiments.lane_change import build_lane_change
 

@@ -1,0 +1,239 @@
+"""Random crossing: ``n_robots`` seeded random starts and goals among random debris.
+
+The square area is centred on the origin; its side ``sqrt(n_robots * area_per_robot)`` grows with
+n so that the density stays constant. The draw, seeded by ``scenario.seed`` alone (same seed,
+same scenario), goes in this order:
+
+1. ``round(debris_density * side^2 / 100)`` debris rectangles, centres uniform in the area,
+   length and width uniform in ``[debris_min_size, debris_max_size]``, heading uniform. Debris
+   may overlap each other (a rubble heap).
+2. Robot by robot, candidate start-goal pairs, both uniform in the area shrunk by the robot's
+   reach (so every footprint lies inside it), until one passes every check:
+
+   - the goal is at least ``min_travel_fraction * side`` (and twice ``goal_tolerance``) from the
+     start, so paths cross the middle;
+   - the start footprint, facing the goal, keeps ``clearance`` from every earlier start
+     footprint and from every debris footprint (exact rectangle clearance);
+   - the goal's reach disc (where the footprint can lie at the goal, whatever its heading:
+     radius = rear axle to farthest corner) keeps ``clearance`` from every earlier goal's disc
+     and from every debris footprint;
+   - the straight path, the robot's reference, keeps ``path_clearance`` from every debris
+     footprint.
+
+   Candidates are drawn in batches of ``BATCH``. After ``MAX_TRIES`` rejected candidates for one
+   robot the attempt is a dead end (the robots placed so far may leave no room) and the draw
+   starts afresh, debris included, from the same random stream; after ``ATTEMPTS`` dead ends it
+   gives up with a one-line :class:`ScenarioError` naming the key of the check
+   that failed most often (``n_robots`` when robots crowd each other, ``debris_density`` when
+   debris leaves no room, ``path_clearance``, ``min_travel_fraction``) and the share of
+   candidates each check rejected (a candidate may fail several).
+
+Robots start at rest facing their goal. As in :mod:`aac_sumo.experiments.swarm`, each robot's
+reference is the straight segment from start to goal at ``cruise_speed`` (within
+``GOAL_APPROACH`` goal tolerances it runs straight at the goal); it has arrived when its rear
+axle is within ``goal_tolerance`` of its goal.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from aac_sumo.config import Scenario, ScenarioError
+from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_spec
+from aac_sumo.experiments.swarm import GOAL_APPROACH
+from aac_sumo.geometry import pairwise_rect_clearance, rect_corners
+from aac_sumo.references import PathReference
+from aac_sumo.sim.internal import InternalSimulator
+from aac_sumo.world import Obstacle, WorldState
+
+SECTION = "random_crossing"
+BATCH = 64         # candidate start-goal pairs drawn at once
+MAX_TRIES = 5_000  # rejected candidates per robot before an attempt is a dead end
+ATTEMPTS = 8       # fresh draws (debris and robots) before the scenario is rejected
+
+#: Rejection reasons, and the key to change when one of them keeps a robot from being placed.
+REASONS = {
+    "robots": "n_robots",            # start or goal too close to another robot's
+    "debris": "debris_density",      # start or goal in or near debris
+    "path": "path_clearance",        # straight path through debris
+    "travel": "min_travel_fraction", # goal too close to its start
+}
+
+
+@dataclass
+class Draw:
+    """One random-crossing instance: area side [m], rear-axle starts (n, 3) ``[x, y, heading]``,
+    goals (n, 2) and debris rows (m, 5) ``[cx, cy, length, width, heading]``."""
+
+    side: float
+    starts: np.ndarray
+    goals: np.ndarray
+    debris: np.ndarray
+
+
+def area_side(scenario: Scenario) -> float:
+    """Side of the square area [m]: ``sqrt(n_robots * area_per_robot)``."""
+    p = scenario.data[SECTION]
+    return float(np.sqrt(p["n_robots"] * p["area_per_robot"]))
+
+
+def draw(scenario: Scenario) -> Draw:
+    """The seeded random starts, goals and debris of ``scenario`` (see the module docstring)."""
+    p = scenario.data[SECTION]
+    r = scenario.data["robot"]
+    if p["debris_max_size"] < p["debris_min_size"]:
+        raise ScenarioError(scenario.source, f"{SECTION}.debris_max_size", f"at least debris_min_size ({p['debris_min_size']})",
+                            p["debris_max_size"])
+    rng = np.random.default_rng(scenario["scenario.seed"])
+    side = area_side(scenario)
+    reach = float(np.hypot(0.5 * r["length"] + 0.5 * r["wheelbase"], 0.5 * r["width"]))  # rear axle to the farthest corner
+    if 0.5 * side <= reach:
+        raise ScenarioError(scenario.source, f"{SECTION}.area_per_robot",
+                            f"an area whose side ({side:.2f} m) exceeds twice the robot's reach ({reach:.2f} m)", p["area_per_robot"])
+
+    failures = []
+    for _ in range(ATTEMPTS):
+        result = _attempt(scenario, rng, side, reach)
+        if isinstance(result, Draw):
+            return result
+        failures.append(result)
+    i, tries, tally = max(failures, key=lambda f: f[0])  # the attempt that placed the most robots
+    _give_up(scenario, i, side, tries, tally)
+
+
+def _attempt(scenario: Scenario, rng: np.random.Generator, side: float, reach: float) -> Draw | tuple[int, int, dict]:
+    """One fresh draw of debris and robots; on a dead end, (robot index, candidates, tally)."""
+    p, r = scenario.data[SECTION], scenario.data["robot"]
+    half, margin = 0.5 * side, 0.5 * side - reach
+    length, width, offset = r["length"], r["width"], 0.5 * r["wheelbase"]
+    n_debris = int(round(p["debris_density"] * side**2 / 100.0))
+    debris = np.column_stack([
+        rng.uniform(-half, half, size=(n_debris, 2)),
+        rng.uniform(p["debris_min_size"], p["debris_max_size"], size=(n_debris, 2)),
+        rng.uniform(0.0, np.pi, size=n_debris),
+    ]) if n_debris else np.zeros((0, 5))
+    debris_corners = rect_corners(debris)
+
+    n, gap = p["n_robots"], p["clearance"]
+    min_travel = max(p["min_travel_fraction"] * side, 2.0 * p["goal_tolerance"])
+    starts, goals, footprints = np.zeros((n, 3)), np.zeros((n, 2)), np.zeros((n, 5))
+    for i in range(n):
+        tally = dict.fromkeys(REASONS, 0)
+        tries = 0
+        while True:
+            s_xy = rng.uniform(-margin, margin, size=(BATCH, 2))
+            g_xy = rng.uniform(-margin, margin, size=(BATCH, 2))
+            delta = g_xy - s_xy
+            travel = np.hypot(delta[:, 0], delta[:, 1])
+            heading = np.arctan2(delta[:, 1], delta[:, 0])
+            rows = np.column_stack([s_xy + offset * np.column_stack([np.cos(heading), np.sin(heading)]),
+                                    np.full(BATCH, length), np.full(BATCH, width), heading])
+            bad = {reason: np.zeros(BATCH, dtype=bool) for reason in REASONS}
+            bad["travel"] = travel < min_travel
+            if i:
+                bad["robots"] |= pairwise_rect_clearance(rows, footprints[:i]).min(axis=1) < gap
+                bad["robots"] |= _pair_dist(g_xy, goals[:i]).min(axis=1) < 2 * reach + gap
+            if len(debris):
+                bad["debris"] |= pairwise_rect_clearance(rows, debris).min(axis=1) < gap
+                bad["debris"] |= _point_rects(g_xy, debris).min(axis=1) < reach + gap
+                bad["path"] |= _segment_rects(s_xy, g_xy, debris, debris_corners).min(axis=1) < p["path_clearance"]
+            rejected = np.logical_or.reduce(list(bad.values()))
+            ok = np.flatnonzero(~rejected)
+            used = ok[0] if len(ok) else BATCH
+            for reason in REASONS:  # a candidate counts under every check it fails
+                tally[reason] += int(np.sum(bad[reason][:used]))
+            tries += used
+            if len(ok):
+                starts[i], goals[i], footprints[i] = [*s_xy[used], heading[used]], g_xy[used], rows[used]
+                break
+            if tries >= MAX_TRIES:
+                return i, tries, tally
+    return Draw(side, starts, goals, debris)
+
+
+def _give_up(scenario: Scenario, i: int, side: float, tries: int, tally: dict[str, int]) -> None:
+    p = scenario.data[SECTION]
+    n = p["n_robots"]
+    worst = max(tally, key=tally.get)  # ties: the first in REASONS
+    shares = ", ".join(f"{100 * c / tries:.0f}% {what}" for what, c in sorted(tally.items(), key=lambda kv: -kv[1]) if c)
+    key = REASONS[worst]
+    raise ScenarioError(
+        scenario.source, f"{SECTION}.{key}",
+        f"robots that fit the {side:.1f} m x {side:.1f} m area (area_per_robot {p['area_per_robot']} m^2, "
+        f"clearance {p['clearance']} m, debris_density {p['debris_density']}): could not place robot {i} of {n} "
+        f"in {tries} candidates (failed: {shares}; best of {ATTEMPTS} fresh draws)", p[key])
+
+
+def _pair_dist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distances (k, m) between points a (k, 2) and b (m, 2)."""
+    return np.hypot(a[:, None, 0] - b[None, :, 0], a[:, None, 1] - b[None, :, 1])
+
+
+def _local(points: np.ndarray, rects: np.ndarray) -> np.ndarray:
+    """Points (k, 2) in each rectangle's frame: (k, m, 2)."""
+    c, s = np.cos(rects[:, 4]), np.sin(rects[:, 4])
+    dx, dy = points[:, None, 0] - rects[None, :, 0], points[:, None, 1] - rects[None, :, 1]
+    return np.stack([c * dx + s * dy, -s * dx + c * dy], axis=-1)
+
+
+def _point_rects(points: np.ndarray, rects: np.ndarray) -> np.ndarray:
+    """Signed distance (k, m) from points (k, 2) to rectangles (m, 5), negative inside."""
+    q = np.abs(_local(points, rects)) - 0.5 * rects[None, :, 2:4]
+    outside = np.hypot(np.maximum(q[..., 0], 0.0), np.maximum(q[..., 1], 0.0))
+    return outside + np.minimum(np.maximum(q[..., 0], q[..., 1]), 0.0)
+
+
+def _segment_rects(p0: np.ndarray, p1: np.ndarray, rects: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """Exact distance (k, m) from segments p0-p1 (k, 2) to rectangles (m, 5); 0 when they meet.
+
+    Disjoint convex sets: the closest pair involves an endpoint of the segment or a corner of
+    the rectangle. They meet when the segment, clipped to the rectangle's slab (Liang-Barsky in
+    its frame), keeps a non-empty parameter interval."""
+    a, b = _local(p0, rects), _local(p1, rects)
+    ext = 0.5 * rects[None, :, 2:4]
+    d = b - a
+    lo, hi = np.zeros(a.shape[:2]), np.ones(a.shape[:2])
+    meets = np.ones(a.shape[:2], dtype=bool)
+    for ax in range(2):
+        da, aa, e = d[..., ax], a[..., ax], ext[..., ax]
+        still = np.abs(da) < 1e-12
+        meets &= ~still | (np.abs(aa) <= e)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t0, t1 = (-e - aa) / da, (e - aa) / da
+        t_lo, t_hi = np.where(still, 0.0, np.minimum(t0, t1)), np.where(still, 1.0, np.maximum(t0, t1))
+        lo, hi = np.maximum(lo, t_lo), np.minimum(hi, t_hi)
+    meets &= lo <= hi
+    ends = np.minimum(_point_rects(p0, rects), _point_rects(p1, rects))
+    # Corners (m, 4, 2) to segments (k): projection parameter clipped to [0, 1].
+    seg = (p1 - p0)[:, None, None, :]
+    rel = corners[None] - p0[:, None, None, :]
+    t = np.clip((rel * seg).sum(-1) / np.maximum((seg * seg).sum(-1), 1e-12), 0.0, 1.0)
+    corner = np.hypot(*(rel - t[..., None] * seg).transpose(3, 0, 1, 2)).min(axis=-1)
+    return np.where(meets, 0.0, np.minimum(ends, corner))
+
+
+def build_random_crossing(scenario: Scenario) -> Setup:
+    """The drawn robots, each on a straight path to its goal, on the internal simulator."""
+    p = scenario.data[SECTION]
+    limits = robot_spec(scenario, "robot").model.limits
+    speed, tol = p["cruise_speed"], p["goal_tolerance"]
+    if speed > limits.v_max:
+        raise ScenarioError(scenario.source, f"{SECTION}.cruise_speed", f"at most robot.v_max ({limits.v_max})", speed)
+    d = draw(scenario)
+    statics = [Obstacle(f"debris{k}", "static", row[:2].copy(), np.zeros(2), float(row[4]), float(row[2]), float(row[3]))
+               for k, row in enumerate(d.debris)]
+    robots = [robot_spec(scenario, f"robot{i}") for i in range(len(d.starts))]
+    state = np.column_stack([d.starts, np.zeros(len(d.starts))])
+    sim = InternalSimulator(robots, state, scenario["scenario.dt"], statics=statics)
+    check_start(scenario, sim.observe(), f"{SECTION}.clearance")  # holds by construction
+    goals = d.goals
+    tasks = [PathReference([start[:2], goal], speed, decel=0.5 * limits.a_max, approach=GOAL_APPROACH * tol)
+             for start, goal in zip(d.starts, goals)]
+
+    def finished(world: WorldState) -> np.ndarray:
+        return np.hypot(*(world.states[:, :2] - goals).T) <= tol
+
+    free_flow = np.array([t.length / speed for t in tasks])
+    return Setup(scenario, sim, coordinator(scenario, tasks, finished=finished), tasks, finished, free_flow)
