@@ -167,6 +167,10 @@ COMMON: dict[str, dict[str, Key]] = {
         "keep_right": Key(float, 0.0, "right-hand rule: the authority's reference shifts this far to the right while another "
                           "robot is ahead within keep_right_range (0: off, the paper) [m]", **NN),
         "keep_right_range": Key(float, 3.0, "distance within which a robot ahead triggers keep_right [m]", **P),
+        "make_room": Key(bool, True, "deadlock resolution (with commit): a robot that has stood for stall_time leads, and the "
+                         "robots in its way drive aside while it passes"),
+        "stall_time": Key(float, 2.0, "standing time after which an unfinished robot may lead [s]", **P),
+        "lead_time": Key(float, 8.0, "longest lead [s]", **P),
     },
     "lfc": {
         "safety_stop": Key(bool, False, "every robot's first planned input passes AAC's safety stop (the paper's LFC has none)"),

@@ -19,7 +19,7 @@ def plot_run(result, path: Path) -> None:
         return plot_lane_change(result, path)
     if result.scenario.kind == "braking":
         _plot_braking(result, path)
-    elif result.scenario.kind in ("swarm_rescue", "circle_swap"):
+    elif result.scenario.kind in ("swarm_rescue", "circle_swap", "random_crossing"):
         _plot_swarm(result, path)
     else:
         _plot_paths(result, path)

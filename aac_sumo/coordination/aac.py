@@ -40,6 +40,7 @@ import numpy as np
 
 from aac_sumo.coordination.base import Coordinator, Decision, Finished, RobotDecision, check_safety_options, straight_behind
 from aac_sumo.coordination.commitments import CommitmentBook, clusters, reach_radii, stopping_commitment
+from aac_sumo.coordination.make_room import MakeRoom
 from aac_sumo.coordination.proximity import ProximityParams, close_pairs, proximity_decision
 from aac_sumo.coordination.tracking import track
 from aac_sumo.mpc.planner import MpcPlanner
@@ -75,6 +76,9 @@ class AacParams:
     commit_margin: float = 0.05
     keep_right: float = 0.0
     keep_right_range: float = 3.0
+    make_room: bool = True
+    stall_time: float = 2.0
+    lead_time: float = 8.0
 
     def __post_init__(self):
         check_safety_options(self.safety_stop, self.fallback, self.ignore_followers)
@@ -98,6 +102,8 @@ class AacCoordinator(Coordinator):
         self.book: CommitmentBook | None = None
         self.last_turn = np.full(len(tasks), -1)  # period of each robot's last authority
         self.next_extension = np.zeros(len(tasks), dtype=int)  # first period a robot may try a tracking extension again
+        self.room: MakeRoom | None = None
+        self.last_holder: dict[int, int] = {}  # per group (its first member), the robot that held authority last period
 
     def _decide(self, world: WorldState) -> Decision:
         if self.params.commit:
@@ -206,6 +212,8 @@ class AacCoordinator(Coordinator):
         that turns head-on meetings and crowded crossings into passing on the right, a
         roundabout in effect. The shift fades out between 4 and 2.5 times ``keep_right`` from
         the goal, so that the robot arrives on its path."""
+        if self.room is not None and i in self.room.targets:
+            return self.room_reference(world, i)
         ref = super().reference(world, i)
         shift = self.params.keep_right
         if shift <= 0.0:
@@ -239,6 +247,12 @@ class AacCoordinator(Coordinator):
         done = np.asarray(self.finished(world), dtype=bool)
         parked = done & np.array([task.stop_at_end for task in self.tasks])
         records = [RobotDecision(False, mode=c.stage(period)) for c in self.book.items]
+        if self.params.make_room:
+            if self.room is None:
+                corridor = float(np.max(np.hypot(fleet.length, fleet.width))) + self.params.commit_margin
+                self.room = MakeRoom(n, int(round(self.params.stall_time / cfg.dt)), int(round(self.params.lead_time / cfg.dt)), corridor)
+            goals = np.array([task.points[-1] for task in self.tasks])
+            self.room.update(world.states, world.robot_centres(), goals, ~done, period)
         holders, reasons, cuts, kept = [], [], 0, 0
         for members, candidates in self.groups(world, parked):
             i, reason = self.choose_committed(world, members, candidates, records, period)
@@ -300,7 +314,15 @@ class AacCoordinator(Coordinator):
         robin; ties go to the lowest index)."""
         centres = world.robot_centres()
         pairs = close_pairs(centres[candidates], self.params.close_distance)
-        if len(pairs) == 0:
+        room = self.room
+        leader = room.leader if room is not None else -1
+        blockers = np.array([j for j in candidates if j in room.targets], dtype=int) if leader >= 0 else np.empty(0, dtype=int)
+        if leader in candidates:
+            if self.last_holder.get(int(members[0])) == leader and blockers.size:
+                i, reason = int(blockers[np.argmin(self.last_turn[blockers])]), "make_room"
+            else:
+                i, reason = leader, "leader"
+        elif len(pairs) == 0:
             i, reason = int(candidates[np.argmin(self.last_turn[candidates])]), "round_robin"
         else:
             near = candidates[np.unique(pairs)]
@@ -317,7 +339,18 @@ class AacCoordinator(Coordinator):
                 records[j].score, records[j].progress = float(result.scores[row]), float(result.progress[row])
             i, reason = int(near[result.winner]), "proximity"
         self.last_turn[i] = period
+        self.last_holder[int(members[0])] = i
         return i, reason
+
+    def room_reference(self, world: WorldState, i: int) -> np.ndarray:
+        """Reference (N+1, 4) of a robot making room for the leader: straight from where it is to
+        its make-room target at half its cruise speed, stopping there."""
+        cfg, task = self.planner.config, self.tasks[i]
+        target = self.room.targets[i]
+        if np.hypot(*(target - world.states[i, :2])) < 1e-6:
+            target = target + 1e-3
+        away = PathReference([world.states[i, :2], target], 0.5 * task.speed, task.decel, approach=np.inf)
+        return away.horizon(world.states[i], cfg.horizon, cfg.dt)
 
     def plan_committed(self, world: WorldState, i: int, others: np.ndarray, reason: str, period: int,
                        statics: np.ndarray) -> tuple[RobotDecision, int, int]:
