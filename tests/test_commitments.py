@@ -1,0 +1,162 @@
+"""Committed plans: AAC is collision-free by construction, clusters are independent.
+
+Every check uses the simulator's own footprint geometry or exact rectangle clearance, never
+what the coordinator says about itself."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from aac_sumo import config, experiments
+from aac_sumo.coordination.commitments import clusters, reach_radii, stopping_commitment
+from aac_sumo.coordination.regions import Fleet
+from aac_sumo.dynamics import BicycleModel, VehicleLimits
+from aac_sumo.geometry import pairwise_rect_clearance
+from aac_sumo.kernels import course_clearance, footprint_rows
+from aac_sumo.world import RobotSpec
+
+#: Every emergency layer off: safety comes from the commitments alone.
+PLAIN = ["aac.safety_stop=false", "lfc.safety_stop=false", "controller.coordinator=aac"]
+
+
+def small_robot(i: int, reverse: bool = True) -> RobotSpec:
+    limits = VehicleLimits(-2.0, 1.0, 0.6, -1.5 if reverse else 0.0, 1.5)
+    return RobotSpec(f"robot{i}", 0.6, 0.4, BicycleModel(0.45, limits))
+
+
+def drive(scenario, periods: int, check=None):
+    """Run ``scenario``'s closed loop for ``periods``; call ``check(coordinator, world, period)``
+    after every decision. Returns the inputs (periods, n, 2) and the simulator's contacts."""
+    setup = experiments.build(scenario)
+    sim, coord = setup.sim, setup.coordinator
+    inputs, overlaps = [], set()
+    for period in range(periods):
+        world = sim.observe()
+        decision = coord.decide(world)
+        if check is not None:
+            check(coord, world, period)
+        inputs.append(decision.inputs.copy())
+        overlaps |= sim.step(decision.inputs).overlaps
+    return np.array(inputs), overlaps
+
+
+def commitments_apart(coord, world, period):
+    """The invariant: every two commitments keep the margin at every period from now on, and
+    to the debris; and every robot is where its commitment says."""
+    book = coord.book
+    statics = np.array([o.footprint() for o in world.obstacles if o.kind in ("static", "cone")]).reshape(-1, 5)
+    gaps = book.pairwise_clearance(period, statics)
+    assert gaps.min() >= book.margin - 1e-9, f"period {period}: commitments {np.unravel_index(gaps.argmin(), gaps.shape)} at {gaps.min():.4f} m"
+    expected = np.array([c.course(period, 0)[0] for c in book.items])
+    np.testing.assert_allclose(world.states, expected, atol=1e-9)
+
+
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(n=st.integers(3, 6), seed=st.integers(0, 10_000), clustered=st.booleans())
+def test_random_small_crossings_never_collide_and_commitments_stay_apart(n, seed, clustered):
+    authorities = '"clusters"' if clustered else "1"
+    scenario = config.load("random_crossing", PLAIN + [f"random_crossing.n_robots={n}", f"scenario.seed={seed}",
+                                                       f"aac.authorities={authorities}", "aac.keep_right=1.0"])
+    _, overlaps = drive(scenario, 50, commitments_apart)
+    assert not overlaps
+
+
+def test_circle_swap_commitments_stay_apart_in_the_crowded_centre():
+    scenario = config.load("circle_swap", PLAIN + ["circle_swap.n_robots=8"])
+    _, overlaps = drive(scenario, 80, commitments_apart)
+    assert not overlaps
+
+
+def group(x0: float, y0: float) -> tuple[list, list]:
+    """Three robots whose straight paths cross near (x0 + 3, y0)."""
+    starts = [[x0, y0 - 1.5, 0.46], [x0, y0 + 1.5, -0.46], [x0 + 6.0, y0, np.pi]]
+    goals = [[x0 + 6.0, y0 + 1.5], [x0 + 6.0, y0 - 1.5], [x0, y0]]
+    return starts, goals
+
+
+def swarm(starts, goals) -> list[str]:
+    return PLAIN + ['aac.authorities="clusters"', "aac.make_room=false", "swarm_rescue.start_jitter=0.0", "swarm_rescue.debris=[]",
+                    f"swarm_rescue.starts={starts}", f"swarm_rescue.goals={goals}"]
+
+
+def test_far_apart_clusters_get_exactly_the_inputs_each_gets_alone():
+    (sa, ga), (sb, gb) = group(0.0, 0.0), group(100.0, 40.0)
+    together, _ = drive(config.load("swarm_rescue", swarm(sa + sb, ga + gb)), 40)
+    alone_a, _ = drive(config.load("swarm_rescue", swarm(sa, ga)), 40)
+    alone_b, _ = drive(config.load("swarm_rescue", swarm(sb, gb)), 40)
+    np.testing.assert_array_equal(together[:, :3], alone_a)
+    np.testing.assert_array_equal(together[:, 3:], alone_b)
+    assert np.abs(alone_a).sum() > 0  # they did drive
+
+
+def test_one_authority_in_each_far_apart_cluster_per_period():
+    (sa, ga), (sb, gb) = group(0.0, 0.0), group(100.0, 40.0)
+    setup = experiments.build(config.load("swarm_rescue", swarm(sa + sb, ga + gb)))
+    decision = setup.coordinator.decide(setup.sim.observe())
+    held = np.flatnonzero([r.authority for r in decision.robots])
+    assert len(held) == 2 and held[0] < 3 <= held[1]
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 10_000), speed=st.floats(-1.5, 1.5), horizon=st.integers(1, 15))
+def test_reach_radius_contains_every_committable_course(seed, speed, horizon):
+    rng = np.random.default_rng(seed)
+    robots = [small_robot(0)]
+    fleet = Fleet(robots)
+    state = np.array([rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-np.pi, np.pi), speed])
+    head = np.column_stack([rng.uniform(-2.0, 1.0, horizon), rng.uniform(-0.6, 0.6, horizon)])
+    decel = 0.5 * 2.0
+    c = stopping_commitment(fleet, 0, 0, state, head, rng.uniform(-np.pi, np.pi), decel, 0.6, 0.1)
+    assert abs(c.states[-1, 3]) <= 1e-12  # the tail ends standing
+    assert np.all(np.abs(np.diff(c.states[horizon:, 3])) <= decel * 0.1 + 1e-12)  # never braking harder than the tail's rate
+    radius = reach_radii(fleet, state[None], horizon, 0.1, np.array([decel]))[0]
+    centre0 = footprint_rows(state[None, None], fleet.offset, fleet.length, fleet.width)[0, 0, :2]
+    rows = footprint_rows(c.states[None], fleet.offset, fleet.length, fleet.width)[0]
+    corners = rows[:, None, :2] + 0.5 * np.hypot(0.6, 0.4) * np.array([[1, 0], [-1, 0], [0, 1], [0, -1]])[None]
+    assert np.hypot(*(corners - centre0).reshape(-1, 2).T).max() <= radius + 1e-9
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 10_000), n=st.integers(1, 25), margin=st.floats(0.0, 1.0))
+def test_clusters_are_the_components_of_overlapping_reach_discs(seed, n, margin):
+    rng = np.random.default_rng(seed)
+    centres = rng.uniform(0, 20, (n, 2))
+    radii = rng.uniform(0.2, 3.0, n)
+    groups = clusters(centres, radii, margin)
+    label = np.empty(n, dtype=int)
+    for g_id, g in enumerate(groups):
+        label[g] = g_id
+    assert sorted(np.concatenate(groups).tolist()) == list(range(n))
+    touching = np.hypot(*(centres[:, None] - centres[None]).transpose(2, 0, 1)) - radii[:, None] - radii[None] < margin
+    for i, j in zip(*np.nonzero(touching)):
+        assert label[i] == label[j]
+    for g in groups:  # no component splits into two parts that do not touch
+        inside = touching[np.ix_(g, g)]
+        reached = {0}
+        frontier = [0]
+        while frontier:
+            k = frontier.pop()
+            for m in np.flatnonzero(inside[k]):
+                if m not in reached:
+                    reached.add(int(m))
+                    frontier.append(int(m))
+        assert len(reached) == len(g)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 10_000), margin=st.floats(0.0, 0.5))
+def test_course_clearance_is_exact_below_the_margin(seed, margin):
+    rng = np.random.default_rng(seed)
+    stages, m = 6, 3
+    own = np.column_stack([rng.uniform(-2, 2, (stages, 2)), np.full(stages, 0.6), np.full(stages, 0.4), rng.uniform(-3, 3, stages)])
+    others = np.concatenate([rng.uniform(-2, 2, (m, stages, 2)), np.full((m, stages, 1), 1.0), np.full((m, stages, 1), 0.5),
+                             rng.uniform(-3, 3, (m, stages, 1))], axis=2)
+    exact = min(pairwise_rect_clearance(own[[k]], others[:, k]).min() for k in range(stages))
+    got = course_clearance(own, others, margin)
+    if exact < margin:
+        assert got == pytest.approx(exact, abs=1e-12)
+    else:
+        assert got >= margin - 1e-12
