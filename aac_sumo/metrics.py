@@ -15,26 +15,28 @@ METRIC_KEYS = (
     "compute_ms_mean", "compute_ms_median", "compute_ms_p95", "solves", "infeasible_solves",
     "infeasibility_rate", "min_distance_m", "min_clearance_m", "collisions", "sim_collisions", "ttc_mean_s",
     "aggressive_driving_rate", "tracking_error_m", "authority_jain", "delay_jain", "delay_max_s",
-    "realtime_factor", "safety_stops", "deadlock", "min_pedestrian_clearance_m",
+    "realtime_factor", "safety_stops", "deadlock", "min_pedestrian_clearance_m", "setup_s", "capped_solves",
 )
 ROBOT_KINDS = ("robot", "scripted")
 
 
 def time_to_collision(world: WorldState) -> np.ndarray:
-    """Per controlled robot, the smallest TTC [s] to anything ahead in its path, NaN if nothing closes in.
+    """Per controlled robot, the smallest TTC [s] to anything ahead that it closes in on, NaN if none.
 
-    "Ahead" means the other footprint centre lies in front along the ego heading within the
-    sum of half-widths laterally. TTC = bumper gap along the heading / closing speed, where the
-    closing speed is the ego's speed minus the other's velocity component along the ego heading.
+    Everything moves at its current velocity (robots along their heading). With the closing
+    velocity ``w`` = the ego's velocity minus the other's, the other counts when ``w`` points
+    ahead of the ego (a positive component along its heading: the ego drives into it, not the
+    other way round) and the ego's footprint, translated along ``w``, touches the other's
+    footprint. TTC = that true footprint gap along ``w`` / the closing speed ``|w|``, exact for
+    any orientation of either footprint (:func:`aac_sumo.kernels.times_to_collision`); 0 when
+    the footprints already touch.
     """
-    centres, heading, speed = world.robot_centres(), world.states[:, 2], world.states[:, 3]
-    ahead = np.column_stack([np.cos(heading), np.sin(heading)])
+    heading, speed = world.states[:, 2], world.states[:, 3]
     obstacles = world.obstacles
-    other_centres = np.vstack([centres] + [o.centre[None, :] for o in obstacles])
-    other_vel = np.vstack([speed[:, None] * ahead] + [o.velocity[None, :] for o in obstacles])
-    length, width = (np.array([r.length for r in world.robots] + [o.length for o in obstacles]),
-                     np.array([r.width for r in world.robots] + [o.width for o in obstacles]))
-    ttc = times_to_collision(centres, ahead, speed, other_centres, other_vel, length, width)
+    rows = np.vstack([world.robot_footprints()] + [o.footprint()[None, :] for o in obstacles])
+    velocity = np.vstack([speed[:, None] * np.column_stack([np.cos(heading), np.sin(heading)])]
+                         + [np.asarray(o.velocity, dtype=float)[None, :] for o in obstacles])
+    ttc = times_to_collision(rows, velocity, len(world.robots))
     return np.where(np.isfinite(ttc), ttc, np.nan)
 
 
@@ -92,7 +94,13 @@ def compute_metrics(steps: pd.DataFrame, periods: pd.DataFrame, info: dict) -> d
     ``info`` carries what ran (scenario, coordinator, barrier, horizon, seed, n_robots),
     ``completed``, ``task_duration_s``, ``collisions``, ``sim_collisions``, ``wall_s``, the
     aggressive-driving thresholds, ``wheelbase`` per robot, and optionally ``ttc_max``, ``delay_jain``,
-    ``delay_max_s``, ``safety_stops`` and ``deadlock``.
+    ``delay_max_s``, ``safety_stops``, ``deadlock`` and ``setup_s`` (the one-off set-up before the
+    first period, which ``periods``' ``compute_ms`` leaves out).
+
+    ``tracking_error_m`` is the mean over every row of ``steps`` (every robot at every step) of
+    the distance from ``x, y`` to ``ref_x, ref_y`` (null if any row lacks one, never a mean over
+    a subset); ``capped_solves`` counts the solves whose
+    ``capped`` is true (stopped at the solver's iteration cap, whatever their status).
     """
     compute = periods["compute_ms"].to_numpy() if len(periods) else np.array([])
     solved = steps[steps["status"].notna() & (steps["status"] != "")]
@@ -115,7 +123,7 @@ def compute_metrics(steps: pd.DataFrame, periods: pd.DataFrame, info: dict) -> d
         sim_collisions=info.get("sim_collisions"),
         ttc_mean_s=_ttc_mean(steps["ttc_s"], info.get("ttc_max", np.inf)),
         aggressive_driving_rate=_aggressive_rate(steps, info) if len(steps) else None,
-        tracking_error_m=_finite(np.hypot(steps["x"] - steps["ref_x"], steps["y"] - steps["ref_y"]).mean()) if len(steps) else None,
+        tracking_error_m=_finite(np.hypot(steps["x"] - steps["ref_x"], steps["y"] - steps["ref_y"]).mean(skipna=False)) if len(steps) else None,
         authority_jain=authority_jain(steps) if len(steps) else None,
         delay_jain=info.get("delay_jain"),
         delay_max_s=info.get("delay_max_s"),
@@ -123,6 +131,8 @@ def compute_metrics(steps: pd.DataFrame, periods: pd.DataFrame, info: dict) -> d
         safety_stops=int(info.get("safety_stops", 0)),
         deadlock=bool(info.get("deadlock", False)),
         min_pedestrian_clearance_m=_finite(steps["pedestrian_clearance_m"].min()) if "pedestrian_clearance_m" in steps and len(steps) else None,
+        setup_s=_finite(info.get("setup_s")),
+        capped_solves=int(solved["capped"].fillna(False).astype(bool).sum()) if "capped" in solved else 0,
     )
     return {k: m[k] for k in METRIC_KEYS} | {k: v for k, v in m.items() if k not in METRIC_KEYS}
 

@@ -67,6 +67,8 @@ class RobotDecision:
     mode: str = ""
     score: float | None = None
     progress: float | None = None
+    iterations: int = -1  # of its solve, and whether it stopped at its iteration cap (Plan); -1 without one
+    capped: bool = False
 
 
 @dataclass
@@ -120,7 +122,8 @@ class Coordinator(ABC):
         ref = self.reference(world, i)
         plan = self.planner.plan(world.robots[i], world.states[i], ref, self.last_inputs[i], obstacles, self.plans[i], self.corridors[i])
         self.plans[i] = plan
-        return RobotDecision(True, plan.status, plan.solve_ms, plan.solver, ref, reason=reason, mode="mpc")
+        return RobotDecision(True, plan.status, plan.solve_ms, plan.solver, ref, reason=reason, mode="mpc",
+                             iterations=plan.iterations, capped=plan.capped)
 
     def safety_check(self, world: WorldState) -> SafetyCheck:
         """The safety stop of this period: robots brake turning towards their reference's heading

@@ -87,7 +87,9 @@ class MpcConfig:
 
 @dataclass
 class Plan:
-    """A robot's plan: states (N+1, 4), inputs (N, 2), status, solve wall time [ms], solver used."""
+    """A robot's plan: states (N+1, 4), inputs (N, 2), status, solve wall time [ms] (every
+    attempt), solver used; the iterations of the solve whose result it reports and whether that
+    solve stopped at its iteration cap (``capped``, see :class:`~aac_sumo.mpc.problem.SolveOutcome`)."""
 
     states: np.ndarray
     inputs: np.ndarray
@@ -96,6 +98,7 @@ class Plan:
     solver: str
     iterations: int = -1
     detail: str = ""
+    capped: bool = False
 
     def shifted(self, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Warm start for the next period: drop the first stage, repeat the last, pin ``state``."""
@@ -329,9 +332,9 @@ class MpcPlanner:
             total_ms += outcome.solve_ms
             used = problem.shape.solver
             if outcome.status == "solved":
-                return Plan(outcome.states, outcome.inputs, "solved", total_ms, used, outcome.iterations, outcome.detail)
+                return Plan(outcome.states, outcome.inputs, "solved", total_ms, used, outcome.iterations, outcome.detail, outcome.capped)
         states, inputs = self.fallback(robot, state, reference)
-        return Plan(states, inputs, outcome.status, total_ms, "fallback", outcome.iterations, f"{used}: {outcome.detail}")
+        return Plan(states, inputs, outcome.status, total_ms, "fallback", outcome.iterations, f"{used}: {outcome.detail}", outcome.capped)
 
     def fallback(self, robot: RobotSpec, state: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """States (N+1, 4) and inputs (N, 2) of the safe fallback: brake as hard as possible to a

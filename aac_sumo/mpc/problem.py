@@ -51,7 +51,9 @@ class ProblemShape:
 
 @dataclass
 class SolveOutcome:
-    """Raw result of one solve: states (N+1, 4), inputs (N, 2), status, wall time [ms], iterations."""
+    """Raw result of one solve: states (N+1, 4), inputs (N, 2), status, wall time [ms], iterations,
+    the solver's detail, and whether the solver stopped at its iteration cap (``max_iter``)
+    without converging: such a solve whose iterate is feasible is still ``solved``."""
 
     states: np.ndarray
     inputs: np.ndarray
@@ -59,6 +61,7 @@ class SolveOutcome:
     solve_ms: float
     iterations: int
     detail: str
+    capped: bool = False
 
 
 #: Per-stage lateral band layout: unit normal (nx, ny) and bounds (lo, hi) on nx*x + ny*y [m].
@@ -103,6 +106,11 @@ class MpcProblem:
         if library is not None:
             compile_dependencies(self.solver, library)
             self.solver = ca.nlpsol("mpc", plugin, str(library), options)
+
+    def __deepcopy__(self, memo) -> "MpcProblem":
+        """A fresh problem of the same shape, never a shared solver: solvers keep state from one
+        solve to the next, so a copy that shared them would change what the original solves."""
+        return MpcProblem(self.shape)
 
     def _symbolic(self) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
         """Decision vector, parameter vector, cost and constraints (in :func:`constraint_kinds`'
@@ -217,11 +225,12 @@ class MpcProblem:
             elif status != "solved" and feasible:  # stopped early at a verified-feasible iterate
                 status, detail = "solved", f"suboptimal: {detail}"
             iterations = int(stats.get("iter_count", -1))
+            capped = _capped(stats, iterations, self.shape.max_iter)
         except RuntimeError as exc:  # casadi raises on evaluation errors (NaN, etc.)
-            w, status, detail, iterations = w0, "failed", str(exc).splitlines()[0], -1
+            w, status, detail, iterations, capped = w0, "failed", str(exc).splitlines()[0], -1, False
         solve_ms = (time.perf_counter() - start) * 1e3
         states, inputs = self.unpack(w)
-        return SolveOutcome(states, inputs, status, solve_ms, iterations, detail)
+        return SolveOutcome(states, inputs, status, solve_ms, iterations, detail, capped)
 
     def _satisfies(self, w, g, lbx, ubx, tol: float = 1e-6) -> bool:
         """Every constraint and bound holds within ``tol`` and the iterate is finite."""
@@ -236,6 +245,13 @@ def _classify(stats: dict, detail: str) -> str:
     if "nfeasib" in detail:  # Infeasible_Problem_Detected, Local infeasibility, ...
         return "infeasible"
     return "failed"
+
+
+def _capped(stats: dict, iterations: int, max_iter: int) -> bool:
+    """The solver stopped at its iteration cap without converging. ipopt and sqpmethod then
+    report ``max_iter`` iterations (``Maximum_Iterations_Exceeded``), fatrop ``max_iter + 1``
+    (it counts its starting point); a time limit or another failure stops them earlier."""
+    return not stats.get("success", False) and iterations >= max_iter
 
 
 def _solver_plugin(shape: ProblemShape) -> str:
