@@ -44,12 +44,9 @@ def test_every_robot_has_its_reference_at_every_step(short_run):
     assert short_run.metrics["tracking_error_m"] == pytest.approx(np.hypot(steps.x - steps.ref_x, steps.y - steps.ref_y).mean())
 
 
-def test_every_solve_records_its_iterations(short_run, request):
+def test_every_solve_records_its_iterations(short_run):
     """Rows with a solve carry the solver's iteration count (at least one, at most the cap plus
     fatrop's starting point); rows without one carry -1 and are never capped."""
-    if short_run.metrics["coordinator"] == "aac" and short_run.scenario["aac.commit"]:
-        request.applymarker(pytest.mark.xfail(reason="AAC's committed-plan path (coordination/aac.py) builds its "
-                                              "RobotDecision itself, without iterations=plan.iterations, capped=plan.capped"))
     steps = short_run.steps
     solved = steps["status"].notna()
     assert solved.any()

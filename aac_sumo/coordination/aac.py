@@ -50,6 +50,9 @@ from aac_sumo.world import WorldState
 
 #: Periods a robot whose tracking extension failed the check waits before it tries again.
 EXTENSION_RETRY = 3
+#: A candidate that has not held authority for this many horizons gets it (round robin) before
+#: any proximity decision: with committed plans, a robot without turns stands still.
+STARVING = 2
 
 
 @dataclass(frozen=True)
@@ -226,7 +229,7 @@ class AacCoordinator(Coordinator):
         if not near.any():
             return ref
         to_goal = float(np.hypot(*(world.states[i, :2] - self.tasks[i].points[-1])))
-        shift *= float(np.clip((to_goal - 2.5 * shift) / (1.5 * shift), 0.0, 1.0)) if self.tasks[i].stop_at_end else 1.0
+        shift *= float(np.clip((to_goal - 1.5 * shift) / (1.5 * shift), 0.0, 1.0)) if self.tasks[i].stop_at_end else 1.0
         out = ref.copy()
         out[:, :2] += shift * np.column_stack([np.sin(ref[:, 2]), -np.cos(ref[:, 2])])
         return out
@@ -316,14 +319,15 @@ class AacCoordinator(Coordinator):
         pairs = close_pairs(centres[candidates], self.params.close_distance)
         room = self.room
         leader = room.leader if room is not None else -1
-        blockers = np.array([j for j in candidates if j in room.targets], dtype=int) if leader >= 0 else np.empty(0, dtype=int)
-        if leader in candidates:
-            if self.last_holder.get(int(members[0])) == leader and blockers.size:
-                i, reason = int(blockers[np.argmin(self.last_turn[blockers])]), "make_room"
-            else:
-                i, reason = leader, "leader"
-        elif len(pairs) == 0:
-            i, reason = int(candidates[np.argmin(self.last_turn[candidates])]), "round_robin"
+        movers = np.array([j for j in candidates if j in room.targets], dtype=int) if leader >= 0 else np.empty(0, dtype=int)
+        waited = period - self.last_turn[candidates]
+        leader_turn = leader in candidates and self.last_holder.get(int(members[0])) != leader
+        if leader_turn:
+            i, reason = leader, "leader"
+        elif movers.size:
+            i, reason = int(movers[np.argmin(self.last_turn[movers])]), "make_room"
+        elif len(pairs) == 0 or waited.max() > STARVING * self.planner.config.horizon:
+            i, reason = int(candidates[np.argmax(waited)]), "round_robin"
         else:
             near = candidates[np.unique(pairs)]
             blockers = np.vstack([centres[members]] + [o.centre[None, :] for o in world.obstacles])
@@ -357,9 +361,9 @@ class AacCoordinator(Coordinator):
         """Robot ``i`` plans around ``others``' commitments (swept regions of stages k and k+1)
         and the obstacles, warm-started from its own commitment. It commits to the longest
         prefix of its plan (all N inputs first, one fewer each time down to braking at once)
-        whose stopping tail passes the exact check; a failed solve, or no prefix passing, keeps
-        its old commitment. Returns its record, whether the plan was cut, and whether the old
-        commitment was kept."""
+        whose stopping tail passes the exact check; no prefix passing keeps its old commitment. A failed solve offers only the planner's braking fallback (the paper's
+        answer to a failed solve), under the same check. Returns its record, whether the plan was
+        cut, and whether the old commitment was kept."""
         cfg, book = self.planner.config, self.book
         traj = book.courses(period, others, cfg.horizon + 1)
         regions = self.fleet.swept_regions(others, traj, cfg.horizon, cfg.barrier, cfg.fcbf)
@@ -368,10 +372,10 @@ class AacCoordinator(Coordinator):
         plan = self.planner.plan(world.robots[i], world.states[i], ref, self.last_inputs[i], world.obstacles + regions, None,
                                  self.corridors[i], guess=(own.course(period, cfg.horizon), own.inputs_ahead(period, cfg.horizon)))
         self.plans[i] = plan
-        record = RobotDecision(True, plan.status, plan.solve_ms, plan.solver, ref, reason=reason, mode=own.stage(period))
-        if plan.status != "solved":
-            return record, 0, 1
-        for m in range(cfg.horizon, -1, -1):
+        record = RobotDecision(True, plan.status, plan.solve_ms, plan.solver, ref, reason=reason, mode=own.stage(period),
+                               iterations=plan.iterations, capped=plan.capped)
+        cuts = range(cfg.horizon, -1, -1) if plan.status == "solved" else [cfg.horizon]  # a failed solve: the braking fallback
+        for m in cuts:
             candidate = self.commitment(world, i, period, plan.inputs[:m])
             if book.clearance(i, candidate, period, statics) >= book.margin:
                 book.items[i] = candidate
