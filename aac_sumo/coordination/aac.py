@@ -388,14 +388,24 @@ class AacCoordinator(Coordinator):
         """Robots without authority whose planned course runs out (at most one planned period
         left) go on as the paper's robots without a plan do, on the tracking law, but only when
         that course (N periods of the law, then a stopping tail) passes the same exact check as a
-        plan; a robot whose try failed waits ``EXTENSION_RETRY`` periods before the next one.
+        plan; a robot whose try failed waits ``EXTENSION_RETRY`` periods before the next one. The
+        law ignores obstacles, and uncontrolled moving agents are not in the check, so a robot
+        that such an agent (growing as the planner grows walkers) may reach meanwhile is not
+        extended.
         Returns how many robots extended their commitment."""
         cfg, book = self.planner.config, self.book
         extended = 0
+        movers = [o for o in world.obstacles if o.kind not in ("static", "cone")]
+        reach = reach_radii(self.fleet, world.states, cfg.horizon, cfg.dt, self.tail_decel()) if movers else None
+        centres = world.robot_centres()
         for j in range(len(world.robots)):
             c = book.items[j]
             if parked[j] or world.robots[j].name in holders or self.next_extension[j] > period:
                 continue
+            if movers and any(np.hypot(*(o.centre - centres[j])) < reach[j] + 0.5 * np.hypot(o.length, o.width)
+                              + cfg.pedestrian_margin + (cfg.pedestrian_reach + np.hypot(*o.velocity)) * len(c.inputs) * cfg.dt
+                              for o in movers):
+                continue  # an uncontrolled agent (walker, scripted or SUMO-driven car) may meet it: only the MPC drives it on
             if c.stage(period) == "plan" and c.start + c.planned - period > 1:
                 continue
             head = self.tracking_inputs(world, j, cfg.horizon)
