@@ -180,15 +180,18 @@ def step_world(world: WorldState, inputs: np.ndarray) -> WorldState:
 def test_round_robin_gives_every_unfinished_robot_authority_in_turn():
     world, tasks = far_apart_world(4)
     finished = lambda w: np.array([False, False, True, False])  # robot 2 has arrived
-    aac = AacCoordinator(planner(), tasks, finished=finished, params=AacParams(close_distance=2.0))
-    holders = []
-    for _ in range(6):
-        decision = aac.decide(world)
-        holders.append([i for i, r in enumerate(decision.robots) if r.authority])
-        assert all(r.reason == "round_robin" for r in decision.robots if r.authority)
-        assert decision.robots[2].mode == "hold"
-        world = step_world(world, decision.inputs)
-    assert holders == [[0], [1], [3], [0], [1], [3]]
+    for commit in (False, True):
+        aac = AacCoordinator(planner(), tasks, finished=finished, params=AacParams(close_distance=2.0, commit=commit))
+        holders, state = [], world
+        for _ in range(6):
+            decision = aac.decide(state)
+            holders.append([i for i, r in enumerate(decision.robots) if r.authority])
+            assert all(r.reason == "round_robin" for r in decision.robots if r.authority)
+            # without commitments it brakes at once; with them it brakes on its stopping tail, then holds
+            assert decision.robots[2].mode in (("tail", "hold") if commit else ("hold",))
+            assert decision.inputs[2, 0] <= 0.0 and not decision.robots[2].authority
+            state = step_world(state, decision.inputs)
+        assert holders == [[0], [1], [3], [0], [1], [3]]
 
 
 def test_close_pair_candidates_get_scores_and_one_wins():
@@ -212,7 +215,7 @@ def test_safety_stop_brakes_a_robot_heading_into_another(enabled):
     states = np.array([[0.0, 20.0, 0.0, 0.0], [0.9, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]])
     goals = np.array([[10.0, 20.0], [10.0, 0.5], [10.0, 0.0]])
     world = WorldState(0.0, states, [robot(i) for i in range(3)])
-    aac = AacCoordinator(planner(), straight_tasks(states, goals), params=AacParams(close_distance=0.5, safety_stop=enabled, safety_margin=0.05))
+    aac = AacCoordinator(planner(), straight_tasks(states, goals), params=AacParams(close_distance=0.5, safety_stop=enabled, safety_margin=0.05, commit=False))
     decision = aac.decide(world)
     assert decision.robots[0].authority
     if enabled:
@@ -396,7 +399,7 @@ def test_a_robot_whose_solve_fails_brakes_or_tracks(fallback):
     passes here (driving along the cone does not bring the footprints closer)."""
     world, tasks = hemmed_in_world()
     lfc = LfcCoordinator(planner(), tasks, params=LfcParams(safety_stop=True, safety_margin=0.05, fallback=fallback, lookahead=1.0))
-    aac = AacCoordinator(planner(), tasks, params=AacParams(close_distance=0.5, safety_margin=0.05, fallback=fallback))
+    aac = AacCoordinator(planner(), tasks, params=AacParams(close_distance=0.5, safety_margin=0.05, fallback=fallback, commit=False))
     for decision in (lfc.decide(world), aac.decide(world)):
         assert decision.robots[0].authority and decision.robots[0].status in ("infeasible", "failed")
         if fallback == "brake":
@@ -435,7 +438,7 @@ def test_the_authority_may_leave_its_follower_to_the_safety_stop(ignore):
     goals = np.array([[10.0, 0.0], [10.0, 0.0], [10.0, 0.6]])
     world = WorldState(0.0, states, [robot(i) for i in range(3)])
     pl = RecordingPlanner(planner().config)
-    aac = AacCoordinator(pl, straight_tasks(states, goals), params=AacParams(close_distance=0.1, ignore_followers=ignore))
+    aac = AacCoordinator(pl, straight_tasks(states, goals), params=AacParams(close_distance=0.1, ignore_followers=ignore, commit=False))
     aac.decide(world)
     (name, seen), = pl.calls
     assert name == "robot0" and "robot2" in seen

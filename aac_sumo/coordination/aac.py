@@ -361,9 +361,10 @@ class AacCoordinator(Coordinator):
         """Robot ``i`` plans around ``others``' commitments (swept regions of stages k and k+1)
         and the obstacles, warm-started from its own commitment. It commits to the longest
         prefix of its plan (all N inputs first, one fewer each time down to braking at once)
-        whose stopping tail passes the exact check; no prefix passing keeps its old commitment. A failed solve offers only the planner's braking fallback (the paper's
-        answer to a failed solve), under the same check. Returns its record, whether the plan was
-        cut, and whether the old commitment was kept."""
+        whose stopping tail passes the exact check; no prefix passing keeps its old commitment.
+        A failed solve offers only the planner's braking fallback (the paper's answer to a failed
+        solve), under the same check. Returns its record, whether the plan was cut, and whether
+        the old commitment was kept."""
         cfg, book = self.planner.config, self.book
         traj = book.courses(period, others, cfg.horizon + 1)
         regions = self.fleet.swept_regions(others, traj, cfg.horizon, cfg.barrier, cfg.fcbf)
