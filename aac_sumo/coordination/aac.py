@@ -218,21 +218,28 @@ class AacCoordinator(Coordinator):
         if self.room is not None and i in self.room.targets:
             return self.room_reference(world, i)
         ref = super().reference(world, i)
-        shift = self.params.keep_right
-        if shift <= 0.0:
+        shift = self.keep_right_shift(world, i)
+        if shift == 0.0:
             return ref
-        centres = world.robot_centres()
-        rel = centres - centres[i]
-        along = rel @ np.array([np.cos(ref[0, 2]), np.sin(ref[0, 2])])
-        near = (along > 0.0) & (np.hypot(rel[:, 0], rel[:, 1]) < self.params.keep_right_range)
-        near[i] = False
-        if not near.any():
-            return ref
-        to_goal = float(np.hypot(*(world.states[i, :2] - self.tasks[i].points[-1])))
-        shift *= float(np.clip((to_goal - 1.5 * shift) / (1.5 * shift), 0.0, 1.0)) if self.tasks[i].stop_at_end else 1.0
         out = ref.copy()
         out[:, :2] += shift * np.column_stack([np.sin(ref[:, 2]), -np.cos(ref[:, 2])])
         return out
+
+    def keep_right_shift(self, world: WorldState, i: int) -> float:
+        """How far [m] robot ``i``'s reference moves to the right now (see :meth:`reference`)."""
+        shift = self.params.keep_right
+        if shift <= 0.0:
+            return 0.0
+        centres = world.robot_centres()
+        rel = centres - centres[i]
+        heading = self.tasks[i].heading_at(world.states[i, :2])
+        along = rel @ np.array([np.cos(heading), np.sin(heading)])
+        near = (along > 0.0) & (np.hypot(rel[:, 0], rel[:, 1]) < self.params.keep_right_range)
+        near[i] = False
+        if not near.any():
+            return 0.0
+        to_goal = float(np.hypot(*(world.states[i, :2] - self.tasks[i].points[-1])))
+        return shift * (float(np.clip((to_goal - 1.5 * shift) / (1.5 * shift), 0.0, 1.0)) if self.tasks[i].stop_at_end else 1.0)
 
     # ----- committed plans (aac.commit = true) -----
 
@@ -403,6 +410,8 @@ class AacCoordinator(Coordinator):
             c = book.items[j]
             if parked[j] or world.robots[j].name in holders or self.next_extension[j] > period:
                 continue
+            if self.room is not None and j in self.room.targets:
+                continue  # making room: it moves aside on its turns, not back onto its path
             if movers and any(np.hypot(*(o.centre - centres[j])) < reach[j] + 0.5 * np.hypot(o.length, o.width)
                               + cfg.pedestrian_margin + (cfg.pedestrian_reach + np.hypot(*o.velocity)) * len(c.inputs) * cfg.dt
                               for o in movers):
@@ -420,12 +429,14 @@ class AacCoordinator(Coordinator):
         return extended
 
     def tracking_inputs(self, world: WorldState, j: int, steps: int) -> np.ndarray:
-        """Inputs (steps, 2) of robot ``j`` following the tracking law from where it is."""
+        """Inputs (steps, 2) of robot ``j`` following the tracking law from where it is, on its
+        path moved by its keep-right shift of now."""
         robot, cfg = world.robots[j], self.planner.config
         state = world.states[j].copy()
+        shift = self.keep_right_shift(world, j)
         out = np.empty((steps, 2))
         for k in range(steps):
-            out[k] = track(robot, state, self.tasks[j], self.params.lookahead, self.params.speed_gain)
+            out[k] = track(robot, state, self.tasks[j], self.params.lookahead, self.params.speed_gain, shift)
             state = robot.model.step(state, out[k], cfg.dt)
         return out
 

@@ -9,11 +9,19 @@ from aac_sumo.references import PathReference
 from aac_sumo.world import RobotSpec
 
 
-def track(robot: RobotSpec, state: np.ndarray, task: PathReference, lookahead: float, speed_gain: float) -> np.ndarray:
+def track(robot: RobotSpec, state: np.ndarray, task: PathReference, lookahead: float, speed_gain: float,
+          offset: float = 0.0) -> np.ndarray:
     """Input ``[accel, steer]`` steering the rear axle toward the path point ``lookahead`` [m]
-    ahead of its projection and driving the speed toward the reference speed there."""
+    ahead of its projection (moved ``offset`` [m] to the right of the path) and driving the
+    speed toward the reference speed there; within the task's ``approach`` distance of its
+    goal, toward the goal at the speed that stops there."""
     s0, _ = task.project(state[:2])
-    target = task.pose_at(min(s0 + lookahead, task.length) if task.stop_at_end else s0 + lookahead)[0, :2]
+    pose = task.pose_at(min(s0 + lookahead, task.length) if task.stop_at_end else s0 + lookahead)[0]
+    target = pose[:2] + offset * np.array([np.sin(pose[2]), -np.cos(pose[2])])
+    goal_rel = task.points[-1] - state[:2]
+    near_goal = task.stop_at_end and float(np.hypot(*goal_rel)) <= task.approach
+    if near_goal:  # within the approach distance: straight at the goal, as the reference does
+        target = task.points[-1]
     rel = target - state[:2]
     dist = float(np.hypot(*rel))
     lim = robot.model.limits
@@ -22,5 +30,6 @@ def track(robot: RobotSpec, state: np.ndarray, task: PathReference, lookahead: f
     else:
         alpha = np.arctan2(rel[1], rel[0]) - state[2]
         steer = float(np.arctan2(2.0 * robot.model.wheelbase * np.sin(alpha), dist))
-    accel = speed_gain * (float(task.speed_at(s0)) - state[3])
+    speed = min(task.speed, float(np.sqrt(2.0 * task.decel * dist))) if near_goal else float(task.speed_at(s0))
+    accel = speed_gain * (speed - state[3])
     return np.array([min(max(accel, lim.a_min), lim.a_max), min(max(steer, -lim.steer_max), lim.steer_max)])
