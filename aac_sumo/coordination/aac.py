@@ -53,6 +53,11 @@ EXTENSION_RETRY = 3
 #: A candidate that has not held authority for this many horizons gets it (round robin) before
 #: any proximity decision: with committed plans, a robot without turns stands still.
 STARVING = 2
+#: A robot slower than this share of its cruise speed is held up: its keep-right shift grows at
+#: SHIFT_GROWTH [m/s] up to keep_right_max, and shrinks at SHIFT_DECAY [m/s] otherwise.
+SLOW_SHARE = 0.3
+SHIFT_GROWTH = 0.5
+SHIFT_DECAY = 0.1
 
 
 @dataclass(frozen=True)
@@ -79,6 +84,7 @@ class AacParams:
     commit_margin: float = 0.05
     keep_right: float = 0.0
     keep_right_range: float = 3.0
+    keep_right_max: float = 4.0
     make_room: bool = True
     stall_time: float = 2.0
     lead_time: float = 8.0
@@ -106,6 +112,7 @@ class AacCoordinator(Coordinator):
         self.last_turn = np.full(len(tasks), -1)  # period of each robot's last authority
         self.next_extension = np.zeros(len(tasks), dtype=int)  # first period a robot may try a tracking extension again
         self.room: MakeRoom | None = None
+        self.extra_shift = np.zeros(len(tasks))  # keep-right growth of robots held up in a crowd [m]
         self.last_holder: dict[int, int] = {}  # per group (its first member), the robot that held authority last period
 
     def _decide(self, world: WorldState) -> Decision:
@@ -225,6 +232,17 @@ class AacCoordinator(Coordinator):
         out[:, :2] += shift * np.column_stack([np.sin(ref[:, 2]), -np.cos(ref[:, 2])])
         return out
 
+    def crowded_ahead(self, world: WorldState) -> np.ndarray:
+        """Which robots (n,) have another robot's footprint centre ahead of them (the half-plane
+        in front, along their path's heading where they are) within ``keep_right_range``."""
+        centres = world.robot_centres()
+        heading = np.array([task.heading_at(state[:2]) for task, state in zip(self.tasks, world.states)])
+        rel = centres[None, :, :] - centres[:, None, :]  # (i, j, 2)
+        along = rel[..., 0] * np.cos(heading)[:, None] + rel[..., 1] * np.sin(heading)[:, None]
+        near = (along > 0.0) & (np.hypot(rel[..., 0], rel[..., 1]) < self.params.keep_right_range)
+        np.fill_diagonal(near, False)
+        return near.any(axis=1)
+
     def keep_right_shift(self, world: WorldState, i: int) -> float:
         """How far [m] robot ``i``'s reference moves to the right now (see :meth:`reference`)."""
         shift = self.params.keep_right
@@ -238,6 +256,7 @@ class AacCoordinator(Coordinator):
         near[i] = False
         if not near.any():
             return 0.0
+        shift += self.extra_shift[i]
         to_goal = float(np.hypot(*(world.states[i, :2] - self.tasks[i].points[-1])))
         return shift * (float(np.clip((to_goal - 1.5 * shift) / (1.5 * shift), 0.0, 1.0)) if self.tasks[i].stop_at_end else 1.0)
 
@@ -263,6 +282,11 @@ class AacCoordinator(Coordinator):
                 self.room = MakeRoom(n, int(round(self.params.stall_time / cfg.dt)), int(round(self.params.lead_time / cfg.dt)), corridor)
             goals = np.array([task.points[-1] for task in self.tasks])
             self.room.update(world.states, world.robot_centres(), goals, ~done, period)
+        if self.params.keep_right > 0.0:
+            slow = np.abs(world.states[:, 3]) < SLOW_SHARE * np.array([t.speed for t in self.tasks])
+            grow = slow & ~done & self.crowded_ahead(world)
+            self.extra_shift = np.where(grow, np.minimum(self.extra_shift + SHIFT_GROWTH * cfg.dt, self.params.keep_right_max - self.params.keep_right),
+                                        np.maximum(self.extra_shift - SHIFT_DECAY * cfg.dt, 0.0))
         holders, reasons, cuts, kept = [], [], 0, 0
         for members, candidates in self.groups(world, parked):
             i, reason = self.choose_committed(world, members, candidates, records, period)

@@ -72,7 +72,7 @@ def aac_params(scenario: Scenario) -> AacParams:
         safety_stop=a["safety_stop"], safety_margin=a["safety_margin"], lookahead=a["lookahead"], speed_gain=a["speed_gain"],
         fallback=a["fallback"], ignore_followers=a["ignore_followers"], seed=scenario["scenario.seed"],
         commit=a["commit"], authorities=a["authorities"], tail_brake=a["tail_brake"], commit_margin=a["commit_margin"],
-        keep_right=a["keep_right"], keep_right_range=a["keep_right_range"], make_room=a["make_room"],
+        keep_right=a["keep_right"], keep_right_range=a["keep_right_range"], keep_right_max=a["keep_right_max"], make_room=a["make_room"],
         stall_time=a["stall_time"], lead_time=a["lead_time"],
     )
 
