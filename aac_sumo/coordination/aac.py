@@ -350,7 +350,8 @@ class AacCoordinator(Coordinator):
         pairs = close_pairs(centres[candidates], self.params.close_distance)
         room = self.room
         leader = room.leader if room is not None else -1
-        movers = np.array([j for j in candidates if j in room.targets], dtype=int) if leader >= 0 else np.empty(0, dtype=int)
+        # robots in the leader's way, parked ones too (they come back once it has passed)
+        movers = np.array([j for j in members if j in room.targets], dtype=int) if leader in candidates else np.empty(0, dtype=int)
         waited = period - self.last_turn[candidates]
         leader_turn = leader in candidates and self.last_holder.get(int(members[0])) != leader
         if leader_turn:
