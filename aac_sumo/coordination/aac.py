@@ -331,7 +331,7 @@ class AacCoordinator(Coordinator):
             return []
         if self.params.authorities == 1:
             return [(np.arange(n), active)]
-        radii = reach_radii(self.fleet, world.states, cfg.horizon, cfg.dt, self.tail_decel())
+        radii = reach_radii(self.fleet, world.states, cfg.horizon, cfg.dt)  # within the horizon
         out = [(g, g[~parked[g]]) for g in clusters(world.robot_centres(), radii, self.params.commit_margin)]
         out = [(g, c) for g, c in out if c.size]
         if self.params.authorities != "clusters":

@@ -128,19 +128,20 @@ class CommitmentBook:
         return out
 
 
-def reach_radii(fleet: Fleet, states: np.ndarray, horizon: int, dt: float, tail_decel: float) -> np.ndarray:
+def reach_radii(fleet: Fleet, states: np.ndarray, horizon: int, dt: float, tail_decel=None) -> np.ndarray:
     """Per robot, a radius [m] around its footprint centre that contains its footprint along any
     course it can commit to from ``states`` (n, 4), and along the rest of its current
     commitment: ``horizon`` periods accelerating as hard as it can, then a stopping tail at
-    ``tail_decel`` (the farthest any such course goes), plus twice the rear-axle-to-centre
-    offset (turning) and the footprint's half diagonal."""
+    ``tail_decel`` [m/s^2] (the farthest any such course goes), plus twice the rear-axle-to-centre
+    offset (turning) and the footprint's half diagonal. Without ``tail_decel``: over the
+    ``horizon`` periods only."""
     speed = np.abs(states[:, 3])
     accel = np.maximum(fleet.a_max, -fleet.a_min)
     top = np.maximum(fleet.v_max, -fleet.v_min)
     k = np.arange(horizon)
     speeds = np.minimum(top[:, None], speed[:, None] + accel[:, None] * dt * k[None, :])  # speed at the start of each period
     end = np.minimum(top, speed + accel * dt * horizon)
-    travel = speeds.sum(axis=1) * dt + end**2 / (2.0 * tail_decel) + end * dt
+    travel = speeds.sum(axis=1) * dt + (0.0 if tail_decel is None else end**2 / (2.0 * tail_decel) + end * dt)
     return travel + 2.0 * np.abs(fleet.offset) + 0.5 * np.hypot(fleet.length, fleet.width)
 
 
