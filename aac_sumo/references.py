@@ -11,12 +11,18 @@ from aac_sumo.geometry import polyline_offset, wrap_angle
 from aac_sumo.kernels import closest_on_polyline
 
 
+#: A robot backing off from a goal inside its turning circle goes on until the goal lies this
+#: many turning radii from both circles' centres.
+BACK_OFF_HYSTERESIS = 1.5
+
+
 class PathReference:
     """Path ``waypoints`` (M, 2) [m] driven at ``speed`` [m/s]; decelerates at ``decel`` [m/s^2]
     to stop at the last waypoint when ``stop_at_end`` is set. Within ``approach`` [m] of that
     goal the reference runs straight from the robot to the goal instead (see :meth:`horizon`)."""
 
-    def __init__(self, waypoints, speed: float, decel: float = 1.5, stop_at_end: bool = True, approach: float = 0.0):
+    def __init__(self, waypoints, speed: float, decel: float = 1.5, stop_at_end: bool = True, approach: float = 0.0,
+                 turn_radius: float = 0.0):
         pts = np.asarray(waypoints, dtype=float)
         if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2:
             raise ValueError("a path needs at least two (x, y) waypoints")
@@ -33,6 +39,7 @@ class PathReference:
         self.decel = float(decel)
         self.stop_at_end = stop_at_end
         self.approach = float(approach)
+        self.turn_radius = float(turn_radius)
         # upper bound of the fraction of each segment a projection may reach: past the end of a path that does not stop
         self._t_max = np.r_[np.ones(len(self.seg_len) - 1), 1.0 if stop_at_end else np.inf]
 
@@ -80,26 +87,34 @@ class PathReference:
         """Reference states (steps + 1, 4) starting from the projection of ``state``'s position.
 
         Headings are unwrapped to lie within pi of the robot's heading. Within ``approach`` of
-        the goal of a path that stops, the reference runs straight from the robot's position to
-        the goal at the path's stopping speed profile, headed along that line (backwards when the
-        goal lies behind the robot): a robot that reaches the goal's neighbourhood off the path
-        (it avoided someone) steers onto the goal instead of stopping beside it, where a short
-        horizon cannot undo a sideways error of a car-like robot.
+        the goal of a path that stops, or (when ``approach`` is set) where less of the path is
+        left than the robot lies off it (the goal is more beside it than ahead), the reference
+        positions run straight from the robot to the goal at the path's stopping speed profile,
+        and heading and speed are NaN, free (the planner then weighs neither): a robot that
+        reaches the goal's neighbourhood off its path (it avoided someone) manoeuvres onto the
+        goal, forwards or backwards as its MPC finds best, instead of stopping beside it with
+        its heading held along the path, where a short horizon cannot undo a sideways error of
+        a car-like robot. A robot that can reverse (``turn_radius`` [m] > 0, its tightest turning
+        radius) and whose goal lies inside one of its turning circles, where no arc gets it closer,
+        backs straight off at half the cruise speed first, until the goal lies
+        ``BACK_OFF_HYSTERESIS`` turning radii from both circles' centres.
         """
         goal = self.points[-1]
         rel = goal - np.asarray(state[:2], dtype=float)
         dist = float(np.hypot(rel[0], rel[1]))
-        if self.stop_at_end and 1e-9 < dist <= self.approach:
-            speed = min(self.speed, float(np.sqrt(2.0 * self.decel * dist)))
+        s0, off = self.project(state[:2])
+        if self.stop_at_end and 1e-9 < dist and self.approach > 0.0 and (dist <= self.approach or self.length - s0 <= off):
+            if self.turn_radius > 0.0:  # a goal inside a turning circle cannot be reached by turning: back off first
+                left = np.array([-np.sin(state[2]), np.cos(state[2])])
+                gap = np.hypot(*(np.asarray(state[:2], dtype=float) + self.turn_radius * np.array([left, -left]) - goal).T).min()
+                if gap < self.turn_radius * (BACK_OFF_HYSTERESIS if state[3] < 0.0 else 1.0):
+                    back = -np.arange(steps + 1) * dt * 0.5 * self.speed
+                    xy = np.asarray(state[:2], dtype=float) + back[:, None] * np.array([np.cos(state[2]), np.sin(state[2])])
+                    return np.column_stack([xy, np.full(steps + 1, state[2]), np.full(steps + 1, -0.5 * self.speed)])
+            speed = max(0.5 * self.speed, min(self.speed, float(np.sqrt(2.0 * self.decel * dist))))
             ahead = np.minimum(np.arange(steps + 1) * dt * speed, dist)
-            bearing = np.arctan2(rel[1], rel[0])
-            if abs(wrap_angle(bearing - state[2])) > 0.5 * np.pi:
-                bearing += np.pi
             xy = np.asarray(state[:2], dtype=float) + ahead[:, None] * (rel / dist)
-            backwards = abs(wrap_angle(bearing - np.arctan2(rel[1], rel[0]))) > 0.5 * np.pi
-            speeds = np.sqrt(2.0 * self.decel * (dist - ahead)).clip(max=self.speed) * (-1.0 if backwards else 1.0)
-            return np.column_stack([xy, np.full(steps + 1, state[2] + wrap_angle(bearing - state[2])), speeds])
-        s0, _ = self.project(state[:2])
+            return np.column_stack([xy, np.full((steps + 1, 2), np.nan)])
         s = np.empty(steps + 1)
         s[0] = s0
         for k in range(steps):

@@ -226,7 +226,7 @@ class AacCoordinator(Coordinator):
             return self.room_reference(world, i)
         ref = super().reference(world, i)
         shift = self.keep_right_shift(world, i)
-        if shift == 0.0:
+        if shift == 0.0 or np.isnan(ref[:, 2]).any():  # no shift on a free heading (the goal approach)
             return ref
         out = ref.copy()
         out[:, :2] += shift * np.column_stack([np.sin(ref[:, 2]), -np.cos(ref[:, 2])])
@@ -391,7 +391,8 @@ class AacCoordinator(Coordinator):
     def plan_committed(self, world: WorldState, i: int, others: np.ndarray, reason: str, period: int,
                        statics: np.ndarray) -> tuple[RobotDecision, int, int]:
         """Robot ``i`` plans around ``others``' commitments (swept regions of stages k and k+1)
-        and the obstacles, warm-started from its own commitment. It commits to the longest
+        and the obstacles, warm-started from its own commitment (from the tracking law's course
+        when it stands at the end of its commitment). It commits to the longest
         prefix of its plan (all N inputs first, one fewer each time down to braking at once)
         whose stopping tail passes the exact check; no prefix passing keeps its old commitment.
         A failed solve offers only the planner's braking fallback (the paper's answer to a failed
@@ -402,8 +403,12 @@ class AacCoordinator(Coordinator):
         regions = self.fleet.swept_regions(others, traj, cfg.horizon, cfg.barrier, cfg.fcbf)
         ref = self.reference(world, i)
         own = book.items[i]
+        guess = (own.course(period, cfg.horizon), own.inputs_ahead(period, cfg.horizon))
+        if own.stage(period) == "hold":  # standing: a standing guess keeps it standing; start from the tracking law instead
+            inputs = self.tracking_inputs(world, i, cfg.horizon)
+            guess = (self.fleet.rollout(np.array([i]), world.states[[i]], inputs[None], cfg.dt)[0], inputs)
         plan = self.planner.plan(world.robots[i], world.states[i], ref, self.last_inputs[i], world.obstacles + regions, None,
-                                 self.corridors[i], guess=(own.course(period, cfg.horizon), own.inputs_ahead(period, cfg.horizon)))
+                                 self.corridors[i], guess=guess)
         self.plans[i] = plan
         record = RobotDecision(True, plan.status, plan.solve_ms, plan.solver, ref, reason=reason, mode=own.stage(period),
                                iterations=plan.iterations, capped=plan.capped)

@@ -5,8 +5,10 @@ A robot that has stood (speed below ``STILL_SPEED``) for ``stall_periods`` perio
 having finished may become the **leader**: the stalled robot that led least recently (ties: the
 lowest index). While it leads, the robots whose footprint centres lie within ``corridor`` [m] of
 the segment from its footprint centre to its goal (ahead of it) are **blockers**; each gets a
-make-room target, its rear axle moved straight away from that segment until its centre lies
-``corridor`` plus ``ROOM_EXTRA`` off it, and drives there when it holds authority. In the
+make-room target, its rear axle moved away from that segment until its centre lies
+``corridor`` plus ``ROOM_EXTRA`` off it and ``corridor`` further along the leader's way (away
+from the leader: a robot facing it backs off diagonally, which a car-like robot can do where a
+sideways step is impossible), and drives there when it holds authority. In the
 leader's group the authority alternates between the leader and the blockers (the one that held
 it longest ago). The lead ends when the leader has got ``LEAD_PROGRESS`` [m] closer to its goal,
 has finished, or after ``lead_periods`` periods. Safety is untouched: every move still passes the
@@ -57,7 +59,8 @@ class MakeRoom:
 
     def room_targets(self, states: np.ndarray, centres: np.ndarray, goal: np.ndarray, leader: int) -> dict[int, np.ndarray]:
         """Make-room targets (rear axle [m]) of the robots within ``corridor`` of the segment
-        from the leader's centre to ``goal``, ahead of the leader."""
+        from the leader's centre to ``goal``, ahead of the leader: out of the corridor and on
+        along it, away from the leader."""
         a = centres[leader]
         seg = goal - a
         length = float(np.hypot(*seg))
@@ -73,5 +76,5 @@ class MakeRoom:
                 continue
             side = 1.0 if across[j] >= 0.0 else -1.0
             shift = side * (self.corridor + ROOM_EXTRA) - across[j]
-            out[int(j)] = states[j, :2] + shift * np.array([-u[1], u[0]])
+            out[int(j)] = states[j, :2] + shift * np.array([-u[1], u[0]]) + self.corridor * u
         return out

@@ -42,7 +42,7 @@ import numpy as np
 
 from aac_sumo.config import Scenario, ScenarioError
 from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_spec
-from aac_sumo.experiments.swarm import GOAL_APPROACH
+from aac_sumo.experiments.swarm import GOAL_APPROACH, turn_radius
 from aac_sumo.geometry import pairwise_rect_clearance, rect_corners
 from aac_sumo.references import PathReference
 from aac_sumo.sim.internal import InternalSimulator
@@ -229,7 +229,8 @@ def build_random_crossing(scenario: Scenario) -> Setup:
     sim = InternalSimulator(robots, state, scenario["scenario.dt"], statics=statics)
     check_start(scenario, sim.observe(), f"{SECTION}.clearance")  # holds by construction
     goals = d.goals
-    tasks = [PathReference([start[:2], goal], speed, decel=0.5 * limits.a_max, approach=GOAL_APPROACH * tol)
+    tasks = [PathReference([start[:2], goal], speed, decel=0.5 * limits.a_max, approach=GOAL_APPROACH * tol,
+                           turn_radius=turn_radius(robots[0]))
              for start, goal in zip(d.starts, goals)]
 
     def finished(world: WorldState) -> np.ndarray:

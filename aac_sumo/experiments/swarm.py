@@ -21,6 +21,13 @@ from aac_sumo.references import PathReference
 from aac_sumo.sim.internal import InternalSimulator
 from aac_sumo.world import Obstacle, WorldState
 
+def turn_radius(robot) -> float:
+    """Tightest turning radius [m] of the rear axle of a robot that can reverse (0 if it cannot:
+    backing off is then no option)."""
+    lim = robot.model.limits
+    return robot.model.wheelbase / np.tan(lim.steer_max) if lim.v_min < 0.0 else 0.0
+
+
 #: Within this many goal tolerances of its goal a robot's reference runs straight at the goal
 #: (:class:`~aac_sumo.references.PathReference` ``approach``).
 GOAL_APPROACH = 3.0
@@ -65,7 +72,8 @@ def _goal_setup(scenario: Scenario, section: str, starts: np.ndarray, goals: np.
     speed, tol = p["cruise_speed"], p["goal_tolerance"]
     if speed > robots[0].model.limits.v_max:
         raise ScenarioError(scenario.source, f"{section}.cruise_speed", f"at most robot.v_max ({robots[0].model.limits.v_max})", speed)
-    tasks = [PathReference([start[:2], goal], speed, decel=0.5 * robots[0].model.limits.a_max, approach=GOAL_APPROACH * tol)
+    tasks = [PathReference([start[:2], goal], speed, decel=0.5 * robots[0].model.limits.a_max, approach=GOAL_APPROACH * tol,
+                           turn_radius=turn_radius(robots[0]))
              for start, goal in zip(starts, goals)]
 
     def finished(world: WorldState) -> np.ndarray:
