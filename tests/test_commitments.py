@@ -92,12 +92,17 @@ def test_far_apart_clusters_get_exactly_the_inputs_each_gets_alone():
     assert np.abs(alone_a).sum() > 0  # they did drive
 
 
-def test_one_authority_in_each_far_apart_cluster_per_period():
+def test_one_authority_in_each_cluster_per_period():
     (sa, ga), (sb, gb) = group(0.0, 0.0), group(100.0, 40.0)
     setup = experiments.build(config.load("swarm_rescue", swarm(sa + sb, ga + gb)))
-    decision = setup.coordinator.decide(setup.sim.observe())
+    world = setup.sim.observe()
+    decision = setup.coordinator.decide(world)
     held = np.flatnonzero([r.authority for r in decision.robots])
-    assert len(held) == 2 and held[0] < 3 <= held[1]
+    coord = setup.coordinator
+    groups = clusters(world.robot_centres(), reach_radii(coord.fleet, world.states, coord.planner.config.horizon, 0.1), 0.05)
+    assert len(held) == len(groups) == decision.notes["authorities"]
+    assert all(len(set(held) & set(g)) == 1 for g in groups)  # exactly one in each
+    assert all(set(g) <= {0, 1, 2} or set(g) <= {3, 4, 5} for g in groups)  # no cluster spans the two far groups
 
 
 @settings(max_examples=40, deadline=None)
