@@ -190,7 +190,9 @@ def write(out: Path, mpc: BenchReport | None = None, aac: BenchReport | None = N
             "runs are identical but for their timing). The time is the coordinator's wall time per period: authority "
             "choice, predictions and every MPC solve (LFC solves once per unfinished robot); the medians pool the periods "
             "of all runs. The real-time factor is simulated time over the whole run's wall time (start-up and simulator "
-            "included): the median over the runs, and its range. AAC speed-up = LFC median / AAC median.\n\n"
+            "included): the median over the runs, and its range. AAC speed-up = LFC median / AAC median. The "
+            f"random_crossing_<n> rows are AAC alone with one authority per cluster (`aac.authorities = \"clusters\"`), "
+            f"N = 10, over the first {SCALING_SECONDS:.0f} s of each run; growth = that row's median over the smallest one's.\n\n"
             + markdown_aac(aac)
         )
     (out / "bench.md").write_text(text)
@@ -199,7 +201,11 @@ def write(out: Path, mpc: BenchReport | None = None, aac: BenchReport | None = N
 
 # --- coordinators: AAC against LFC per control period ------------------------------------------
 
-AAC_SCENARIOS = ("swarm_rescue", "lane_change")
+AAC_SCENARIOS = ("swarm_rescue", "lane_change", "random_crossing")
+#: Robot counts of the random-crossing scaling rows (AAC with one authority per cluster, N = 10,
+#: the first SCALING_SECONDS of each run: the crowded part).
+SCALING = (15, 100)
+SCALING_SECONDS = 20.0
 
 
 def bench_aac(horizons=HORIZONS, scenarios=AAC_SCENARIOS, repeats=3, progress=None) -> BenchReport:
@@ -216,6 +222,9 @@ def bench_aac(horizons=HORIZONS, scenarios=AAC_SCENARIOS, repeats=3, progress=No
         except config.ScenarioError:
             report.notes.append(f"{scenario}: no such bundled scenario; skipped")
             continue
+        if scenario == "random_crossing":
+            report.records += _scaling_records(repeats, report.notes, progress)
+            continue
         for horizon in horizons:
             aac, lfc = (_coordinator_record(name, scenario, horizon, repeats, report.notes, progress) for name in ("aac", "lfc"))
             aac.ratio_to, aac.ratio = lfc.name, lfc.median_ms / aac.median_ms if aac.median_ms > 0 else None
@@ -223,21 +232,38 @@ def bench_aac(horizons=HORIZONS, scenarios=AAC_SCENARIOS, repeats=3, progress=No
     return report
 
 
-def _coordinator_record(name: str, scenario: str, horizon: int, repeats: int, notes: list[str], progress=None) -> BenchRecord:
+def _scaling_records(repeats: int, notes: list[str], progress=None) -> list[BenchRecord]:
+    """AAC with ``authorities = "clusters"`` on the random crossing at each robot count of
+    SCALING, N = 10, the first SCALING_SECONDS; each record's ratio is its median over the
+    smallest count's (the growth of the per-period time)."""
+    records = []
+    for n in SCALING:
+        sets = [f"random_crossing.n_robots={n}", 'aac.authorities="clusters"', f"scenario.duration={SCALING_SECONDS}"]
+        record = _coordinator_record("aac", "random_crossing", 10, repeats, notes, progress, sets, f"random_crossing_{n}")
+        if records:
+            record.ratio_to, record.ratio = records[0].name, record.median_ms / records[0].median_ms
+        records.append(record)
+    return records
+
+
+def _coordinator_record(name: str, scenario: str, horizon: int, repeats: int, notes: list[str], progress=None,
+                        sets: list[str] = (), label_as: str | None = None) -> BenchRecord:
     """``repeats`` runs of ``scenario`` with coordinator ``name`` at ``horizon``; the runs are
     identical but for their timing (a note says so otherwise). ``samples`` counts the periods of
     all runs and the medians pool them; ``failures`` counts the infeasible or failed MPC solves
     of one run; ``proximity_median_ms`` is the median time of the proximity decision over the
     periods that ran one; ``realtime_factor`` is the median over the runs of simulated time over
-    the run's wall time (simulator included), ``realtime_factor_range`` its least and greatest."""
+    the run's wall time (simulator included), ``realtime_factor_range`` its least and greatest.
+    ``sets`` are further ``--set`` assignments, and ``label_as`` names the record instead of the
+    scenario."""
     from aac_sumo import config, runner
 
-    label = f"{name}/{scenario} N={horizon}"
+    label = f"{name}/{label_as or scenario} N={horizon}"
     times, prox, rtf, metrics = [], [], [], []
     for run in range(repeats):
         if progress:
             progress(label + (f" (run {run + 1} of {repeats})" if repeats > 1 else ""))
-        result = runner.run(config.load(scenario, [f"controller.coordinator={name}", f"controller.horizon={horizon}"]))
+        result = runner.run(config.load(scenario, [f"controller.coordinator={name}", f"controller.horizon={horizon}", *sets]))
         metrics.append(result.metrics)
         times.append(result.periods["compute_ms"].to_numpy())
         p = result.periods.get("proximity_ms")
@@ -247,13 +273,13 @@ def _coordinator_record(name: str, scenario: str, horizon: int, repeats: int, no
     first = metrics[0]
     if first.get("error"):
         notes.append(f"{label}: run failed: {first['error']}")
-    elif not first["completed"]:
+    elif not first["completed"] and not any(a.startswith("scenario.duration=") for a in sets):
         notes.append(f"{label}: {first.get('incomplete_reason', 'not completed')}")
     if any(m["infeasible_solves"] != first["infeasible_solves"] or len(t) != len(times[0]) for m, t in zip(metrics, times)):
         notes.append(f"{label}: the runs differ (infeasible solves {[m['infeasible_solves'] for m in metrics]})")
     times, prox = np.concatenate(times), np.concatenate(prox)
     return BenchRecord(
-        name=f"{name}/{scenario}", horizon=horizon, samples=len(times), median_ms=float(np.median(times)),
+        name=f"{name}/{label_as or scenario}", horizon=horizon, samples=len(times), median_ms=float(np.median(times)),
         p95_ms=float(np.percentile(times, 95)), failures=int(first["infeasible_solves"]),
         solver=result.scenario["controller.solver"] + ("-c" if result.scenario["controller.codegen"] else ""),
         slots=result.scenario["controller.obstacle_slots"], mean_ms=float(np.mean(times)),
@@ -272,6 +298,8 @@ def markdown_aac(report: BenchReport) -> str:
     for r in report.records:
         prox = f"{r.proximity_median_ms:.2f}" if r.proximity_median_ms is not None else "—"
         ratio = f"{r.ratio:.2f}x vs {r.ratio_to}" if r.ratio is not None else ""
+        if r.ratio is not None and r.ratio_to.startswith("aac/"):
+            ratio = f"(growth: {r.ratio:.2f}x the time of {r.ratio_to})"
         rtf = f"{r.realtime_factor:.1f}" if r.realtime_factor is not None else "—"
         if r.realtime_factor_range is not None and r.runs and r.runs > 1:
             rtf += f" ({r.realtime_factor_range[0]:.1f}–{r.realtime_factor_range[1]:.1f})"

@@ -166,7 +166,7 @@ COMMON: dict[str, dict[str, Key]] = {
         "commit_margin": Key(float, 0.05, "footprint gap every two commitments keep at every period [m]", **NN),
         "keep_right": Key(float, 0.0, "right-hand rule: the authority's reference shifts this far to the right while another "
                           "robot is ahead within keep_right_range (0: off, the paper) [m]", **NN),
-        "keep_right_range": Key(float, 3.0, "distance within which a robot ahead triggers keep_right [m]", **P),
+        "keep_right_range": Key(float, 4.0, "distance within which a robot ahead triggers keep_right [m]", **P),
         "keep_right_max": Key(float, 4.0, "a robot held up in a crowd (slower than 0.3 of its cruise speed) shifts further right, "
                               "growing at 0.5 m/s up to this [m]", **NN),
         "make_room": Key(bool, True, "deadlock resolution (with commit): a robot that has stood for stall_time leads, and the "

@@ -83,7 +83,7 @@ class AacParams:
     tail_brake: float = 0.5
     commit_margin: float = 0.05
     keep_right: float = 0.0
-    keep_right_range: float = 3.0
+    keep_right_range: float = 4.0
     keep_right_max: float = 4.0
     make_room: bool = True
     stall_time: float = 2.0
