@@ -22,7 +22,7 @@ class PathReference:
     goal the reference runs straight from the robot to the goal instead (see :meth:`horizon`)."""
 
     def __init__(self, waypoints, speed: float, decel: float = 1.5, stop_at_end: bool = True, approach: float = 0.0,
-                 turn_radius: float = 0.0):
+                 turn_radius: float = 0.0, arrive: float = 0.0):
         pts = np.asarray(waypoints, dtype=float)
         if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2:
             raise ValueError("a path needs at least two (x, y) waypoints")
@@ -40,6 +40,7 @@ class PathReference:
         self.stop_at_end = stop_at_end
         self.approach = float(approach)
         self.turn_radius = float(turn_radius)
+        self.arrive = float(arrive)
         # upper bound of the fraction of each segment a projection may reach: past the end of a path that does not stop
         self._t_max = np.r_[np.ones(len(self.seg_len) - 1), 1.0 if stop_at_end else np.inf]
 
@@ -89,14 +90,15 @@ class PathReference:
         Headings are unwrapped to lie within pi of the robot's heading. Within ``approach`` of
         the goal of a path that stops, or (when ``approach`` is set) where less of the path is
         left than the robot lies off it (the goal is more beside it than ahead), the reference
-        positions run straight from the robot to the goal at the path's stopping speed profile,
-        and heading and speed are NaN, free (the planner then weighs neither): a robot that
+        positions run straight from the robot to the goal at the path's stopping speed profile
+        (negative when the goal lies behind), and the heading is NaN, free (the planner does not
+        weigh it): a robot that
         reaches the goal's neighbourhood off its path (it avoided someone) manoeuvres onto the
         goal, forwards or backwards as its MPC finds best, instead of stopping beside it with
         its heading held along the path, where a short horizon cannot undo a sideways error of
         a car-like robot. A robot that can reverse (``turn_radius`` [m] > 0, its tightest turning
         radius) and whose goal lies inside one of its turning circles, where no arc gets it closer,
-        backs straight off at half the cruise speed first, until the goal lies
+        and farther than ``arrive`` [m] (where it has arrived), backs straight off at half the cruise speed first, until the goal lies
         ``BACK_OFF_HYSTERESIS`` turning radii from both circles' centres.
         """
         goal = self.points[-1]
@@ -104,17 +106,19 @@ class PathReference:
         dist = float(np.hypot(rel[0], rel[1]))
         s0, off = self.project(state[:2])
         if self.stop_at_end and 1e-9 < dist and self.approach > 0.0 and (dist <= self.approach or self.length - s0 <= off):
-            if self.turn_radius > 0.0:  # a goal inside a turning circle cannot be reached by turning: back off first
+            if self.turn_radius > 0.0 and dist > self.arrive:  # a goal inside a turning circle cannot be reached by turning: back off first
                 left = np.array([-np.sin(state[2]), np.cos(state[2])])
                 gap = np.hypot(*(np.asarray(state[:2], dtype=float) + self.turn_radius * np.array([left, -left]) - goal).T).min()
                 if gap < self.turn_radius * (BACK_OFF_HYSTERESIS if state[3] < 0.0 else 1.0):
                     back = -np.arange(steps + 1) * dt * 0.5 * self.speed
                     xy = np.asarray(state[:2], dtype=float) + back[:, None] * np.array([np.cos(state[2]), np.sin(state[2])])
                     return np.column_stack([xy, np.full(steps + 1, state[2]), np.full(steps + 1, -0.5 * self.speed)])
-            speed = max(0.5 * self.speed, min(self.speed, float(np.sqrt(2.0 * self.decel * dist))))
+            speed = min(self.speed, float(np.sqrt(2.0 * self.decel * dist)))
             ahead = np.minimum(np.arange(steps + 1) * dt * speed, dist)
             xy = np.asarray(state[:2], dtype=float) + ahead[:, None] * (rel / dist)
-            return np.column_stack([xy, np.full((steps + 1, 2), np.nan)])
+            sign = 1.0 if rel @ np.array([np.cos(state[2]), np.sin(state[2])]) >= 0.0 else -1.0  # forwards or backwards
+            speeds = sign * np.sqrt(2.0 * self.decel * (dist - ahead)).clip(max=self.speed)
+            return np.column_stack([xy, np.full(steps + 1, np.nan), speeds])
         s = np.empty(steps + 1)
         s[0] = s0
         for k in range(steps):

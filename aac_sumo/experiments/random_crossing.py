@@ -230,7 +230,7 @@ def build_random_crossing(scenario: Scenario) -> Setup:
     check_start(scenario, sim.observe(), f"{SECTION}.clearance")  # holds by construction
     goals = d.goals
     tasks = [PathReference([start[:2], goal], speed, decel=0.5 * limits.a_max, approach=GOAL_APPROACH * tol,
-                           turn_radius=turn_radius(robots[0]))
+                           turn_radius=turn_radius(robots[0]), arrive=tol)
              for start, goal in zip(d.starts, goals)]
 
     def finished(world: WorldState) -> np.ndarray:

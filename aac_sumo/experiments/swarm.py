@@ -73,7 +73,7 @@ def _goal_setup(scenario: Scenario, section: str, starts: np.ndarray, goals: np.
     if speed > robots[0].model.limits.v_max:
         raise ScenarioError(scenario.source, f"{section}.cruise_speed", f"at most robot.v_max ({robots[0].model.limits.v_max})", speed)
     tasks = [PathReference([start[:2], goal], speed, decel=0.5 * robots[0].model.limits.a_max, approach=GOAL_APPROACH * tol,
-                           turn_radius=turn_radius(robots[0]))
+                           turn_radius=turn_radius(robots[0]), arrive=tol)
              for start, goal in zip(starts, goals)]
 
     def finished(world: WorldState) -> np.ndarray:
