@@ -98,7 +98,8 @@ class PathReference:
         its heading held along the path, where a short horizon cannot undo a sideways error of
         a car-like robot. A robot that can reverse (``turn_radius`` [m] > 0, its tightest turning
         radius) and whose goal lies inside one of its turning circles, where no arc gets it closer,
-        and farther than ``arrive`` [m] (where it has arrived), backs straight off at half the cruise speed first, until the goal lies
+        and farther than ``arrive`` [m] (where it has arrived), first moves straight away from it
+        (backwards from a goal in front, forwards from one behind) at half the cruise speed, until the goal lies
         ``BACK_OFF_HYSTERESIS`` turning radii from both circles' centres.
         """
         goal = self.points[-1]
@@ -109,10 +110,13 @@ class PathReference:
             if self.turn_radius > 0.0 and dist > self.arrive:  # a goal inside a turning circle cannot be reached by turning: back off first
                 left = np.array([-np.sin(state[2]), np.cos(state[2])])
                 gap = np.hypot(*(np.asarray(state[:2], dtype=float) + self.turn_radius * np.array([left, -left]) - goal).T).min()
-                if gap < self.turn_radius * (BACK_OFF_HYSTERESIS if state[3] < 0.0 else 1.0):
-                    back = -np.arange(steps + 1) * dt * 0.5 * self.speed
+                ahead_of = rel @ np.array([np.cos(state[2]), np.sin(state[2])]) >= 0.0  # the goal lies in front
+                backing = state[3] < 0.0 if ahead_of else state[3] > 0.0
+                if gap < self.turn_radius * (BACK_OFF_HYSTERESIS if backing else 1.0):
+                    away = -1.0 if ahead_of else 1.0
+                    back = away * np.arange(steps + 1) * dt * 0.5 * self.speed
                     xy = np.asarray(state[:2], dtype=float) + back[:, None] * np.array([np.cos(state[2]), np.sin(state[2])])
-                    return np.column_stack([xy, np.full(steps + 1, state[2]), np.full(steps + 1, -0.5 * self.speed)])
+                    return np.column_stack([xy, np.full(steps + 1, state[2]), np.full(steps + 1, away * 0.5 * self.speed)])
             speed = min(self.speed, float(np.sqrt(2.0 * self.decel * dist)))
             ahead = np.minimum(np.arange(steps + 1) * dt * speed, dist)
             xy = np.asarray(state[:2], dtype=float) + ahead[:, None] * (rel / dist)

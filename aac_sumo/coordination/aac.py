@@ -113,7 +113,7 @@ class AacCoordinator(Coordinator):
         self.next_extension = np.zeros(len(tasks), dtype=int)  # first period a robot may try a tracking extension again
         self.room: MakeRoom | None = None
         self.extra_shift = np.zeros(len(tasks))  # keep-right growth of robots held up in a crowd [m]
-        self.last_holder: dict[int, int] = {}  # per group (its first member), the robot that held authority last period
+        self.last_reason: dict[int, str] = {}  # per group (its first member), why its last authority held it
 
     def _decide(self, world: WorldState) -> Decision:
         if self.params.commit:
@@ -353,10 +353,10 @@ class AacCoordinator(Coordinator):
         # robots in the leader's way, parked ones too (they come back once it has passed)
         movers = np.array([j for j in members if j in room.targets], dtype=int) if leader in candidates else np.empty(0, dtype=int)
         waited = period - self.last_turn[candidates]
-        leader_turn = leader in candidates and self.last_holder.get(int(members[0])) != leader
-        if leader_turn:
+        before = self.last_reason.get(int(members[0]), "")  # a lead cycles: leader, a robot in its way, anyone
+        if leader in candidates and before not in ("leader", "make_room"):
             i, reason = leader, "leader"
-        elif movers.size:
+        elif before == "leader" and movers.size:
             i, reason = int(movers[np.argmin(self.last_turn[movers])]), "make_room"
         elif len(pairs) == 0 or waited.max() > STARVING * self.planner.config.horizon:
             i, reason = int(candidates[np.argmax(waited)]), "round_robin"
@@ -375,7 +375,7 @@ class AacCoordinator(Coordinator):
                 records[j].score, records[j].progress = float(result.scores[row]), float(result.progress[row])
             i, reason = int(near[result.winner]), "proximity"
         self.last_turn[i] = period
-        self.last_holder[int(members[0])] = i
+        self.last_reason[int(members[0])] = reason
         return i, reason
 
     def room_reference(self, world: WorldState, i: int) -> np.ndarray:

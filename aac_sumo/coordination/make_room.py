@@ -9,8 +9,8 @@ make-room target, its rear axle moved away from that segment until its centre li
 ``corridor`` plus ``ROOM_EXTRA`` off it and ``corridor`` further along the leader's way (away
 from the leader: a robot facing it backs off diagonally, which a car-like robot can do where a
 sideways step is impossible), and drives there when it holds authority. In the
-leader's group the authority alternates between the leader and the blockers (the one that held
-it longest ago). The lead ends when the leader has got ``LEAD_PROGRESS`` [m] closer to its goal,
+leader's group the authority cycles: the leader, then a blocker (the one that held it longest
+ago), then whoever the usual rule picks, so that no one else starves meanwhile. The lead ends when the leader has got ``LEAD_PROGRESS`` [m] closer to its goal,
 has finished, or after ``lead_periods`` periods. Safety is untouched: every move still passes the
 commitments' exact check. Positions in the world frame [m].
 """
