@@ -216,7 +216,10 @@ class AacCoordinator(Coordinator):
         return out, "tracking"
 
     def reference(self, world: WorldState, i: int) -> np.ndarray:
-        """Robot ``i``'s reference (N+1, 4), shifted ``keep_right`` [m] to the right of its
+        """Robot ``i``'s reference (N+1, 4): a make-room target's or, for a robot that can reverse
+        and has stood long (:meth:`~aac_sumo.coordination.make_room.MakeRoom.backing_off`),
+        straight back at half its cruise speed (a short horizon finds no way round an obstacle
+        it faces at close range); else its task's, shifted ``keep_right`` [m] to the right of its
         direction while another robot's footprint centre lies ahead of it (in the half-plane in
         front, along the reference's heading) within ``keep_right_range`` [m]: a right-hand rule
         that turns head-on meetings and crowded crossings into passing on the right, a
@@ -224,6 +227,12 @@ class AacCoordinator(Coordinator):
         the goal, so that the robot arrives on its path."""
         if self.room is not None and i in self.room.targets:
             return self.room_reference(world, i)
+        if self.room is not None and self.room.backing_off(i) and world.robots[i].model.limits.v_min < 0.0:
+            cfg, task = self.planner.config, self.tasks[i]
+            x = world.states[i]
+            back = -np.arange(cfg.horizon + 1) * cfg.dt * 0.5 * task.speed
+            xy = x[:2] + back[:, None] * np.array([np.cos(x[2]), np.sin(x[2])])
+            return np.column_stack([xy, np.full(cfg.horizon + 1, x[2]), np.full(cfg.horizon + 1, -0.5 * task.speed)])
         ref = super().reference(world, i)
         shift = self.keep_right_shift(world, i)
         if shift == 0.0 or np.isnan(ref[:, 2]).any():  # no shift on a free heading (the goal approach)

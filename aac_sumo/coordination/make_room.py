@@ -57,6 +57,11 @@ class MakeRoom:
         if self.leader >= 0:
             self.targets = self.room_targets(states, centres, goals[self.leader], self.leader)
 
+    def backing_off(self, i: int) -> bool:
+        """Whether robot ``i`` should back off now: in every second stretch of ``stall_periods``
+        standing periods (it tries its own way in between)."""
+        return bool(self.still[i] >= self.stall_periods and (self.still[i] // self.stall_periods) % 2 == 1)
+
     def room_targets(self, states: np.ndarray, centres: np.ndarray, goal: np.ndarray, leader: int) -> dict[int, np.ndarray]:
         """Make-room targets (rear axle [m]) of the robots within ``corridor`` of the segment
         from the leader's centre to ``goal``, ahead of the leader: out of the corridor and on
