@@ -451,6 +451,8 @@ class AacCoordinator(Coordinator):
                 continue
             if self.room is not None and j in self.room.targets:
                 continue  # making room: it moves aside on its turns, not back onto its path
+            if np.isnan(self.tasks[j].horizon(world.states[j], 0, cfg.dt)[0, 2]):
+                continue  # approaching its goal off its path: a manoeuvre for its MPC, not for the forward-only law
             if movers and any(np.hypot(*(o.centre - centres[j])) < reach[j] + 0.5 * np.hypot(o.length, o.width)
                               + cfg.pedestrian_margin + (cfg.pedestrian_reach + np.hypot(*o.velocity)) * len(c.inputs) * cfg.dt
                               for o in movers):
