@@ -171,7 +171,7 @@ COMMON: dict[str, dict[str, Key]] = {
                               "growing at 0.5 m/s up to this [m]", **NN),
         "make_room": Key(bool, True, "deadlock resolution (with commit): a robot that has stood for stall_time leads, and the "
                          "robots in its way drive aside while it passes"),
-        "stall_time": Key(float, 2.0, "standing time after which an unfinished robot may lead [s]", **P),
+        "stall_time": Key(float, 1.0, "standing time after which an unfinished robot may lead [s]", **P),
         "lead_time": Key(float, 8.0, "longest lead [s]", **P),
     },
     "lfc": {

@@ -86,7 +86,7 @@ class AacParams:
     keep_right_range: float = 4.0
     keep_right_max: float = 4.0
     make_room: bool = True
-    stall_time: float = 2.0
+    stall_time: float = 1.0
     lead_time: float = 8.0
 
     def __post_init__(self):
