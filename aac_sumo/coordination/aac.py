@@ -1,6 +1,18 @@
 """Alternative Authority Control (paper Algorithm 1, as DESIGN.md interprets it).
 
-Each control period exactly one active robot holds authority and solves MPC-(F)CBF:
+Two ways of running it:
+
+* **Committed plans** (``commit = true``, the default; beyond the paper): every robot drives
+  its commitment, the last plan it made and a stopping tail, and a commitment changes only
+  after the exact check of :mod:`~aac_sumo.coordination.commitments` (collision-free by
+  construction). One authority per period among all robots (``authorities = 1``), or per
+  cluster of robots that can meet within the horizon (``"clusters"``); close pairs, the
+  proximity decision and round robin pick it within its group, with the conflict-resolution
+  rules of :meth:`AacCoordinator.choose_committed` and :mod:`~aac_sumo.coordination.make_room`.
+* **The paper's stored plans** (``commit = false``), described below.
+
+With ``commit = false``, each control period exactly one active robot holds authority and
+solves MPC-(F)CBF:
 
 1. **Close pairs** of active robots (centre distance below ``close_distance``, KD-tree). Active
    are the unfinished robots and those whose task goes on after finishing (a car that has
