@@ -78,8 +78,12 @@ class AacParams:
     [m]), tracking law (lookahead [m], speed gain [1/s]), what an authority whose solve fails
     applies (``brake``: the planner's fallback; ``tracking``: the tracking law through the
     safety stop), whether the authority ignores the robots straight behind it
-    (:func:`~aac_sumo.coordination.base.straight_behind`; needs the safety stop) and the seed
-    of the sampling trees."""
+    (:func:`~aac_sumo.coordination.base.straight_behind`; needs the safety stop), the seed
+    of the sampling trees; committed plans (``commit``), their stopping tails' share of the
+    strongest braking (``tail_brake``) and the gap every two commitments keep
+    (``commit_margin`` [m]); authorities per period (1, k, or ``"clusters"``); the keep-right
+    rule (shift, trigger range and growth limit [m]); and the make-room lead (on/off, standing
+    time that makes a leader, longest lead [s])."""
 
     close_distance: float = 2.0
     proximity: ProximityParams = ProximityParams()
