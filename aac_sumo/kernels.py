@@ -405,3 +405,29 @@ def course_clearance(own, others, margin):
             else:
                 best = min(best, rect_clearance(own[k], others[j, k]))
     return best
+
+
+@numba.njit(cache=True)
+def ragged_clearance(own, flat, starts, lengths, skip, margin):
+    """:func:`course_clearance` of the course ``own`` (K, 5) against courses of different
+    lengths stored one after the other in ``flat`` (T, 5): course j is rows ``starts[j]`` to
+    ``starts[j] + lengths[j] - 1``, and each course (``own`` too) stands at its last row once it
+    has ended. Course ``skip`` is left out (-1: none). Each pair is compared over the stages
+    until both have ended."""
+    best = np.inf
+    r_own = 0.5 * math.hypot(own[0, 2], own[0, 3])
+    n_own = own.shape[0]
+    for j in range(starts.shape[0]):
+        if j == skip:
+            continue
+        first, count = starts[j], lengths[j]
+        r_other = 0.5 * math.hypot(flat[first, 2], flat[first, 3])
+        for k in range(max(n_own, count)):
+            a = own[min(k, n_own - 1)]
+            b = flat[first + min(k, count - 1)]
+            apart = math.hypot(a[0] - b[0], a[1] - b[1]) - r_own - r_other
+            if apart >= margin:
+                best = min(best, apart)
+            else:
+                best = min(best, rect_clearance(a, b))
+    return best

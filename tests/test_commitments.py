@@ -15,7 +15,7 @@ from aac_sumo.coordination.commitments import clusters, reach_radii, stopping_co
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.geometry import pairwise_rect_clearance
-from aac_sumo.kernels import course_clearance, footprint_rows
+from aac_sumo.kernels import course_clearance, footprint_rows, ragged_clearance
 from aac_sumo.world import RobotSpec
 
 #: Every emergency layer off: safety comes from the commitments alone.
@@ -165,3 +165,21 @@ def test_course_clearance_is_exact_below_the_margin(seed, margin):
         assert got == pytest.approx(exact, abs=1e-12)
     else:
         assert got >= margin - 1e-12
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 10_000), margin=st.floats(0.0, 0.5))
+def test_ragged_clearance_equals_the_padded_courses(seed, margin):
+    """Courses of different lengths, each standing at its last row once it has ended, give the
+    same least clearance as the same courses padded to one length."""
+    rng = np.random.default_rng(seed)
+    lengths = rng.integers(1, 8, 4)
+    own = np.column_stack([rng.uniform(-2, 2, (5, 2)), np.full(5, 0.6), np.full(5, 0.4), rng.uniform(-3, 3, 5)])
+    courses = [np.column_stack([rng.uniform(-2, 2, (k, 2)), np.full(k, 1.0), np.full(k, 0.5), rng.uniform(-3, 3, k)]) for k in lengths]
+    skip = int(rng.integers(-1, 4))
+    steps = max(len(own), lengths.max())
+    pad = lambda c: c[np.minimum(np.arange(steps), len(c) - 1)]
+    padded = np.array([pad(c) for j, c in enumerate(courses) if j != skip]).reshape(-1, steps, 5)
+    starts = np.r_[0, np.cumsum(lengths)[:-1]].astype(np.int64)
+    got = ragged_clearance(own, np.concatenate(courses), starts, lengths.astype(np.int64), skip, margin)
+    assert got == course_clearance(pad(own), padded, margin)

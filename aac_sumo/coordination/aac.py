@@ -441,7 +441,7 @@ class AacCoordinator(Coordinator):
         for m in cuts:
             candidate = self.commitment(world, i, period, plan.inputs[:m])
             if book.clearance(i, candidate, period, statics) >= book.margin:
-                book.items[i] = candidate
+                book.replace(i, candidate, period)
                 record.mode = "mpc"
                 return record, int(m < cfg.horizon), 0
         return record, 1, 1
@@ -478,7 +478,7 @@ class AacCoordinator(Coordinator):
             head = self.tracking_inputs(world, j, cfg.horizon)
             candidate = self.commitment(world, j, period, head)
             if book.clearance(j, candidate, period, statics) >= book.margin:
-                book.items[j] = candidate
+                book.replace(j, candidate, period)
                 records[j].mode = "tracking"
                 extended += 1
             else:
@@ -513,7 +513,7 @@ class AacCoordinator(Coordinator):
             braking = stopping_commitment(self.fleet, i, period, world.states[i], checked[i][None], self.tasks[i].heading_at(world.states[i, :2]),
                                           -lim.a_min, lim.steer_max, cfg.dt)
             if self.book.clearance(i, braking, period, statics) >= self.book.margin:
-                self.book.items[i] = braking
+                self.book.replace(i, braking, period)
                 inputs[i], records[i].mode = checked[i], "safety_stop"
                 stopped += 1
         return stopped

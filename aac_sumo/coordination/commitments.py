@@ -27,7 +27,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from aac_sumo.coordination.regions import Fleet
-from aac_sumo.kernels import braking_tail, course_clearance, footprint_rows
+from aac_sumo.kernels import braking_tail, course_clearance, footprint_rows, ragged_clearance
 
 #: Time constant [s] with which a stopping tail turns the heading towards the reference's.
 TAIL_TURN_TIME = 0.5
@@ -86,10 +86,17 @@ def stopping_commitment(fleet: Fleet, i: int, start: int, state: np.ndarray, hea
 
 
 class CommitmentBook:
-    """Every robot's commitment, the fleet's footprints along them, and the exact check."""
+    """Every robot's commitment, the fleet's footprints along them, and the exact check.
+
+    The footprints of every commitment from the current period to its end are kept in one
+    array, recomputed once per period and for a robot whose commitment is replaced, so that a
+    check costs one compiled pass (:func:`~aac_sumo.kernels.ragged_clearance`)."""
 
     def __init__(self, fleet: Fleet, commitments: list[Commitment], margin: float):
         self.fleet, self.items, self.margin = fleet, list(commitments), float(margin)
+        self._period: int | None = None
+        self._rows: list[np.ndarray] = []
+        self._flat: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
 
     def inputs(self, period: int) -> np.ndarray:
         """Every robot's committed input (n, 2) of ``period``."""
@@ -99,18 +106,40 @@ class CommitmentBook:
         """States (m, steps+1, 4) of robots ``idx`` along their commitments from ``period``."""
         return np.array([self.items[j].course(period, steps) for j in idx]).reshape(len(idx), steps + 1, 4)
 
+    def replace(self, i: int, commitment: Commitment, period: int) -> None:
+        """Commit robot ``i`` to ``commitment`` (checked by the caller) from ``period`` on."""
+        self.items[i] = commitment
+        if self._period == period:
+            self._rows[i] = self.footprints(i, commitment, period)
+            self._flat = None
+
+    def footprints(self, i: int, commitment: Commitment, period: int) -> np.ndarray:
+        """Footprint rows (remaining + 1, 5) of robot ``i`` along ``commitment`` from ``period``
+        to the stage where it stands."""
+        steps = commitment.remaining(period)
+        return footprint_rows(commitment.course(period, steps)[None], self.fleet.offset[[i]], self.fleet.length[[i]],
+                              self.fleet.width[[i]])[0]
+
     def clearance(self, i: int, candidate: Commitment, period: int, statics: np.ndarray) -> float:
         """Least footprint clearance [m] of robot ``i`` along ``candidate`` to every other
         robot along its commitment and to the standing obstacles ``statics`` (S, 5), from
         ``period`` until all stand still (exact below ``margin``)."""
-        n = len(self.items)
-        others = np.array([j for j in range(n) if j != i], dtype=int)
-        steps = max([candidate.remaining(period)] + [self.items[j].remaining(period) for j in others]) + 1
-        own = footprint_rows(candidate.course(period, steps)[None], self.fleet.offset[[i]], self.fleet.length[[i]],
-                             self.fleet.width[[i]])[0]
-        rows = self.fleet.footprints(others, self.courses(period, others, steps)) if len(others) else np.empty((0, steps + 1, 5))
-        fixed = np.repeat(np.asarray(statics, dtype=float).reshape(-1, 1, 5), steps + 1, axis=1)
-        return course_clearance(own, np.concatenate([rows, fixed]), self.margin)
+        if self._period != period:
+            self._period = period
+            self._rows = [self.footprints(j, c, period) for j, c in enumerate(self.items)]
+            self._flat = None
+        if self._flat is None:
+            lengths = np.array([len(r) for r in self._rows], dtype=np.int64)
+            starts = np.r_[0, np.cumsum(lengths)[:-1]].astype(np.int64)
+            self._flat = (np.concatenate(self._rows) if self._rows else np.empty((0, 5)), starts, lengths)
+        flat, starts, lengths = self._flat
+        own = self.footprints(i, candidate, period)
+        gap = ragged_clearance(own, flat, starts, lengths, i, self.margin)
+        fixed = np.asarray(statics, dtype=float).reshape(-1, 5)
+        if len(fixed):
+            gap = min(gap, ragged_clearance(own, fixed, np.arange(len(fixed), dtype=np.int64), np.ones(len(fixed), dtype=np.int64),
+                                            -1, self.margin))
+        return gap
 
     def pairwise_clearance(self, period: int, statics: np.ndarray | None = None) -> np.ndarray:
         """Least clearance [m] (n, n) between every two commitments from ``period`` on (inf on
