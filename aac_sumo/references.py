@@ -90,15 +90,39 @@ class PathReference:
         Headings are unwrapped to lie within pi of the robot's heading. Within ``approach`` of
         the goal of a path that stops, or (when ``approach`` is set) where less of the path is
         left than the robot lies off it (the goal is more beside it than ahead), the reference
-        is the **arc to the goal** (:meth:`goal_arc`): a robot that reaches the goal's
-        neighbourhood off its path (it avoided someone) steers onto the goal on the one circle
-        that touches its heading and passes through the goal, instead of stopping beside it with
-        its heading held along the path, where a short horizon cannot undo a sideways error of a
-        car-like robot.
+        positions run straight from the robot to the goal at the path's stopping speed profile
+        (negative when the goal lies behind), and the heading is NaN, free (the planner does not
+        weigh it): a robot that
+        reaches the goal's neighbourhood off its path (it avoided someone) manoeuvres onto the
+        goal, forwards or backwards as its MPC finds best, instead of stopping beside it with
+        its heading held along the path, where a short horizon cannot undo a sideways error of
+        a car-like robot. A robot that can reverse (``turn_radius`` [m] > 0, its tightest turning
+        radius) and whose goal lies inside one of its turning circles, where no arc gets it closer,
+        and farther than ``arrive`` [m] (where it has arrived), first moves straight away from it
+        (backwards from a goal in front, forwards from one behind) at half the cruise speed, until the goal lies
+        ``BACK_OFF_HYSTERESIS`` turning radii from both circles' centres.
         """
-        if self.approaching(state):
-            return self.goal_arc(np.asarray(state, dtype=float), steps, dt)
-        s0, _ = self.project(state[:2])
+        goal = self.points[-1]
+        rel = goal - np.asarray(state[:2], dtype=float)
+        dist = float(np.hypot(rel[0], rel[1]))
+        s0, off = self.project(state[:2])
+        if self.stop_at_end and 1e-9 < dist and self.approach > 0.0 and (dist <= self.approach or self.length - s0 <= off):
+            if self.turn_radius > 0.0 and dist > self.arrive:  # a goal inside a turning circle cannot be reached by turning: back off first
+                left = np.array([-np.sin(state[2]), np.cos(state[2])])
+                gap = np.hypot(*(np.asarray(state[:2], dtype=float) + self.turn_radius * np.array([left, -left]) - goal).T).min()
+                ahead_of = rel @ np.array([np.cos(state[2]), np.sin(state[2])]) >= 0.0  # the goal lies in front
+                backing = state[3] < 0.0 if ahead_of else state[3] > 0.0
+                if gap < self.turn_radius * (BACK_OFF_HYSTERESIS if backing else 1.0):
+                    away = -1.0 if ahead_of else 1.0
+                    back = away * np.arange(steps + 1) * dt * 0.5 * self.speed
+                    xy = np.asarray(state[:2], dtype=float) + back[:, None] * np.array([np.cos(state[2]), np.sin(state[2])])
+                    return np.column_stack([xy, np.full(steps + 1, state[2]), np.full(steps + 1, away * 0.5 * self.speed)])
+            speed = min(self.speed, float(np.sqrt(2.0 * self.decel * dist)))
+            ahead = np.minimum(np.arange(steps + 1) * dt * speed, dist)
+            xy = np.asarray(state[:2], dtype=float) + ahead[:, None] * (rel / dist)
+            sign = 1.0 if rel @ np.array([np.cos(state[2]), np.sin(state[2])]) >= 0.0 else -1.0  # forwards or backwards
+            speeds = sign * np.sqrt(2.0 * self.decel * (dist - ahead)).clip(max=self.speed)
+            return np.column_stack([xy, np.full(steps + 1, np.nan), speeds])
         s = np.empty(steps + 1)
         s[0] = s0
         for k in range(steps):
@@ -106,51 +130,6 @@ class PathReference:
         poses = self.pose_at(s)
         heading = state[2] + wrap_angle(poses[:, 2] - state[2])
         return np.column_stack([poses[:, :2], heading, self.speed_at(s)])
-
-    def approaching(self, state) -> bool:
-        """Whether ``state``'s reference is the arc to the goal (see :meth:`horizon`)."""
-        if not self.stop_at_end or self.approach <= 0.0:
-            return False
-        dist = float(np.hypot(*(self.points[-1] - np.asarray(state[:2], dtype=float))))
-        s0, off = self.project(state[:2])
-        return dist > 1e-9 and (dist <= self.approach or self.length - s0 <= off)
-
-    def goal_arc(self, state: np.ndarray, steps: int, dt: float) -> np.ndarray:
-        """Reference states (steps + 1, 4) on the arc from ``state`` to the goal.
-
-        The arc is the circle (or line) tangent to the robot's heading that passes through the
-        goal, driven forwards when the goal lies ahead and backwards when it lies behind (a
-        robot that cannot reverse, ``turn_radius`` = 0, always drives forwards), at the path's
-        stopping speed profile along the arc. Its curvature is constant, so a bicycle drives it
-        with one steering angle. When that circle is tighter than ``turn_radius`` (the goal lies
-        inside a turning circle, where no feasible arc reaches it) and the goal is farther than
-        ``arrive``, the reference instead moves straight away from the goal at half the cruise
-        speed, until the circle is ``BACK_OFF_HYSTERESIS`` times wider than the tightest one.
-        """
-        rel = self.points[-1] - state[:2]
-        heading = np.array([np.cos(state[2]), np.sin(state[2])])
-        ahead, left = float(rel @ heading), float(rel @ np.array([-heading[1], heading[0]]))
-        radius = (ahead**2 + left**2) / (2.0 * abs(left)) if abs(left) > 1e-9 else np.inf
-        direction = -1.0 if ahead < 0.0 and self.turn_radius > 0.0 else 1.0
-        if self.turn_radius > 0.0 and np.hypot(ahead, left) > self.arrive:
-            backing = direction * state[3] < 0.0
-            if radius < self.turn_radius * (BACK_OFF_HYSTERESIS if backing else 1.0):
-                away = -direction * np.arange(steps + 1) * dt * 0.5 * self.speed
-                xy = state[:2] + away[:, None] * heading
-                return np.column_stack([xy, np.full(steps + 1, state[2]), np.full(steps + 1, -direction * 0.5 * self.speed)])
-        angle = 2.0 * np.arctan2(abs(left), direction * ahead)  # turned along the arc
-        length = np.hypot(ahead, left) if np.isinf(radius) else radius * angle
-        speed = min(self.speed, float(np.sqrt(2.0 * self.decel * length)))
-        u = np.minimum(np.arange(steps + 1) * dt * speed, length)  # distance driven along the arc
-        if np.isinf(radius):
-            xy = state[:2] + direction * u[:, None] * heading
-            theta = np.full(steps + 1, state[2])
-        else:
-            curvature = np.sign(left) / radius
-            theta = state[2] + direction * curvature * u
-            xy = state[:2] + np.column_stack([np.sin(theta) - heading[1], heading[0] - np.cos(theta)]) / curvature
-        speeds = direction * np.sqrt(2.0 * self.decel * (length - u)).clip(max=self.speed)
-        return np.column_stack([xy, theta, speeds])
 
     def finished(self, state, tolerance: float) -> bool:
         """True when the robot is within ``tolerance`` [m] of the path's end."""

@@ -67,29 +67,3 @@ def test_heading_at_is_the_heading_of_the_pose_where_the_point_projects(seed, st
     path = PathReference(np.cumsum(rng.uniform(-3, 3, (int(rng.integers(2, 30)), 2)), axis=0), 1.0, stop_at_end=stop)
     point = path.points[rng.integers(len(path.points))] if at_vertex else rng.uniform(-20, 20, 2)
     assert path.heading_at(point) == path.pose_at(path.project(point)[0])[0, 2]
-
-
-@settings(max_examples=80, deadline=None)
-@given(x=st.floats(-1.5, 1.5), y=st.floats(-1.5, 1.5), heading=st.floats(-np.pi, np.pi))
-def test_the_goal_arc_reaches_the_goal_on_one_curvature_or_backs_off(x, y, heading):
-    """Near its goal the reference is the circle tangent to the robot's heading through the
-    goal; when that circle is tighter than the turning circle, it moves straight away."""
-    path = PathReference([[-8.0, 0.0], [0.0, 0.0]], 1.0, 0.5, approach=2.5, turn_radius=0.66, arrive=0.3)
-    state = np.array([x, y, heading, 0.0])
-    if np.hypot(x, y) < 0.31:
-        return
-    ref = path.goal_arc(state, 400, 0.1)
-    rel = -state[:2]
-    ahead = rel @ [np.cos(heading), np.sin(heading)]
-    left = rel @ [-np.sin(heading), np.cos(heading)]
-    radius = (ahead**2 + left**2) / (2 * abs(left)) if abs(left) > 1e-9 else np.inf
-    if radius < 0.66:
-        np.testing.assert_allclose(ref[:, 2], heading)  # straight away from the goal
-        assert np.hypot(*ref[-1, :2]) > np.hypot(x, y)
-    else:
-        np.testing.assert_allclose(ref[-1, :2], [0.0, 0.0], atol=1e-9)
-        assert ref[-1, 3] == pytest.approx(0.0, abs=1e-9)
-        turn = np.diff(ref[:, 2])
-        step = np.hypot(*np.diff(ref[:, :2], axis=0).T)
-        moving = step > 1e-9
-        np.testing.assert_allclose(np.abs(turn[moving]), np.where(np.isinf(radius), 0.0, 2 * np.arcsin(np.minimum(step[moving] / (2 * radius), 1.0))), atol=1e-9)

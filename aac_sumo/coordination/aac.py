@@ -251,7 +251,7 @@ class AacCoordinator(Coordinator):
             return np.column_stack([xy, np.full(cfg.horizon + 1, x[2]), np.full(cfg.horizon + 1, -0.5 * task.speed)])
         ref = super().reference(world, i)
         shift = self.keep_right_shift(world, i)
-        if shift == 0.0 or self.tasks[i].approaching(world.states[i]):  # no shift on the arc to the goal
+        if shift == 0.0 or np.isnan(ref[:, 2]).any():  # no shift on a free heading (the goal approach)
             return ref
         out = ref.copy()
         out[:, :2] += shift * np.column_stack([np.sin(ref[:, 2]), -np.cos(ref[:, 2])])
@@ -467,8 +467,8 @@ class AacCoordinator(Coordinator):
                 continue
             if self.room is not None and j in self.room.targets:
                 continue  # making room: it moves aside on its turns, not back onto its path
-            if self.tasks[j].approaching(world.states[j]):
-                continue  # on the arc to its goal: a manoeuvre for its MPC, not for the forward-only law
+            if np.isnan(self.tasks[j].horizon(world.states[j], 0, cfg.dt)[0, 2]):
+                continue  # approaching its goal off its path: a manoeuvre for its MPC, not for the forward-only law
             if movers and any(np.hypot(*(o.centre - centres[j])) < reach[j] + 0.5 * np.hypot(o.length, o.width)
                               + cfg.pedestrian_margin + (cfg.pedestrian_reach + np.hypot(*o.velocity)) * len(c.inputs) * cfg.dt
                               for o in movers):

@@ -282,7 +282,8 @@ class MpcPlanner:
         corridor: np.ndarray | LateralBand | None = None,
         guess: tuple[np.ndarray, np.ndarray] | None = None,
     ) -> Plan:
-        """Plan for ``robot`` at ``state`` tracking ``reference`` (N+1, 4) around ``obstacles``.
+        """Plan for ``robot`` at ``state`` tracking ``reference`` (N+1, 4) around ``obstacles``;
+        a column of ``reference`` holding NaN (a free heading or speed) is not weighed.
 
         ``corridor`` optionally bounds the planned rear-axle positions: to the world-frame box
         ``[x_min, x_max, y_min, y_max]`` [m] (a straight lane, say), or across the reference
@@ -296,12 +297,18 @@ class MpcPlanner:
         lim = robot.model.limits
         state = np.asarray(state, dtype=float).copy()
         state[3] = np.clip(state[3], lim.v_min, lim.v_max)
+        weights = cfg.weights()
+        free = np.isnan(reference).any(axis=0)  # a NaN reference column is not weighed
+        if free.any():
+            reference = np.where(np.isnan(reference), np.r_[state[:2], state[2], 0.0][None, :], reference)
+            weights[np.flatnonzero(free)] = 0.0
+            weights[8 + np.flatnonzero(free)] = 0.0
         offsets, _ = ego_discs(robot, cfg.discs)
         params = dict(
             wheelbase=robot.model.wheelbase,
             gamma=cfg.gamma,
             disc_offsets=offsets,
-            weights=cfg.weights(),
+            weights=weights,
             x_ref=reference,
             obstacles=self.barrier_parameters(robot, state, u_prev, obstacles),
             band=self.band_rows(robot, corridor, reference, state) if cfg.band else np.zeros(0),
