@@ -339,11 +339,9 @@ class AacCoordinator(Coordinator):
     def commitment(self, world: WorldState, i: int, period: int, head: np.ndarray):
         """Robot ``i``'s commitment from now: the inputs ``head`` (m, 2), then its stopping tail
         turning towards its reference's heading where the head ends."""
-        fleet, cfg = self.fleet, self.planner.config
-        end = fleet.rollout(np.array([i]), world.states[[i]], np.asarray(head, dtype=float).reshape(1, -1, 2), cfg.dt)[0, -1]
-        heading = self.tasks[i].heading_at(end[:2])
-        return stopping_commitment(fleet, i, period, world.states[i], head, heading, self.tail_decel()[i],
-                                   world.robots[i].model.limits.steer_max, cfg.dt)
+        task = self.tasks[i]
+        return stopping_commitment(self.fleet, i, period, world.states[i], head, lambda end: task.heading_at(end[:2]),
+                                   self.tail_decel()[i], world.robots[i].model.limits.steer_max, self.planner.config.dt)
 
     def groups(self, world: WorldState, parked: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
         """``(members, candidates)`` per authority of this period: with one authority, every

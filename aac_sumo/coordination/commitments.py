@@ -72,14 +72,16 @@ class Commitment:
         return out
 
 
-def stopping_commitment(fleet: Fleet, i: int, start: int, state: np.ndarray, head: np.ndarray, heading: float,
+def stopping_commitment(fleet: Fleet, i: int, start: int, state: np.ndarray, head: np.ndarray, heading,
                         tail_decel: float, steer_max: float, dt: float) -> Commitment:
     """Robot ``i``'s commitment from ``state`` at period ``start``: the inputs ``head`` (m, 2),
-    then a stopping tail at ``tail_decel`` turning towards ``heading``."""
+    then a stopping tail at ``tail_decel`` turning towards ``heading`` [rad], or towards
+    ``heading(end)`` when it is a function of the state (4,) where the head ends."""
     head = np.asarray(head, dtype=float).reshape(-1, 2)
     states = fleet.rollout(np.array([i]), np.asarray(state, dtype=float)[None], head[None], dt)[0]
     last = states[-1]
     max_steps = int(np.ceil(abs(last[3]) / tail_decel / dt)) + 2
+    heading = heading(last) if callable(heading) else heading
     tail_states, tail_inputs = braking_tail(last, float(heading), float(tail_decel), fleet.wheelbase[i], fleet.v_min[i],
                                             fleet.v_max[i], float(steer_max), dt, TAIL_TURN_TIME, max_steps)
     return Commitment(start, np.vstack([states, tail_states[1:]]), np.vstack([head, tail_inputs]), len(head))
