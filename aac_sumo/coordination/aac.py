@@ -129,6 +129,7 @@ class AacCoordinator(Coordinator):
         self.next_extension = np.zeros(len(tasks), dtype=int)  # first period a robot may try a tracking extension again
         self.room: MakeRoom | None = None
         self.extra_shift = np.zeros(len(tasks))  # keep-right growth of robots held up in a crowd [m]
+        self._crowded: tuple[float | None, np.ndarray] = (None, np.zeros(len(tasks), dtype=bool))  # (t, crowded_ahead)
         self.last_reason: dict[int, str] = {}  # per group (its first member), why its last authority held it
 
     def _decide(self, world: WorldState) -> Decision:
@@ -259,27 +260,25 @@ class AacCoordinator(Coordinator):
 
     def crowded_ahead(self, world: WorldState) -> np.ndarray:
         """Which robots (n,) have another robot's footprint centre ahead of them (the half-plane
-        in front, along their path's heading where they are) within ``keep_right_range``."""
+        in front, along their path's heading where they are) within ``keep_right_range``;
+        computed once per period (``world.t``)."""
+        if self._crowded[0] == world.t:
+            return self._crowded[1]
         centres = world.robot_centres()
         heading = np.array([task.heading_at(state[:2]) for task, state in zip(self.tasks, world.states)])
         rel = centres[None, :, :] - centres[:, None, :]  # (i, j, 2)
         along = rel[..., 0] * np.cos(heading)[:, None] + rel[..., 1] * np.sin(heading)[:, None]
         near = (along > 0.0) & (np.hypot(rel[..., 0], rel[..., 1]) < self.params.keep_right_range)
         np.fill_diagonal(near, False)
-        return near.any(axis=1)
+        self._crowded = (world.t, near.any(axis=1))
+        return self._crowded[1]
 
     def keep_right_shift(self, world: WorldState, i: int) -> float:
         """How far [m] robot ``i``'s reference moves to the right now (see :meth:`reference`)."""
         shift = self.params.keep_right
         if shift <= 0.0:
             return 0.0
-        centres = world.robot_centres()
-        rel = centres - centres[i]
-        heading = self.tasks[i].heading_at(world.states[i, :2])
-        along = rel @ np.array([np.cos(heading), np.sin(heading)])
-        near = (along > 0.0) & (np.hypot(rel[:, 0], rel[:, 1]) < self.params.keep_right_range)
-        near[i] = False
-        if not near.any():
+        if not self.crowded_ahead(world)[i]:
             return 0.0
         shift += self.extra_shift[i]
         to_goal = float(np.hypot(*(world.states[i, :2] - self.tasks[i].points[-1])))
