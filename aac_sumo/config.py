@@ -103,6 +103,14 @@ COMMON: dict[str, dict[str, Key]] = {
         "horizon": Key(int, 10, "MPC horizon N [steps]", check=lambda n: 1 <= n <= 100, expect="in 1..100"),
         "solver": Key(("fatrop", "sqp", "ipopt"), "fatrop", "NLP solver of the fast path"),
         "retry_with_ipopt": Key(bool, True, "retry a failed fast-path solve once with ipopt"),
+        "anticipate": Key(bool, False, "reference speeds that slow a robot in its lane, early and gently, for what lies ahead on its path "
+                          "(cars, walkers near it), and lanes kept near walkers (docs/lane_change.md)"),
+        "anticipate_decel": Key(float, 1.5, "comfortable deceleration of the anticipated reference speed [m/s^2]", **P),
+        "anticipate_accel": Key(float, 1.5, "comfortable acceleration of the anticipated reference speed [m/s^2]", **P),
+        "anticipate_gap": Key(float, 2.0, "standstill gap kept behind what lies ahead [m]", **NN),
+        "anticipate_time_gap": Key(float, 1.0, "time gap kept behind a moving leader [s]", **NN),
+        "yield_distance": Key(float, 20.0, "within this of a walker a robot on a lateral band keeps within yield_band of its reference [m]", **NN),
+        "yield_band": Key(float, 0.25, "how far a robot near a walker may leave its reference sideways [m]", **P),
         "warm_start": Key(bool, True, "start each solve from the previous plan shifted by one period (else from the "
                           "zero-input rollout); a failed warm start is retried cold"),
         "codegen": Key(bool, False, "compile the fast path to C with gcc (cached on disk; ~2x faster solves)"),
@@ -136,6 +144,9 @@ COMMON: dict[str, dict[str, Key]] = {
         "steer_max": Key(float, 0.6, "steering limit [rad]", check=lambda s: 0 < s < 1.5, expect="in (0, 1.5)"),
         "v_max": Key(float, 30.0, "speed limit [m/s]", **P),
         "allow_reverse": Key(bool, False, "allow negative speed down to -v_max"),
+        "a_lat_max": Key(float, 3.0, "friction/comfort limit on the lateral acceleration v^2 |tan(steer)| / wheelbase [m/s^2]", **P),
+        "steer_rate_max": Key(float, 0.5, "how fast the steering angle may change [rad/s]", **P),
+        "a_comfort": Key(float, 3.0, "deceleration used unless an emergency needs more (capped at |a_min|) [m/s^2]", **P),
     },
     "aac": {
         "close_distance": Key(float, 2.0, "robots whose footprint centres are closer than this form a close pair [m]", **P),

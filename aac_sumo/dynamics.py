@@ -53,13 +53,27 @@ def _components(vec, n: int, xp):
 
 @dataclass(frozen=True)
 class VehicleLimits:
-    """Input and speed bounds of one robot. Speeds in m/s, accelerations in m/s^2, steer in rad."""
+    """Input and speed bounds of one robot. Speeds in m/s, accelerations in m/s^2, steer in rad.
+
+    ``a_lat_max`` bounds the lateral acceleration ``v^2 |tan(steer)| / L`` (friction and comfort),
+    ``steer_rate_max`` [rad/s] how fast the steering angle may change, and ``a_comfort`` the
+    deceleration used unless an emergency needs more (never more than ``-a_min``, the friction
+    limit of braking). The defaults leave all three unbounded: the paper's model.
+    """
 
     a_min: float = -6.0
     a_max: float = 3.0
     steer_max: float = 0.6
     v_min: float = 0.0
     v_max: float = 20.0
+    a_lat_max: float = np.inf
+    steer_rate_max: float = np.inf
+    a_comfort: float = np.inf
+
+    @property
+    def comfort_decel(self) -> float:
+        """The deceleration [m/s^2] (> 0) of braking short of an emergency."""
+        return min(self.a_comfort, -self.a_min)
 
     def clip_input(self, control: np.ndarray) -> np.ndarray:
         """Clip ``[accel, steer]`` (shape (..., 2)) to the bounds."""
@@ -67,18 +81,20 @@ class VehicleLimits:
         hi = np.array([self.a_max, self.steer_max])
         return np.clip(control, lo, hi)
 
-    def braking_input(self, speed: float, dt: float) -> np.ndarray:
-        """Hardest admissible braking within ``dt`` toward the admissible speed nearest to
-        standstill (0, or ``v_min`` when that is positive), zero steer; it never drives a robot
-        through zero speed into the other direction."""
+    def braking_input(self, speed: float, dt: float, decel: float | None = None) -> np.ndarray:
+        """Braking within ``dt`` at ``decel`` [m/s^2] (default: the hardest, ``-a_min``) toward
+        the admissible speed nearest to standstill (0, or ``v_min`` when that is positive), zero
+        steer; it never drives a robot through zero speed into the other direction."""
+        decel = -self.a_min if decel is None else decel
         target = min(max(0.0, self.v_min), self.v_max)
-        return np.array([min(max((target - speed) / dt, self.a_min), self.a_max), 0.0])
+        return np.array([min(max((target - speed) / dt, -decel), self.a_max), 0.0])
 
-    def stopping_inputs(self, speed: float, dt: float, steps: int) -> np.ndarray:
-        """Inputs (steps, 2) of :meth:`braking_input` applied period after period until standstill."""
+    def stopping_inputs(self, speed: float, dt: float, steps: int, decel: float | None = None) -> np.ndarray:
+        """Inputs (steps, 2) of :meth:`braking_input` at ``decel`` applied period after period
+        until standstill."""
         out = np.zeros((steps, 2))
         for k in range(steps):
-            out[k] = self.braking_input(speed, dt)
+            out[k] = self.braking_input(speed, dt, decel)
             speed += out[k, 0] * dt
         return out
 
@@ -89,6 +105,38 @@ class BicycleModel:
 
     wheelbase: float
     limits: VehicleLimits
+
+    def steer_bound(self, speed) -> np.ndarray:
+        """The largest |steer| [rad] that keeps the lateral acceleration ``v^2 |tan(steer)| / L``
+        within ``a_lat_max`` at ``speed`` [m/s] (any shape), and within ``steer_max``."""
+        lim = self.limits
+        speed = np.abs(np.asarray(speed, dtype=float))
+        with np.errstate(divide="ignore"):
+            bound = np.arctan(lim.a_lat_max * self.wheelbase / speed**2)
+        return np.minimum(bound, lim.steer_max)
+
+    def limit_steer(self, steer, speed, previous, dt: float, accel=0.0) -> np.ndarray:
+        """``steer`` [rad] limited to ``previous`` +- ``steer_rate_max * dt``, then to the lateral
+        limit at the larger of ``speed`` and the speed after ``accel`` for ``dt`` (so that
+        holding the angle stays within it next period); the lateral limit wins where the two
+        conflict. Elementwise on arrays."""
+        rate = self.limits.steer_rate_max * dt
+        previous = np.asarray(previous, dtype=float)
+        steer = np.clip(steer, previous - rate, previous + rate)
+        speed = np.asarray(speed, dtype=float)
+        bound = self.steer_bound(np.maximum(np.abs(speed), np.abs(speed + np.asarray(accel) * dt)))
+        return np.clip(steer, -bound, bound)
+
+    def stopping_inputs(self, speed: float, previous_steer: float, dt: float, steps: int, decel: float | None = None) -> np.ndarray:
+        """Inputs (steps, 2) of braking at ``decel`` (default: the comfort deceleration) until
+        standstill (:meth:`VehicleLimits.stopping_inputs`), the steering returning to straight
+        from ``previous_steer`` [rad] within the steering limits."""
+        out = self.limits.stopping_inputs(speed, dt, steps, self.limits.comfort_decel if decel is None else decel)
+        steer = previous_steer
+        for k in range(steps):
+            steer = out[k, 1] = float(self.limit_steer(0.0, speed, steer, dt, out[k, 0]))
+            speed += out[k, 0] * dt
+        return out
 
     def step(self, state: np.ndarray, control: np.ndarray, dt: float) -> np.ndarray:
         """Advance with clipped inputs; the speed is kept inside ``[v_min, v_max]``."""

@@ -23,32 +23,56 @@ import numpy as np
 
 
 @numba.njit(cache=True)
-def braking_courses(states, first, use_first, headings, wheelbase, a_min, a_max, v_min, v_max, steer_max,
+def limited_steer(steer, v, accel, previous, wheelbase, steer_limits, dt):
+    """``steer`` [rad] within the vehicle limits ``steer_limits`` = ``[steer_max, a_lat_max,
+    steer_rate_max]``: within ``previous`` +- ``steer_rate_max * dt``, then within the
+    lateral-acceleration bound ``atan(a_lat_max L / v^2)`` at the larger of ``|v|`` and
+    ``|v + accel dt|`` and within ``steer_max`` (as :meth:`aac_sumo.dynamics.BicycleModel.limit_steer`)."""
+    rate = steer_limits[2] * dt
+    steer = min(max(steer, previous - rate), previous + rate)
+    speed = max(abs(v), abs(v + accel * dt))
+    bound = steer_limits[0]
+    if speed > 0.0:
+        bound = min(bound, math.atan(steer_limits[1] * wheelbase / (speed * speed)))
+    return min(max(steer, -bound), bound)
+
+
+@numba.njit(cache=True)
+def _heading_hold(heading, h, v, wheelbase, gain, dt):
+    """The steering [rad] that turns heading ``h`` towards ``heading`` by the share ``gain`` of
+    the error in one period at speed ``v`` (zero at standstill), before any limit."""
+    if v == 0.0:
+        return 0.0
+    error = heading - h
+    error = math.atan2(math.sin(error), math.cos(error))
+    sign = 1.0 if v > 0.0 else -1.0
+    return math.atan2(wheelbase * (gain * error) * sign, abs(v) * dt)
+
+
+@numba.njit(cache=True)
+def braking_courses(states, first, use_first, previous_steer, headings, wheelbase, a_min, a_max, v_min, v_max, steer_limits,
                     dt, turn_time, steps):
     """Rear-axle states (m, steps+1, 4) of robots starting from ``states`` (m, 4): each applies
     ``first`` (m, 2) once when ``use_first``, then brakes to a stop, its acceleration
     ``clip(-v / dt, a_min, a_max)`` and its steering turning its heading towards ``headings``
-    (m,) with time constant ``turn_time`` within ``steer_max`` (zero at standstill); after
-    every Euler bicycle step the speed is clipped into ``[v_min, v_max]``. Per-robot
-    constants are arrays (m,)."""
+    (m,) with time constant ``turn_time``, within :func:`limited_steer` of ``steer_limits``
+    (m, 3) from the steering before (``previous_steer`` (m,) at the start, zero at
+    standstill); after every Euler bicycle step the speed is clipped into ``[v_min, v_max]``.
+    Per-robot constants are arrays (m,)."""
     m = states.shape[0]
     out = np.empty((m, steps + 1, 4))
     gain = min(1.0, dt / turn_time)
     for i in range(m):
         x, y, h, v = states[i, 0], states[i, 1], states[i, 2], states[i, 3]
         out[i, 0, 0], out[i, 0, 1], out[i, 0, 2], out[i, 0, 3] = x, y, h, v
+        steer = previous_steer[i]
         for k in range(steps):
             if k == 0 and use_first:
                 accel, steer = first[i, 0], first[i, 1]
             else:
                 accel = min(max(-v / dt, a_min[i]), a_max[i])
-                steer = 0.0
-                if v != 0.0:
-                    error = headings[i] - h
-                    error = math.atan2(math.sin(error), math.cos(error))
-                    sign = 1.0 if v > 0.0 else -1.0
-                    steer = math.atan2(wheelbase[i] * (gain * error) * sign, abs(v) * dt)
-                    steer = min(max(steer, -steer_max[i]), steer_max[i])
+                wanted = _heading_hold(headings[i], h, v, wheelbase[i], gain, dt)
+                steer = limited_steer(wanted, v, accel, steer, wheelbase[i], steer_limits[i], dt)
             x, y, h, v = _bicycle_step(x, y, h, v, accel, steer, dt, wheelbase[i], v_min[i], v_max[i])
             out[i, k + 1, 0], out[i, k + 1, 1], out[i, k + 1, 2], out[i, k + 1, 3] = x, y, h, v
     return out
@@ -238,21 +262,29 @@ def times_to_collision(rows, velocity, n):
 
 
 @numba.njit(cache=True)
-def courses_unsafe(own, brake, targets, skip, eased, margin, tie):
+def courses_unsafe(own, brake, targets, skip, eased, growing, margin, tie):
     """Which courses fail the safety stop's rule (bool, m). Robot i's course ``own[i]`` and its
     braking at once ``brake[i]`` (m, K+1, 5) are footprint rows per stage; ``targets`` (T, K+1,
     5) are what it must keep clear of, except where ``skip`` (m, T). Course i fails when at some
     stage k >= 1 its clearance [m] to some target is below ``margin`` and below both the stage-0
     clearance and braking's clearance at stage k by more than ``tie``; where ``eased`` (m, T),
-    every clearance counts ``margin`` more. Pairs whose circumscribed discs stay ``margin``
-    apart at every stage k >= 1 are not measured."""
+    every clearance counts ``margin`` more. A ``growing`` (T,) target (a walker's region that
+    grows with time) counts only until the course stands (its footprint no longer moves): a
+    standing robot cannot run into anyone. Pairs whose circumscribed discs stay ``margin`` apart
+    at every stage k >= 1 are not measured."""
     m, t_count, stages = own.shape[0], targets.shape[0], own.shape[1]
     out = np.zeros(m, dtype=np.bool_)
     for i in range(m):
         r_own = 0.5 * math.hypot(own[i, 0, 2], own[i, 0, 3])
+        moving = 1  # the stages before it stands for good: after the last one whose footprint moved
+        for k in range(stages - 1, 0, -1):
+            if own[i, k, 0] != own[i, k - 1, 0] or own[i, k, 1] != own[i, k - 1, 1] or own[i, k, 4] != own[i, k - 1, 4]:
+                moving = k + 1
+                break
         for t in range(t_count):
             if skip[i, t]:
                 continue
+            last = moving if growing[t] else stages
             bound = np.inf
             for k in range(1, stages):
                 apart = math.hypot(own[i, k, 0] - targets[t, k, 0], own[i, k, 1] - targets[t, k, 1])
@@ -261,7 +293,7 @@ def courses_unsafe(own, brake, targets, skip, eased, margin, tie):
                 continue
             extra = margin if eased[i, t] else 0.0
             now = rect_clearance(own[i, 0], targets[t, 0]) + extra
-            for k in range(1, stages):
+            for k in range(1, last):
                 later = rect_clearance(own[i, k], targets[t, k]) + extra
                 if later < margin and later < now - tie and later < rect_clearance(brake[i, k], targets[t, k]) + extra - tie:
                     out[i] = True
@@ -272,12 +304,12 @@ def courses_unsafe(own, brake, targets, skip, eased, margin, tie):
 
 
 @numba.njit(cache=True)
-def stop_flags(check, rows, fixed, standing, margin, tie):
+def stop_flags(check, rows, fixed, standing, growing, margin, tie):
     """Which of robots ``check`` (m,) fail the safety stop's rule (bool, m): :func:`courses_unsafe`
     of their courses' footprint rows ``rows`` (n, K+1, 5), every robot's, against every robot's
     course, then ``fixed`` (n + obstacles, K+1, 5: every robot braking at once, then the
     obstacles), skipping itself on either course; ``standing`` (2 n + obstacles) marks the
-    targets that count only on contact."""
+    targets that count only on contact, ``growing`` those that count only while a course moves."""
     n, m = rows.shape[0], check.shape[0]
     targets = np.concatenate((rows, fixed))
     skip = np.zeros((m, targets.shape[0]), dtype=np.bool_)
@@ -286,34 +318,35 @@ def stop_flags(check, rows, fixed, standing, margin, tie):
         skip[r, check[r]] = True
         skip[r, n + check[r]] = True
         eased[r, :] = standing
-    return courses_unsafe(rows[check], fixed[check], targets, skip, eased, margin, tie)
+    return courses_unsafe(rows[check], fixed[check], targets, skip, eased, growing, margin, tie)
 
 
 @numba.njit(cache=True)
-def gentlest_stops(check, inputs, steer, states, headings, wheelbase, a_min, a_max, v_min, v_max, steer_max, offset,
-                   length, width, dt, turn_time, steps, fixed, standing, margin, tie):
+def gentlest_stops(check, inputs, steer, states, headings, wheelbase, a_min, a_max, v_min, v_max, steer_limits, offset,
+                   length, width, dt, turn_time, steps, fixed, standing, growing, margin, tie, a_level):
     """The safety stop's choice for robots ``check`` (m,) given every robot's ``inputs`` (n, 2):
     a robot that fails :func:`stop_flags` on its :func:`braking_courses` course (``steps``
-    stages, footprints by :func:`footprint_rows`) gets ``[min(input, share * a_min), steer]``
-    for share 0, 1/3 and 2/3 in turn, until it passes; after each round every robot of
-    ``check`` still flagged is checked again against the others' new courses. Returns the
-    inputs (n, 2) and which robots of ``check`` still fail (bool, m). Per-robot arrays are (n,)."""
-    rows = footprint_rows(braking_courses(states, inputs, True, headings, wheelbase, a_min, a_max, v_min, v_max, steer_max,
-                                          dt, turn_time, steps), offset, length, width)
+    stages, footprints by :func:`footprint_rows`, braking at ``a_min``) gets
+    ``[min(input, share * a_level), steer]`` for share 0, 1/3 and 2/3 in turn, until it passes;
+    after each round every robot of ``check`` still flagged is checked again against the
+    others' new courses. Returns the inputs (n, 2) and which robots of ``check`` still fail
+    (bool, m). Per-robot arrays are (n,), ``steer_limits`` (n, 3)."""
+    rows = footprint_rows(braking_courses(states, inputs, True, inputs[:, 1], headings, wheelbase, a_min, a_max, v_min, v_max,
+                                          steer_limits, dt, turn_time, steps), offset, length, width)
     chosen = inputs.copy()
-    flagged = stop_flags(check, rows, fixed, standing, margin, tie)
+    flagged = stop_flags(check, rows, fixed, standing, growing, margin, tie)
     for share in (0.0, 1.0 / 3.0, 2.0 / 3.0):
         if not flagged.any():
             break
         for r in range(check.shape[0]):
             if flagged[r]:
                 i = check[r]
-                chosen[i, 0], chosen[i, 1] = min(inputs[i, 0], share * a_min[i]), steer[i]
-                course = braking_courses(states[i:i + 1], chosen[i:i + 1], True, headings[i:i + 1], wheelbase[i:i + 1],
-                                         a_min[i:i + 1], a_max[i:i + 1], v_min[i:i + 1], v_max[i:i + 1], steer_max[i:i + 1],
-                                         dt, turn_time, steps)
+                chosen[i, 0], chosen[i, 1] = min(inputs[i, 0], share * a_level[i]), steer[i]
+                course = braking_courses(states[i:i + 1], chosen[i:i + 1], True, chosen[i:i + 1, 1], headings[i:i + 1],
+                                         wheelbase[i:i + 1], a_min[i:i + 1], a_max[i:i + 1], v_min[i:i + 1], v_max[i:i + 1],
+                                         steer_limits[i:i + 1], dt, turn_time, steps)
                 rows[i] = footprint_rows(course, offset[i:i + 1], length[i:i + 1], width[i:i + 1])[0]
-        flagged &= stop_flags(check, rows, fixed, standing, margin, tie)
+        flagged &= stop_flags(check, rows, fixed, standing, growing, margin, tie)
     return chosen, flagged
 
 
@@ -362,24 +395,23 @@ def polyline_offsets(points, polyline):
 
 
 @numba.njit(cache=True)
-def braking_tail(state, heading, decel, wheelbase, v_min, v_max, steer_max, dt, turn_time, max_steps):
+def braking_tail(state, previous_steer, heading, decel, wheelbase, v_min, v_max, steer_limits, dt, turn_time, max_steps):
     """Inputs (K, 2) and rear-axle states (K+1, 4) of one robot braking from ``state`` (4,) to
     standstill: acceleration ``clip(-v / dt, -decel, decel)`` [m/s^2] and steering that turns
     its heading towards ``heading`` [rad] with time constant ``turn_time`` [s] within
-    ``steer_max`` (as :func:`braking_courses`), until the speed is within 1e-12 m/s of zero or
-    after ``max_steps`` periods."""
+    :func:`limited_steer` of ``steer_limits`` (3,) from ``previous_steer`` [rad] (as
+    :func:`braking_courses`), until the speed is within 1e-12 m/s of zero or after
+    ``max_steps`` periods."""
     states = np.empty((max_steps + 1, 4))
     inputs = np.empty((max_steps, 2))
     x, y, h, v = state[0], state[1], state[2], state[3]
     states[0, 0], states[0, 1], states[0, 2], states[0, 3] = x, y, h, v
     gain = min(1.0, dt / turn_time)
     k = 0
+    steer = previous_steer
     while k < max_steps and abs(v) > 1e-12:
         accel = min(max(-v / dt, -decel), decel)
-        error = heading - h
-        error = math.atan2(math.sin(error), math.cos(error))
-        sign = 1.0 if v > 0.0 else -1.0
-        steer = min(max(math.atan2(wheelbase * (gain * error) * sign, abs(v) * dt), -steer_max), steer_max)
+        steer = limited_steer(_heading_hold(heading, h, v, wheelbase, gain, dt), v, accel, steer, wheelbase, steer_limits, dt)
         x, y, h, v = _bicycle_step(x, y, h, v, accel, steer, dt, wheelbase, v_min, v_max)
         inputs[k, 0], inputs[k, 1] = accel, steer
         k += 1

@@ -138,12 +138,18 @@ class PathReference:
 
 class LateralBand:
     """Where a robot's rear axle may be across its reference: between the ``right`` and ``left``
-    boundary polylines (M, 2) of its road [m], at least ``margin`` [m] inside each."""
+    boundary polylines (M, 2) of its road [m], at least ``margin`` [m] inside each, and at most
+    ``hug`` [m] from the reference."""
 
-    def __init__(self, right, left, margin: float):
+    def __init__(self, right, left, margin: float, hug: float = np.inf):
         self.right = np.asarray(right, dtype=float)
         self.left = np.asarray(left, dtype=float)
         self.margin = float(margin)
+        self.hug = float(hug)
+
+    def hugging(self, width: float) -> "LateralBand":
+        """The same band, narrowed to at most ``width`` [m] on either side of the reference."""
+        return LateralBand(self.right, self.left, self.margin, width)
 
     def limits(self, reference: np.ndarray) -> np.ndarray:
         """Rows ``[nx, ny, lo, hi]`` (N, 4) for stages 1..N of ``reference`` (N+1, 4): the
@@ -151,6 +157,6 @@ class LateralBand:
         pts, heading = reference[1:, :2], reference[1:, 2]
         normal = np.column_stack([-np.sin(heading), np.cos(heading)])
         across = np.einsum("ij,ij->i", normal, pts)
-        lo = across - polyline_offset(pts, self.right) + self.margin  # offsets: positive to the left
-        hi = across - polyline_offset(pts, self.left) - self.margin
+        lo = np.maximum(across - polyline_offset(pts, self.right) + self.margin, across - self.hug)  # offsets: positive to the left
+        hi = np.minimum(across - polyline_offset(pts, self.left) - self.margin, across + self.hug)
         return np.column_stack([normal, lo, np.maximum(lo, hi)])

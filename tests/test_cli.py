@@ -171,11 +171,11 @@ def test_bench_aac_pools_repeated_runs(tmp_path):
     report = bench.bench_aac((5,), ("braking",), repeats=2)
     aac, lfc = report.records
     assert (aac.name, lfc.name) == ("aac/braking", "lfc/braking")
-    single = bench.bench_aac((5,), ("braking",), repeats=1).records[0]
-    for r in (aac, lfc):
+    singles = bench.bench_aac((5,), ("braking",), repeats=1).records
+    for r, single in zip((aac, lfc), singles):
         assert r.runs == 2 and r.samples == 2 * single.samples
         lo, hi = r.realtime_factor_range
         assert lo <= r.realtime_factor <= hi
-    assert aac.failures == single.failures
+    assert aac.failures == singles[0].failures
     assert aac.ratio == pytest.approx(lfc.median_ms / aac.median_ms)
     assert "| aac/braking | 5 | 2 |" in bench.markdown_aac(report)

@@ -114,7 +114,7 @@ def test_reach_radius_contains_every_committable_course(seed, speed, horizon):
     state = np.array([rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-np.pi, np.pi), speed])
     head = np.column_stack([rng.uniform(-2.0, 1.0, horizon), rng.uniform(-0.6, 0.6, horizon)])
     decel = 0.5 * 2.0
-    c = stopping_commitment(fleet, 0, 0, state, head, rng.uniform(-np.pi, np.pi), decel, 0.6, 0.1)
+    c = stopping_commitment(fleet, 0, 0, state, head, rng.uniform(-np.pi, np.pi), decel, 0.0, 0.1)
     assert abs(c.states[-1, 3]) <= 1e-12  # the tail ends standing
     assert np.all(np.abs(np.diff(c.states[horizon:, 3])) <= decel * 0.1 + 1e-12)  # never braking harder than the tail's rate
     radius = reach_radii(fleet, state[None], horizon, 0.1, np.array([decel]))[0]

@@ -244,12 +244,12 @@ def test_safety_check_flags_exactly_what_its_definition_says(seed, margin):
     world = WorldState(0.0, states, robots, obstacles)
     fleet = Fleet(robots)
     config = MpcConfig(dt=DT, pedestrian_reach=1.0, pedestrian_margin=0.2)
-    check = SafetyCheck(world, fleet, config, rng.uniform(-np.pi, np.pi, n))
+    check = SafetyCheck(world, fleet, config, rng.uniform(-np.pi, np.pi, n), np.zeros(n))
     inputs = np.column_stack([rng.uniform(LIMITS.a_min, LIMITS.a_max, n), rng.uniform(-0.6, 0.6, n)])
     got = check.unsafe(np.arange(n), inputs, margin)
 
-    steps, fixed, standing = check.surroundings()
-    rows = fleet.footprints(np.arange(n), check.stopping_course(inputs, steps))
+    steps, fixed, standing, growing = check.surroundings()
+    rows = fleet.footprints(np.arange(n), check.stopping_course(inputs, steps, -fleet.comfort))
     targets = np.concatenate([rows, fixed])
     expected = np.zeros(n, dtype=bool)
     for i, t in itertools.product(range(n), range(len(targets))):
@@ -259,7 +259,10 @@ def test_safety_check_flags_exactly_what_its_definition_says(seed, margin):
         braking = rect_clearance_rows(fixed[i], targets[t])
         if standing[t]:
             course, braking = course + margin, braking + margin
-        later = course[1:]
+        moved = np.flatnonzero(np.any(rows[i, 1:] != rows[i, :-1], axis=1))
+        stands = moved[-1] + 2 if moved.size else 1  # a growing target counts while the course moves
+        later = course[1:stands] if growing[t] else course[1:]
+        braking = braking[: len(later) + 1]
         expected[i] |= bool(np.any((later < margin) & (later < np.minimum(course[0], braking[1:]) - BRAKING_TIE)))
     np.testing.assert_array_equal(got, expected)
 
@@ -277,7 +280,7 @@ def test_safe_inputs_are_the_gentlest_braking_that_passes_the_check(seed, margin
     states = np.column_stack([rng.uniform(-3, 3, (n, 2)), rng.uniform(-np.pi, np.pi, n), rng.uniform(0, LIMITS.v_max, n)])
     obstacles = [Obstacle("walker", "pedestrian", rng.uniform(-2, 2, 2), rng.uniform(-1, 1, 2), 0.0, 0.3, 0.5)]
     check = SafetyCheck(WorldState(0.0, states, robots, obstacles), Fleet(robots), MpcConfig(dt=DT, pedestrian_reach=1.0),
-                        rng.uniform(-np.pi, np.pi, n))
+                        rng.uniform(-np.pi, np.pi, n), np.zeros(n))
     inputs = np.column_stack([rng.uniform(LIMITS.a_min, LIMITS.a_max, n), rng.uniform(-0.6, 0.6, n)])
     checked = np.sort(rng.choice(n, size=int(rng.integers(1, n + 1)), replace=False))
     got = check.safe_inputs(checked, inputs, margin)
@@ -323,7 +326,7 @@ def test_safety_stop_keeps_a_car_from_creeping_into_a_crossing_walker():
     walker = Obstacle("walker", "pedestrian", np.array([4.04, 0.43]), np.array([0.0, -1.16]), -np.pi / 2, 0.3, 0.5)
     far = np.array([0.0, 100.0, 0.0, 10.0])  # a car at 10 m/s far away: the courses last 1.9 s
     world = WorldState(0.0, np.array([[0.0, 0.0, 0.0, 0.0], far]), [car, car], [walker])
-    check = SafetyCheck(world, Fleet([car, car]), MpcConfig(dt=DT, pedestrian_reach=1.5, pedestrian_margin=1.0), np.zeros(2))
+    check = SafetyCheck(world, Fleet([car, car]), MpcConfig(dt=DT, pedestrian_reach=1.5, pedestrian_margin=1.0), np.zeros(2), np.zeros(2))
     assert check.unsafe(np.array([0]), np.array([[3.0, 0.0], [0.0, 0.0]]), 0.3).tolist() == [True]
     assert check.unsafe(np.array([0]), np.array([[0.0, 0.0], [0.0, 0.0]]), 0.3).tolist() == [False]
 
@@ -342,7 +345,7 @@ def test_a_car_stopped_within_the_margin_of_a_cone_may_creep_away_but_not_into_i
     cone = Obstacle("cone", "cone", nose + (0.25 + 0.2) * ahead, np.zeros(2), heading, 0.4, 0.4)
     for speed, flagged in ((0.0, False), (3.0, True)):
         world = WorldState(0.0, np.array([[0.0, 0.0, heading, speed]]), [car], [cone])
-        check = SafetyCheck(world, Fleet([car]), MpcConfig(dt=DT), np.zeros(1))
+        check = SafetyCheck(world, Fleet([car]), MpcConfig(dt=DT), np.zeros(1), np.zeros(1))
         assert check.unsafe(np.array([0]), np.array([[3.0 if speed == 0.0 else 0.0, 0.33]]), 0.3).tolist() == [flagged]
 
 
@@ -406,7 +409,7 @@ def test_a_robot_whose_solve_fails_brakes_or_tracks(fallback):
             assert decision.robots[0].mode == "mpc" and decision.inputs[0, 0] == 0.0
         else:
             assert decision.robots[0].mode == "tracking"
-            np.testing.assert_allclose(decision.inputs[0], track(world.robots[0], world.states[0], tasks[0], 1.0, 1.0))
+            np.testing.assert_allclose(decision.inputs[0], track(world.robots[0], world.states[0], tasks[0], 1.0, 1.0, 0.0, DT))
             assert decision.inputs[0, 0] > 0.0
 
 

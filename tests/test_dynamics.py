@@ -315,7 +315,8 @@ def test_braking_with_reverse_allowed_stops_at_zero(speed, a_min, a_max, dt):
 def test_compiled_braking_courses_step_the_bicycle_model_under_the_braking_law(seed, use_first, steps, dt):
     """The compiled braking course is, step by step, :func:`bicycle_step` (speed clipped into its
     bounds) under its first input and then the braking law: acceleration ``clip(-v / dt)``,
-    steering from :func:`heading_hold_steer`; it reaches standstill and stays there."""
+    steering from :func:`heading_hold_steer` within :meth:`BicycleModel.limit_steer` (rate from
+    the steering before, lateral acceleration); it reaches standstill and stays there."""
     from aac_sumo.dynamics import heading_hold_steer
     from aac_sumo.kernels import braking_courses
 
@@ -328,14 +329,22 @@ def test_compiled_braking_courses_step_the_bicycle_model_under_the_braking_law(s
     wheelbase, steer_max = rng.uniform(0.4, 3.0, m), rng.uniform(0.2, 0.7, m)
     a_min, a_max = rng.uniform(-8.0, -1.0, m), rng.uniform(0.5, 4.0, m)
     v_min, v_max = np.where(rng.random(m) < 0.5, 0.0, -3.0), np.full(m, 20.0)
-    got = braking_courses(states, first, use_first, headings, wheelbase, a_min, a_max, v_min, v_max, steer_max, dt, 0.5, steps)
+    a_lat, rate = np.where(rng.random(m) < 0.3, np.inf, rng.uniform(0.5, 5.0, m)), np.where(rng.random(m) < 0.3, np.inf, rng.uniform(0.1, 3.0, m))
+    previous = rng.uniform(-0.5, 0.5, m)
+    models = [BicycleModel(wheelbase[i], VehicleLimits(a_min[i], a_max[i], steer_max[i], v_min[i], v_max[i], a_lat[i], rate[i])) for i in range(m)]
+    got = braking_courses(states, first, use_first, previous, headings, wheelbase, a_min, a_max, v_min, v_max,
+                          np.column_stack([steer_max, a_lat, rate]), dt, 0.5, steps)
 
     x = states.copy()
+    steer = previous.copy()
     for k in range(steps):
         if k == 0 and use_first:
             u = first
         else:
-            u = np.column_stack([np.clip(-x[:, 3] / dt, a_min, a_max), heading_hold_steer(x, headings, dt, wheelbase, steer_max, 0.5)])
+            accel = np.clip(-x[:, 3] / dt, a_min, a_max)
+            wanted = heading_hold_steer(x, headings, dt, wheelbase, steer_max, 0.5)
+            u = np.column_stack([accel, [models[i].limit_steer(wanted[i], x[i, 3], steer[i], dt, accel[i]) for i in range(m)]])
+        steer = u[:, 1].copy()
         x = bicycle_step(x, u, dt, wheelbase)
         x[:, 3] = np.clip(x[:, 3], v_min, v_max)
         np.testing.assert_allclose(got[:, k + 1], x, rtol=1e-12, atol=1e-9)

@@ -292,7 +292,7 @@ def test_fallback_brakes_turning_towards_the_reference_heading(heading, speed):
     reference's (a straight lane along +x) without overshooting it: a car brakes in its lane."""
     pl = planner(barrier="fcbf", gamma=0.3, discs=1)
     state = np.array([0.0, 0.0, heading, speed])
-    states, inputs = pl.fallback(ROBOT, state, straight_reference(0.0, speed))
+    states, inputs = pl.fallback(ROBOT, state, straight_reference(0.0, speed), np.zeros(2))
     speeds = states[:, 3]
     np.testing.assert_allclose(speeds, np.maximum(speed + LIMITS.a_min * DT * np.arange(HORIZON + 1), 0.0), atol=1e-12)
     assert np.all(np.abs(inputs[:, 1]) <= LIMITS.steer_max)
@@ -468,7 +468,7 @@ def test_a_compiled_problem_is_reused_without_building_it_again(tmp_path, monkey
     again = problem.MpcProblem(shape)
     params = first.parameters(wheelbase=0.8, gamma=0.3, disc_offsets=[0.4], weights=np.ones(12),
                               x_ref=np.column_stack([np.arange(4.0), np.zeros((4, 2)), np.ones(4)]),
-                              obstacles=inactive_slot(3)[:, None, :], band=np.zeros(0))
+                              obstacles=inactive_slot(3)[:, None, :], band=np.zeros(0), limits=np.full(2, problem.NO_LIMIT))
     x0 = np.array([0.0, 0.1, 0.0, 1.0])
     lbx, ubx = first.bounds(x0, np.zeros(2), [-np.inf, -np.inf, -np.inf, 0.0], [np.inf, np.inf, np.inf, 5.0], [-3.0, -0.5], [3.0, 0.5])
     w0 = first.pack(np.tile(x0, (4, 1)), np.zeros((3, 2)), np.zeros(2))

@@ -144,7 +144,7 @@ class AacCoordinator(Coordinator):
         notes: dict = {}
         if active.size == 0:
             for i in range(n):
-                inputs[i], records[i].mode = self.hold_input(world, i), "hold"
+                inputs[i], records[i].mode = self.hold_inputs(world, i, 1)[0], "hold"
             return Decision(inputs, records, notes=dict(authority="", reason="all finished"))
 
         start = time.perf_counter()
@@ -163,8 +163,7 @@ class AacCoordinator(Coordinator):
         stops = np.any(first != horizon_inputs[:, 0], axis=1)
         for row in np.flatnonzero(stops):
             j = others[row]
-            limits = world.robots[j].model.limits
-            after = limits.stopping_inputs(world.states[j, 3] + first[row, 0] * cfg.dt, cfg.dt, cfg.horizon + 1)
+            after = world.robots[j].model.stopping_inputs(world.states[j, 3] + first[row, 0] * cfg.dt, first[row, 1], cfg.dt, cfg.horizon + 1)
             horizon_inputs[row] = np.vstack([first[row], after])
             records[j].mode = "safety_stop"
             if self.plans[j] is not None:
@@ -184,7 +183,8 @@ class AacCoordinator(Coordinator):
             margin = 0.0  # its plan looks only N periods ahead: no contact beyond them
             if decided.status != "solved" and self.params.fallback == "tracking":
                 inputs[authority] = track(world.robots[authority], world.states[authority], self.tasks[authority],
-                                          self.params.lookahead, self.params.speed_gain)
+                                          self.params.lookahead, self.params.speed_gain, self.last_inputs[authority, 1], cfg.dt,
+                                          target_speed=self.tracking_speed(world, authority))
                 self.used[authority] = len(self.plans[authority].inputs)  # no plan to follow: tracking until its next turn
                 decided.mode, margin = "tracking", self.params.safety_margin
             checked = safety.safe_inputs(np.array([authority]), inputs, margin)
@@ -223,13 +223,14 @@ class AacCoordinator(Coordinator):
         out = np.zeros((steps, 2))
         task = self.tasks[j]
         if finished and task.stop_at_end:
-            return world.robots[j].model.limits.stopping_inputs(world.states[j, 3], self.planner.config.dt, steps), "hold"
+            return self.hold_inputs(world, j, steps), "hold"
         plan = self.plans[j]
         if plan is not None and self.used[j] < len(plan.inputs):
             rest = plan.inputs[self.used[j]:][:steps]
             out[: len(rest)] = rest
             return out, "plan"
-        out[0] = track(world.robots[j], world.states[j], task, self.params.lookahead, self.params.speed_gain)
+        out[0] = track(world.robots[j], world.states[j], task, self.params.lookahead, self.params.speed_gain, self.last_inputs[j, 1],
+                       self.planner.config.dt, target_speed=self.tracking_speed(world, j))
         return out, "tracking"
 
     def reference(self, world: WorldState, i: int) -> np.ndarray:
@@ -332,15 +333,16 @@ class AacCoordinator(Coordinator):
         return Decision(inputs, records, notes=notes)
 
     def tail_decel(self) -> np.ndarray:
-        """Each robot's stopping-tail deceleration [m/s^2]: ``tail_brake`` of its strongest braking."""
-        return self.params.tail_brake * -self.fleet.a_min
+        """Each robot's stopping-tail deceleration [m/s^2]: ``tail_brake`` of its strongest
+        braking, at most its comfort deceleration."""
+        return np.minimum(self.params.tail_brake * -self.fleet.a_min, self.fleet.comfort)
 
     def commitment(self, world: WorldState, i: int, period: int, head: np.ndarray):
         """Robot ``i``'s commitment from now: the inputs ``head`` (m, 2), then its stopping tail
         turning towards its reference's heading where the head ends."""
         task = self.tasks[i]
         return stopping_commitment(self.fleet, i, period, world.states[i], head, lambda end: task.heading_at(end[:2]),
-                                   self.tail_decel()[i], world.robots[i].model.limits.steer_max, self.planner.config.dt)
+                                   self.tail_decel()[i], self.last_inputs[i, 1], self.planner.config.dt)
 
     def groups(self, world: WorldState, parked: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
         """``(members, candidates)`` per authority of this period: with one authority, every
@@ -490,7 +492,8 @@ class AacCoordinator(Coordinator):
         shift = self.keep_right_shift(world, j)
         out = np.empty((steps, 2))
         for k in range(steps):
-            out[k] = track(robot, state, self.tasks[j], self.params.lookahead, self.params.speed_gain, shift)
+            out[k] = track(robot, state, self.tasks[j], self.params.lookahead, self.params.speed_gain,
+                           out[k - 1, 1] if k else self.last_inputs[j, 1], cfg.dt, shift)
             state = robot.model.step(state, out[k], cfg.dt)
         return out
 
@@ -506,9 +509,8 @@ class AacCoordinator(Coordinator):
         checked = self.safety_check(world).safe_inputs(moving, inputs, self.params.safety_margin)
         stopped, cfg = 0, self.planner.config
         for i in moving[np.any(checked[moving] != inputs[moving], axis=1)]:
-            lim = world.robots[i].model.limits
             braking = stopping_commitment(self.fleet, i, period, world.states[i], checked[i][None], self.tasks[i].heading_at(world.states[i, :2]),
-                                          -lim.a_min, lim.steer_max, cfg.dt)
+                                          -self.fleet.a_min[i], self.last_inputs[i, 1], cfg.dt)
             if self.book.clearance(i, braking, period, statics) >= self.book.margin:
                 self.book.replace(i, braking, period)
                 inputs[i], records[i].mode = checked[i], "safety_stop"

@@ -11,10 +11,11 @@ from typing import Callable
 import numpy as np
 
 from aac_sumo.barriers import ObstaclePrediction, RegionTrack
+from aac_sumo.coordination.anticipation import Anticipation, anticipated_reference, near_pedestrian
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.coordination.safety import SafetyCheck
 from aac_sumo.mpc.planner import MpcPlanner, Plan
-from aac_sumo.references import PathReference
+from aac_sumo.references import LateralBand, PathReference
 from aac_sumo.world import Obstacle, WorldState
 
 Finished = Callable[[WorldState], np.ndarray]
@@ -88,6 +89,8 @@ class Coordinator(ABC):
     ``finished(world)`` tells which robots have finished their task (none, without it)."""
 
     name = "base"
+    #: Reference speeds and lanes that look beyond the horizon (:mod:`~aac_sumo.coordination.anticipation`); None: the task's.
+    anticipation: Anticipation | None = None
 
     def __init__(self, planner: MpcPlanner, tasks: list[PathReference], corridors: list[np.ndarray | None] | None = None,
                  finished: Finished | None = None):
@@ -113,24 +116,41 @@ class Coordinator(ABC):
     def _decide(self, world: WorldState) -> Decision: ...
 
     def reference(self, world: WorldState, i: int) -> np.ndarray:
-        """Robot ``i``'s reference over the horizon (N+1, 4)."""
+        """Robot ``i``'s reference over the horizon (N+1, 4): its task's, with speeds that
+        anticipate what lies ahead on its path when ``anticipation`` is set."""
         cfg = self.planner.config
+        if self.anticipation is not None and not np.isnan(self.tasks[i].horizon(world.states[i], 0, cfg.dt)[0, 2]):
+            return anticipated_reference(world, i, self.tasks[i], cfg.horizon, cfg.dt, self.anticipation)
         return self.tasks[i].horizon(world.states[i], cfg.horizon, cfg.dt)
+
+    def corridor(self, world: WorldState, i: int):
+        """Robot ``i``'s corridor this period: its lateral band hugs its reference near a
+        pedestrian when ``anticipation`` is set (it yields, it does not swerve)."""
+        band, rules = self.corridors[i], self.anticipation
+        if isinstance(band, LateralBand) and rules is not None and near_pedestrian(world, i, rules.yield_distance):
+            return band.hugging(rules.yield_band)
+        return band
 
     def solve(self, world: WorldState, i: int, obstacles: list[Obstacle | ObstaclePrediction | RegionTrack], reason: str) -> RobotDecision:
         """Plan robot ``i`` around ``obstacles``, remember the plan, and report it."""
         ref = self.reference(world, i)
-        plan = self.planner.plan(world.robots[i], world.states[i], ref, self.last_inputs[i], obstacles, self.plans[i], self.corridors[i])
+        plan = self.planner.plan(world.robots[i], world.states[i], ref, self.last_inputs[i], obstacles, self.plans[i], self.corridor(world, i))
         self.plans[i] = plan
         return RobotDecision(True, plan.status, plan.solve_ms, plan.solver, ref, reason=reason, mode="mpc",
                              iterations=plan.iterations, capped=plan.capped)
+
+    def tracking_speed(self, world: WorldState, i: int) -> float | None:
+        """The speed [m/s] robot ``i``'s tracking law drives towards: its anticipated reference
+        speed one horizon ahead when ``anticipation`` is set, else None (its task's)."""
+        return float(self.reference(world, i)[-1, 3]) if self.anticipation is not None else None
 
     def safety_check(self, world: WorldState) -> SafetyCheck:
         """The safety stop of this period: robots brake turning towards their reference's heading
         where they are (a car brakes along its lane), as the planner's fallback does."""
         headings = np.array([task.heading_at(state[:2]) for task, state in zip(self.tasks, world.states)])
-        return SafetyCheck(world, self.fleet, self.planner.config, headings)
+        return SafetyCheck(world, self.fleet, self.planner.config, headings, self.last_inputs[:, 1])
 
-    def hold_input(self, world: WorldState, i: int) -> np.ndarray:
-        """Braking input that brings robot ``i`` to a stop where it is."""
-        return world.robots[i].model.limits.braking_input(world.states[i, 3], self.planner.config.dt)
+    def hold_inputs(self, world: WorldState, i: int, steps: int) -> np.ndarray:
+        """Inputs (steps, 2) that bring robot ``i`` to a stop where it is, at its comfort
+        deceleration, straightening its steering within the limits."""
+        return world.robots[i].model.stopping_inputs(world.states[i, 3], self.last_inputs[i, 1], self.planner.config.dt, steps)

@@ -73,17 +73,20 @@ class Commitment:
 
 
 def stopping_commitment(fleet: Fleet, i: int, start: int, state: np.ndarray, head: np.ndarray, heading,
-                        tail_decel: float, steer_max: float, dt: float) -> Commitment:
+                        tail_decel: float, previous_steer: float, dt: float) -> Commitment:
     """Robot ``i``'s commitment from ``state`` at period ``start``: the inputs ``head`` (m, 2),
     then a stopping tail at ``tail_decel`` turning towards ``heading`` [rad], or towards
-    ``heading(end)`` when it is a function of the state (4,) where the head ends."""
+    ``heading(end)`` when it is a function of the state (4,) where the head ends, within the
+    robot's steering limits from the head's last steering (``previous_steer`` [rad], the
+    steering applied before ``start``, when the head is empty)."""
     head = np.asarray(head, dtype=float).reshape(-1, 2)
     states = fleet.rollout(np.array([i]), np.asarray(state, dtype=float)[None], head[None], dt)[0]
     last = states[-1]
     max_steps = int(np.ceil(abs(last[3]) / tail_decel / dt)) + 2
     heading = heading(last) if callable(heading) else heading
-    tail_states, tail_inputs = braking_tail(last, float(heading), float(tail_decel), fleet.wheelbase[i], fleet.v_min[i],
-                                            fleet.v_max[i], float(steer_max), dt, TAIL_TURN_TIME, max_steps)
+    steer = head[-1, 1] if len(head) else previous_steer
+    tail_states, tail_inputs = braking_tail(last, float(steer), float(heading), float(tail_decel), fleet.wheelbase[i], fleet.v_min[i],
+                                            fleet.v_max[i], fleet.steer_limits[i], dt, TAIL_TURN_TIME, max_steps)
     return Commitment(start, np.vstack([states, tail_states[1:]]), np.vstack([head, tail_inputs]), len(head))
 
 

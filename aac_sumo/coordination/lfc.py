@@ -64,7 +64,7 @@ class LfcCoordinator(Coordinator):
         motion = self.fleet.rollout(np.arange(n), world.states, np.zeros((n, cfg.horizon + 1, 2)), cfg.dt)
         for i in range(n):
             if done[i] and self.tasks[i].stop_at_end:
-                hold = world.robots[i].model.limits.stopping_inputs(world.states[i, 3], cfg.dt, cfg.horizon + 1)
+                hold = self.hold_inputs(world, i, cfg.horizon + 1)
                 inputs[i], records[i].mode = hold[0], "hold"
                 motion[i] = self.fleet.rollout(np.array([i]), world.states[[i]], hold[None], cfg.dt)[0]
                 continue
@@ -75,7 +75,8 @@ class LfcCoordinator(Coordinator):
             records[i] = self.solve(world, i, world.obstacles + regions, "priority")
             plan = self.plans[i]
             if plan.status != "solved" and self.params.fallback == "tracking":
-                inputs[i] = track(world.robots[i], world.states[i], self.tasks[i], self.params.lookahead, self.params.speed_gain)
+                inputs[i] = track(world.robots[i], world.states[i], self.tasks[i], self.params.lookahead, self.params.speed_gain,
+                                  self.last_inputs[i, 1], cfg.dt, target_speed=self.tracking_speed(world, i))
                 records[i].mode = "tracking"
                 once = np.zeros((1, cfg.horizon + 1, 2))
                 once[0, 0] = inputs[i]

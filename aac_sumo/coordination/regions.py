@@ -11,7 +11,7 @@ import numpy as np
 
 from aac_sumo.barriers import FcbfParams, RegionTrack, hull_safety_ellipses
 from aac_sumo.geometry import rect_corners
-from aac_sumo.kernels import footprint_rows, rollouts
+from aac_sumo.kernels import footprint_rows, limited_steer, rollouts
 from aac_sumo.world import RobotSpec
 
 
@@ -29,10 +29,21 @@ class Fleet:
         self.offset = np.array([r.centre_offset for r in robots])
         self.length = np.array([r.length for r in robots])
         self.width = np.array([r.width for r in robots])
+        lim = [r.model.limits for r in robots]
+        #: Steering limits (n, 3): ``[steer_max, a_lat_max, steer_rate_max]`` (see :func:`~aac_sumo.kernels.limited_steer`).
+        self.steer_limits = np.array([[m.steer_max, m.a_lat_max, m.steer_rate_max] for m in lim]).reshape(-1, 3)
+        #: Deceleration short of an emergency [m/s^2] (> 0), per robot.
+        self.comfort = np.array([m.comfort_decel for m in lim])
 
     def rollout(self, idx: np.ndarray, states: np.ndarray, inputs: np.ndarray, dt: float) -> np.ndarray:
         """States (m, K+1, 4) of robots ``idx`` from ``states`` (m, 4) under ``inputs`` (m, K, 2)."""
         return rollouts(np.asarray(states, dtype=float), np.asarray(inputs, dtype=float), dt, self.wheelbase[idx], self.v_min[idx], self.v_max[idx])
+
+    def limit_steer(self, steer: np.ndarray, states: np.ndarray, accel: np.ndarray, previous: np.ndarray, dt: float) -> np.ndarray:
+        """Every robot's ``steer`` (n,) [rad] within its steering limits at ``states`` (n, 4) and
+        ``accel`` (n,), from the steering ``previous`` (n,) applied the period before."""
+        return np.array([limited_steer(steer[i], states[i, 3], accel[i], previous[i], self.wheelbase[i], self.steer_limits[i], dt)
+                         for i in range(len(self.names))])
 
     def footprints(self, idx: np.ndarray, states: np.ndarray) -> np.ndarray:
         """Footprint rows ``[cx, cy, length, width, heading]`` (m, K, 5) of robots ``idx`` at

@@ -16,6 +16,13 @@ may drive away from them. The other robots are taken both on their own such cour
 at once, since either may happen. A pedestrian's footprint grows on every side by the
 planner's ``pedestrian_margin`` [m] plus its ``pedestrian_reach`` [m/s] times the time. A robot
 that fails brakes as gently as passes the check.
+
+Comfort first: a course brakes at the robot's comfort deceleration, so that robots keep the
+room to stop without an emergency; the others may brake at once at their hardest. A robot
+that no comfortable choice (coasting, a third, two thirds or all of its comfort braking)
+lets pass brakes at its comfort deceleration now if braking at its hardest afterwards
+passes, else harder (two thirds of its hardest, then all of it): an emergency. Every
+steering angle keeps the vehicle limits.
 """
 
 from __future__ import annotations
@@ -36,17 +43,21 @@ BRAKING_TIE = 1e-6
 class SafetyCheck:
     """The safety stop of one period of ``world``, for robots of ``fleet`` driven with the
     planner's ``config`` (period, pedestrian reach); robots brake turning towards ``headings``
-    (n,) [rad]."""
+    (n,) [rad], from the steering ``previous_steer`` (n,) [rad] they applied the period before."""
 
-    def __init__(self, world: WorldState, fleet: Fleet, config: MpcConfig, headings: np.ndarray):
+    def __init__(self, world: WorldState, fleet: Fleet, config: MpcConfig, headings: np.ndarray, previous_steer: np.ndarray):
         self.world, self.fleet, self.config, self.headings = world, fleet, config, np.asarray(headings, dtype=float)
-        self.steer_max = np.array([r.model.limits.steer_max for r in world.robots])
-        self._around = None
+        self.previous_steer = np.asarray(previous_steer, dtype=float)
+        self._around: dict = {}
         self._steer = None
 
     def braking_steer(self, states: np.ndarray) -> np.ndarray:
-        """Steering (n,) [rad] of every robot braking from ``states`` (n, 4)."""
-        return heading_hold_steer(states, self.headings, self.config.dt, self.fleet.wheelbase, self.steer_max, FALLBACK_TURN_TIME)
+        """Steering (n,) [rad] of every robot braking at its comfort deceleration from ``states``
+        (n, 4), within its steering limits."""
+        fleet, dt = self.fleet, self.config.dt
+        wanted = heading_hold_steer(states, self.headings, dt, fleet.wheelbase, fleet.steer_limits[:, 0], FALLBACK_TURN_TIME)
+        accel = np.clip(-states[:, 3] / dt, -fleet.comfort, fleet.comfort)
+        return fleet.limit_steer(wanted, states, accel, self.previous_steer, dt)
 
     def safe_inputs(self, check: np.ndarray, inputs: np.ndarray, margin: float) -> np.ndarray:
         """Every robot's inputs (n, 2) after the check of robots ``check``: one whose intended
@@ -56,34 +67,51 @@ class SafetyCheck:
         world, fleet = self.world, self.fleet
         if self._steer is None:
             self._steer = self.braking_steer(world.states)
-        steps, fixed, standing = self.surroundings()
         check = np.asarray(check, dtype=np.int64)
-        chosen, flagged = gentlest_stops(check, np.asarray(inputs, dtype=float), self._steer, world.states, self.headings,
-                                         fleet.wheelbase, fleet.a_min, fleet.a_max, fleet.v_min, fleet.v_max, self.steer_max,
-                                         fleet.offset, fleet.length, fleet.width, self.config.dt, FALLBACK_TURN_TIME, steps,
-                                         fixed, standing, margin, BRAKING_TIE)
-        for i in check[flagged]:
-            chosen[i] = [world.robots[i].model.limits.braking_input(world.states[i, 3], self.config.dt)[0], self._steer[i]]
+        chosen, flagged = self._gentlest(check, np.asarray(inputs, dtype=float), -fleet.comfort, margin)
+        if flagged.any():  # no comfortable choice: comfort braking now, an emergency after it, or one now
+            urgent = check[flagged]
+            chosen[urgent] = [[self.braking(i, fleet.comfort[i]), self._steer[i]] for i in urgent]
+            chosen, still = self._gentlest(urgent, chosen, fleet.a_min, margin)
+            for i in urgent[still]:
+                chosen[i] = [self.braking(i, -fleet.a_min[i]), self._steer[i]]
         return chosen
+
+    def braking(self, i: int, decel: float) -> float:
+        """Robot ``i``'s acceleration [m/s^2] braking at ``decel`` towards standstill this period."""
+        return float(self.world.robots[i].model.limits.braking_input(self.world.states[i, 3], self.config.dt, decel)[0])
+
+    def _gentlest(self, check, inputs, a_brake, margin):
+        """:func:`~aac_sumo.kernels.gentlest_stops` in the regime where every course and every
+        braking at once brakes at ``a_brake`` (n,) [m/s^2]."""
+        world, fleet = self.world, self.fleet
+        steps, fixed, standing, growing = self.surroundings(a_brake)
+        return gentlest_stops(check, inputs, self._steer, world.states, self.headings, fleet.wheelbase, a_brake, fleet.a_max,
+                              fleet.v_min, fleet.v_max, fleet.steer_limits, fleet.offset, fleet.length, fleet.width, self.config.dt,
+                              FALLBACK_TURN_TIME, steps, fixed, standing, growing, margin, BRAKING_TIE, a_brake)
 
     def unsafe(self, check: np.ndarray, inputs: np.ndarray, margin: float) -> np.ndarray:
         """Which of robots ``check`` must brake instead of applying ``inputs`` (n, 2, every robot's
-        input this period as far as known; zero where not)."""
-        steps, fixed, standing = self.surroundings()
-        rows = self.fleet.footprints(np.arange(len(self.world.robots)), self.stopping_course(inputs, steps))  # (n, K+1, 5)
-        return stop_flags(np.asarray(check, dtype=np.int64), rows, fixed, standing, margin, BRAKING_TIE)
+        input this period as far as known; zero where not), everyone braking comfortably."""
+        steps, fixed, standing, growing = self.surroundings()
+        rows = self.fleet.footprints(np.arange(len(self.world.robots)), self.stopping_course(inputs, steps, -self.fleet.comfort))  # (n, K+1, 5)
+        return stop_flags(np.asarray(check, dtype=np.int64), rows, fixed, standing, growing, margin, BRAKING_TIE)
 
-    def surroundings(self) -> tuple[int, np.ndarray, np.ndarray]:
-        """What every check of this period compares against, computed once: the number of
-        stages, the footprints (n + obstacles, K+1, 5) of every robot braking at once and of
-        every obstacle moving at constant velocity (pedestrians grown), and which of the
-        :meth:`unsafe` targets (2 n + obstacles: the robots on their courses, then these) are
-        obstacles that stand still for sure."""
-        if self._around is None:
+    def surroundings(self, a_brake: np.ndarray | None = None) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+        """What every check of this period in the regime of braking at ``a_brake`` (n,) [m/s^2]
+        (default: each robot's comfort deceleration) compares against, computed once per regime:
+        the number of stages, the footprints (n + obstacles, K+1, 5) of every robot braking at
+        once at ``a_brake`` and of every obstacle moving at constant velocity (pedestrians
+        grown), and which of the :meth:`unsafe` targets (2 n + obstacles: the robots on their
+        courses, then these) are obstacles that stand still for sure, and which are walkers'
+        growing regions."""
+        a_brake = -self.fleet.comfort if a_brake is None else np.asarray(a_brake, dtype=float)
+        key = a_brake.tobytes()
+        if key not in self._around:
             world, cfg, fleet = self.world, self.config, self.fleet
             n = len(world.robots)
-            steps = int(np.ceil(np.max(np.abs(world.states[:, 3]) / -fleet.a_min) / cfg.dt)) + 2  # input acts at stage 2
-            halt = fleet.footprints(np.arange(n), self.stopping_course(None, steps))
+            steps = int(np.ceil(np.max(np.abs(world.states[:, 3]) / fleet.comfort) / cfg.dt)) + 2  # input acts at stage 2
+            halt = fleet.footprints(np.arange(n), self.stopping_course(None, steps, a_brake))
             obs = np.array([o.footprint() for o in world.obstacles]).reshape(-1, 5)
             vel = np.array([o.velocity for o in world.obstacles]).reshape(-1, 2)
             moving = np.repeat(obs[:, None, :], steps + 1, axis=1)
@@ -93,14 +121,15 @@ class SafetyCheck:
             growth = cfg.pedestrian_margin + cfg.pedestrian_reach * cfg.dt * np.arange(steps + 1)
             moving[walkers, :, 2:4] += 2.0 * growth[None, :, None]
             standing = (np.hypot(vel[:, 0], vel[:, 1]) == 0.0) & ~walkers
-            self._around = steps, np.concatenate([halt, moving]), np.r_[np.zeros(2 * n, dtype=bool), standing]
-        return self._around
+            none = np.zeros(2 * n, dtype=bool)
+            self._around[key] = steps, np.concatenate([halt, moving]), np.r_[none, standing], np.r_[none, walkers]
+        return self._around[key]
 
-    def stopping_course(self, first: np.ndarray | None, steps: int) -> np.ndarray:
+    def stopping_course(self, first: np.ndarray | None, steps: int, a_brake: np.ndarray) -> np.ndarray:
         """States (n, steps+1, 4) of every robot applying ``first`` (n, 2) once (None: braking at
-        once), then braking to a stop as :meth:`braking_steer` steers."""
+        once), then braking to a stop at ``a_brake`` (n,) [m/s^2], steering towards its heading."""
         world, fleet = self.world, self.fleet
         use_first = first is not None
         first = np.asarray(first, dtype=float) if use_first else np.zeros((len(world.robots), 2))
-        return braking_courses(world.states, first, use_first, self.headings, fleet.wheelbase, fleet.a_min, fleet.a_max,
-                               fleet.v_min, fleet.v_max, self.steer_max, self.config.dt, FALLBACK_TURN_TIME, steps)
+        return braking_courses(world.states, first, use_first, self.previous_steer, self.headings, fleet.wheelbase, a_brake,
+                               fleet.a_max, fleet.v_min, fleet.v_max, fleet.steer_limits, self.config.dt, FALLBACK_TURN_TIME, steps)

@@ -11,6 +11,7 @@ import numpy as np
 from aac_sumo.barriers import FcbfParams
 from aac_sumo.config import Scenario, ScenarioError
 from aac_sumo.coordination.aac import AacCoordinator, AacParams
+from aac_sumo.coordination.anticipation import Anticipation
 from aac_sumo.coordination.base import Coordinator, Finished
 from aac_sumo.coordination.independent import IndependentCoordinator
 from aac_sumo.coordination.lfc import LfcCoordinator, LfcParams
@@ -44,7 +45,8 @@ def robot_spec(scenario: Scenario, name: str) -> RobotSpec:
     r = scenario.data["robot"]
     if r["wheelbase"] > r["length"]:
         raise ScenarioError(scenario.source, "robot.wheelbase", f"at most robot.length ({r['length']})", r["wheelbase"])
-    limits = VehicleLimits(r["a_min"], r["a_max"], r["steer_max"], -r["v_max"] if r["allow_reverse"] else 0.0, r["v_max"])
+    limits = VehicleLimits(r["a_min"], r["a_max"], r["steer_max"], -r["v_max"] if r["allow_reverse"] else 0.0, r["v_max"],
+                           r["a_lat_max"], r["steer_rate_max"], r["a_comfort"])
     return RobotSpec(name, r["length"], r["width"], BicycleModel(r["wheelbase"], limits))
 
 
@@ -106,7 +108,18 @@ def coordinator(scenario: Scenario, tasks: list[PathReference], corridors=None, 
         extra = dict(params=lfc_params(scenario))
     band = any(isinstance(c, LateralBand) for c in corridors or [])
     planner = MpcPlanner(dataclasses.replace(mpc_config(scenario), band=band))
-    return COORDINATORS[name](planner, tasks, corridors, finished, **extra)
+    coord = COORDINATORS[name](planner, tasks, corridors, finished, **extra)
+    coord.anticipation = anticipation(scenario)
+    return coord
+
+
+def anticipation(scenario: Scenario) -> Anticipation | None:
+    """The ``controller.anticipate*`` and ``yield_*`` settings, None when ``controller.anticipate`` is off."""
+    c = scenario.data["controller"]
+    if not c["anticipate"]:
+        return None
+    return Anticipation(decel=c["anticipate_decel"], accel=c["anticipate_accel"], gap=c["anticipate_gap"], time_gap=c["anticipate_time_gap"],
+                        pedestrian_margin=c["pedestrian_margin"], pedestrian_reach=c["pedestrian_reach"], yield_distance=c["yield_distance"], yield_band=c["yield_band"])
 
 
 def check_start(scenario: Scenario, world: WorldState, key: str) -> None:

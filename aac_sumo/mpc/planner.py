@@ -18,7 +18,7 @@ from aac_sumo.barriers import (N_STAGE_FIELDS, FcbfParams, ObstaclePrediction, R
 from aac_sumo.dynamics import heading_hold_steer
 from aac_sumo.geometry import wrap_angle
 from aac_sumo.kernels import rollouts
-from aac_sumo.mpc.problem import OPEN_BAND, ProblemShape, get_problem
+from aac_sumo.mpc.problem import NO_LIMIT, OPEN_BAND, ProblemShape, get_problem
 from aac_sumo.references import LateralBand
 from aac_sumo.world import Obstacle, RobotSpec
 
@@ -89,7 +89,9 @@ class MpcConfig:
 class Plan:
     """A robot's plan: states (N+1, 4), inputs (N, 2), status, solve wall time [ms] (every
     attempt), solver used; the iterations of the solve whose result it reports and whether that
-    solve stopped at its iteration cap (``capped``, see :class:`~aac_sumo.mpc.problem.SolveOutcome`)."""
+    solve stopped at its iteration cap (``capped``, see :class:`~aac_sumo.mpc.problem.SolveOutcome`);
+    ``emergency`` when it brakes harder than the robot's comfort deceleration (no plan within
+    it was found, or the braking fallback)."""
 
     states: np.ndarray
     inputs: np.ndarray
@@ -99,6 +101,7 @@ class Plan:
     iterations: int = -1
     detail: str = ""
     capped: bool = False
+    emergency: bool = False
 
     def shifted(self, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Warm start for the next period: drop the first stage, repeat the last, pin ``state``."""
@@ -312,6 +315,7 @@ class MpcPlanner:
             x_ref=reference,
             obstacles=self.barrier_parameters(robot, state, u_prev, obstacles),
             band=self.band_rows(robot, corridor, reference, state) if cfg.band else np.zeros(0),
+            limits=np.minimum([lim.a_lat_max, lim.steer_rate_max * cfg.dt], NO_LIMIT),
         )
         usable = cfg.warm_start and previous is not None and len(previous.inputs) == cfg.horizon
 
@@ -330,24 +334,28 @@ class MpcPlanner:
                 yield self.retry_problem, warm if warm is not None else cold
 
         box = np.array([-np.inf, np.inf, -np.inf, np.inf]) if corridor is None or isinstance(corridor, LateralBand) else np.asarray(corridor, dtype=float)
-        bounds = ([box[0], box[2], -np.inf, lim.v_min], [box[1], box[3], np.inf, lim.v_max], [lim.a_min, -lim.steer_max], [lim.a_max, lim.steer_max])
-
+        comfort = -lim.comfort_decel
         total_ms, outcome, used = 0.0, None, cfg.solver
-        for problem, guess in attempts():
-            lbx, ubx = problem.bounds(state, u_prev, *bounds)
-            outcome = problem.solve(problem.parameters(**params), problem.pack(*guess, u_prev), lbx, ubx)
-            total_ms += outcome.solve_ms
-            used = problem.shape.solver
-            if outcome.status == "solved":
-                return Plan(outcome.states, outcome.inputs, "solved", total_ms, used, outcome.iterations, outcome.detail, outcome.capped)
-        states, inputs = self.fallback(robot, state, reference)
-        return Plan(states, inputs, outcome.status, total_ms, "fallback", outcome.iterations, f"{used}: {outcome.detail}", outcome.capped)
+        for a_lo in (comfort, lim.a_min) if comfort > lim.a_min else (lim.a_min,):  # comfort first; an emergency may brake harder
+            bounds = ([box[0], box[2], -np.inf, lim.v_min], [box[1], box[3], np.inf, lim.v_max], [a_lo, -lim.steer_max], [lim.a_max, lim.steer_max])
+            for problem, start in attempts():
+                lbx, ubx = problem.bounds(state, u_prev, *bounds)
+                outcome = problem.solve(problem.parameters(**params), problem.pack(*start, u_prev), lbx, ubx)
+                total_ms += outcome.solve_ms
+                used = problem.shape.solver
+                if outcome.status == "solved":
+                    return Plan(outcome.states, outcome.inputs, "solved", total_ms, used, outcome.iterations, outcome.detail,
+                                outcome.capped, bool(outcome.inputs[:, 0].min() < comfort - 1e-9))
+        states, inputs = self.fallback(robot, state, reference, u_prev)
+        return Plan(states, inputs, outcome.status, total_ms, "fallback", outcome.iterations, f"{used}: {outcome.detail}", outcome.capped,
+                    bool(inputs[:, 0].min() < comfort - 1e-9))
 
-    def fallback(self, robot: RobotSpec, state: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def fallback(self, robot: RobotSpec, state: np.ndarray, reference: np.ndarray, u_prev: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """States (N+1, 4) and inputs (N, 2) of the safe fallback: brake as hard as possible to a
         stop, never reversing, while turning the heading towards the reference's (a car brakes
         in its lane instead of drifting across the road at the angle it had). The heading error
-        closes with time constant ``FALLBACK_TURN_TIME`` [s], within the steering limit."""
+        closes with time constant ``FALLBACK_TURN_TIME`` [s], within the steering limits (angle,
+        rate from ``u_prev``'s steering, lateral acceleration)."""
         cfg, lim = self.config, robot.model.limits
         inputs = np.empty((cfg.horizon, 2))
         states = np.empty((cfg.horizon + 1, 4))
@@ -355,7 +363,8 @@ class MpcPlanner:
         for k in range(cfg.horizon):
             x = states[k]
             steer = heading_hold_steer(x, reference[k, 2], cfg.dt, robot.model.wheelbase, lim.steer_max, FALLBACK_TURN_TIME)
-            inputs[k] = [lim.braking_input(x[3], cfg.dt)[0], steer]
+            accel = lim.braking_input(x[3], cfg.dt)[0]
+            inputs[k] = [accel, robot.model.limit_steer(steer, x[3], inputs[k - 1, 1] if k else u_prev[1], cfg.dt, accel)]
             states[k + 1] = robot.model.step(x, inputs[k], cfg.dt)
         return states, inputs
 

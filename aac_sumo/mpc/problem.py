@@ -9,7 +9,7 @@ lose its cross terms (the solver then crawled to its iteration cap). The measure
 and the previous input pin ``Z0`` through the variable bounds. Everything else that changes between
 solves (reference, weights, wheelbase,
 gamma, ego disc offsets, obstacle ellipses per stage, the lateral band of the rear axle per
-stage) is a parameter.
+stage, the vehicle's lateral-acceleration and steering-rate limits) is a parameter.
 """
 
 from __future__ import annotations
@@ -68,6 +68,12 @@ class SolveOutcome:
 BAND_FIELDS = 4
 #: Band row that constrains nothing.
 OPEN_BAND = (0.0, 0.0, -1e9, 1e9)
+#: Vehicle-limit parameters: the lateral-acceleration limit [m/s^2] and the steering change allowed
+#: per period [rad]; each bounds its quantity on both sides at every stage (``LIMIT_ROWS`` rows).
+N_LIMITS = 2
+LIMIT_ROWS = 4
+#: What stands for "no limit" in those parameters (the solvers want finite constraint values).
+NO_LIMIT = 1e6
 
 
 class MpcProblem:
@@ -91,6 +97,7 @@ class MpcProblem:
             "x_ref": (n + 1) * NX,
             "obstacles": (n + 1) * slots * N_STAGE_FIELDS,
             "band": n * BAND_FIELDS if shape.band else 0,
+            "limits": N_LIMITS,
         }
         self.equality = constraint_kinds(shape)
         self.n_g = len(self.equality)
@@ -128,6 +135,7 @@ class MpcProblem:
         x_ref = ca.reshape(par["x_ref"], NX, n + 1)
         obstacles = ca.reshape(par["obstacles"], N_STAGE_FIELDS, (n + 1) * slots)
         band = ca.reshape(par["band"], BAND_FIELDS, n) if shape.band else None
+        lateral, rate = par["limits"][0] * par["wheelbase"], par["limits"][1]
 
         cost = 0
         g = []
@@ -149,6 +157,9 @@ class MpcProblem:
             if band is not None:  # lateral band of the rear axle at stage k+1: lo <= n . p <= hi
                 across = band[0, k] * x_next[0] + band[1, k] * x_next[1]
                 g += [across - band[2, k], band[3, k] - across]
+            # vehicle limits: lateral acceleration v^2 |tan(steer)| / L and steering change per period
+            turn = xs[k][3] ** 2 * ca.tan(us[k][1])
+            g += [lateral - turn, lateral + turn, rate - du[1], rate + du[1]]
         err = xs[n] - x_ref[:, n]
         cost += ca.dot(pw, err**2)
         g = ca.cse(ca.vertcat(*g))
@@ -265,8 +276,9 @@ def cache_dir() -> Path:
 
 def constraint_kinds(shape: ProblemShape) -> list[bool]:
     """Whether each constraint row is an equality, stage by stage: the NZ dynamics rows, then
-    one barrier condition per slot and ego disc, then the two lateral-band rows if any."""
-    stage = [True] * NZ + [False] * (shape.slots * shape.discs) + ([False, False] if shape.band else [])
+    one barrier condition per slot and ego disc, then the two lateral-band rows if any, then
+    the ``LIMIT_ROWS`` vehicle-limit rows."""
+    stage = [True] * NZ + [False] * (shape.slots * shape.discs) + ([False, False] if shape.band else []) + [False] * LIMIT_ROWS
     return stage * shape.horizon
 
 

@@ -1,0 +1,149 @@
+"""Driving beyond the MPC horizon: reference speeds that slow a robot in its lane, early and at a
+comfortable rate, for what lies ahead on its path, and a lane kept near pedestrians.
+
+The MPC looks one horizon ahead (1 s at car scale, 10 m at 10 m/s), too short to stop gently
+(25 m from 10 m/s at 2 m/s^2). Here every agent ahead on the robot's path caps its reference
+speed with a comfortable stopping profile, as a driver's car following does:
+
+- another robot or a moving obstacle whose footprint reaches within ``lateral_margin`` of the
+  path, ahead of the robot's front: the robot may drive at ``sqrt(v_lead^2 + 2 b (s_stop - s))``
+  at arc length ``s``, with ``v_lead`` its speed along the path and ``s_stop`` the point
+  ``gap + time_gap * v_lead`` [m] behind it;
+- a pedestrian near or on the path counts with ``v_lead = 0``: the robot yields, it does not
+  overtake. A walker counts when it is within ``pedestrian_margin`` of the path, or may be by
+  the time the robot gets there at its current speed: its velocity towards the path times that
+  time, plus ``pedestrian_reach`` [m/s] (it may step out at any moment, as the planner and the
+  safety stop assume) times that time or the robot's comfortable stopping time, whichever is
+  shorter (so a robot creeps past a walker who stands beside its lane instead of waiting for
+  good).
+
+The reference speed over the horizon then ramps from the robot's speed towards that cap by at
+most ``accel`` / ``decel`` [m/s^2] per second, and its positions follow these speeds along the
+path. Within ``yield_distance`` [m] of a pedestrian a robot on a lateral band keeps within
+``yield_band`` [m] of its reference: it slows, it does not swerve.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from aac_sumo.geometry import wrap_angle
+from aac_sumo.references import PathReference
+from aac_sumo.world import WorldState
+
+
+@dataclass(frozen=True)
+class Anticipation:
+    """Comfortable rates [m/s^2], gaps [m], time gap [s], how far ahead it looks [m], the
+    lateral reach of the path [m], and the pedestrian rules (see the module)."""
+
+    decel: float = 1.5
+    accel: float = 1.5
+    gap: float = 2.0
+    time_gap: float = 1.0
+    look: float = 80.0
+    lateral_margin: float = 0.3
+    pedestrian_margin: float = 1.0
+    pedestrian_reach: float = 0.0
+    yield_distance: float = 20.0
+    yield_band: float = 0.25
+
+
+def _across_extent(length, width, relative_heading) -> np.ndarray:
+    """Half extent [m] of rectangles (length, width) across a direction at ``relative_heading``."""
+    return 0.5 * np.abs(length * np.sin(relative_heading)) + 0.5 * np.abs(width * np.cos(relative_heading))
+
+
+def _along_extent(length, width, relative_heading) -> np.ndarray:
+    """Half extent [m] of rectangles (length, width) along a direction at ``relative_heading``."""
+    return 0.5 * np.abs(length * np.cos(relative_heading)) + 0.5 * np.abs(width * np.sin(relative_heading))
+
+
+def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipation) -> np.ndarray:
+    """Rows ``[s_stop, v_lead, grow]`` (K, 3) of what robot ``i`` must stay behind on ``task``'s
+    path: the arc length [m] where its rear axle must be able to come down to the speed
+    ``v_lead`` [m/s] (>= 0) of what lies ahead, and how much room [m] per m/s of the robot's
+    speed it keeps on top (a walker's reach while the robot brakes: ``pedestrian_reach / decel``
+    [s])."""
+    robot, state = world.robots[i], world.states[i]
+    s0, _ = task.project(state[:2])
+    front = robot.centre_offset + 0.5 * robot.length  # rear axle to front bumper [m]
+    half_width = 0.5 * robot.width
+    others = [j for j in range(len(world.robots)) if j != i]
+    centres = np.vstack([world.robot_centres()[others]] + [o.centre[None, :] for o in world.obstacles]).reshape(-1, 2)
+    if len(centres) == 0:
+        return np.zeros((0, 3))
+    headings = np.r_[world.states[others, 2], [o.heading for o in world.obstacles]]
+    lengths = np.r_[[world.robots[j].length for j in others], [o.length for o in world.obstacles]]
+    widths = np.r_[[world.robots[j].width for j in others], [o.width for o in world.obstacles]]
+    velocity = np.vstack([world.states[others, 3:4] * np.column_stack([np.cos(world.states[others, 2]), np.sin(world.states[others, 2])])]
+                         + [np.asarray(o.velocity, dtype=float)[None, :] for o in world.obstacles]).reshape(-1, 2)
+    walker = np.r_[np.zeros(len(others), dtype=bool), [o.kind == "pedestrian" for o in world.obstacles]]
+    rows = []
+    speed = max(abs(state[3]), 1.0)
+    for c, h, length, width, vel, ped in zip(centres, headings, lengths, widths, velocity, walker):
+        s, off = task.project(c)
+        ahead = s - s0
+        if ahead <= 0.0 or ahead > params.look:
+            continue
+        direction = task.pose_at(s)[0, 2]
+        rel = h - direction
+        normal = np.array([-np.sin(direction), np.cos(direction)])
+        side = np.sign(normal @ (c - task.pose_at(s)[0, :2])) or 1.0
+        gap_across = off - _across_extent(length, width, rel) - half_width
+        along = float(vel @ np.array([np.cos(direction), np.sin(direction)]))
+        if ped:
+            toward = max(0.0, -side * float(vel @ normal))  # walking towards the path
+            arrive = ahead / speed
+            reach = toward * arrive + params.pedestrian_reach * min(arrive, abs(state[3]) / params.decel)
+            if gap_across - reach > params.pedestrian_margin:
+                continue
+            lead, keep, grow = 0.0, params.pedestrian_margin, params.pedestrian_reach / params.decel
+        else:
+            if gap_across > params.lateral_margin:
+                continue
+            lead, keep, grow = max(along, 0.0), 0.0, 0.0
+        s_stop = s - _along_extent(length, width, rel) - front - params.gap - keep - params.time_gap * lead
+        rows.append((s_stop, lead, grow))
+    return np.array(rows).reshape(-1, 3)
+
+
+def speed_cap(stops: np.ndarray, s, decel: float) -> np.ndarray:
+    """The highest speed ``v`` [m/s] at arc lengths ``s`` from which braking at ``decel``
+    [m/s^2] reaches every stop row ``[s_stop, v_lead, grow]`` at its speed with ``grow * v``
+    [m] to spare: ``(v^2 - v_lead^2) / (2 decel) + grow v <= s_stop - s``; inf without any."""
+    s = np.atleast_1d(np.asarray(s, dtype=float))
+    if len(stops) == 0:
+        return np.full(s.shape, np.inf)
+    room = np.clip(stops[None, :, 0] - s[:, None], 0.0, None)
+    lead, bk = stops[None, :, 1], decel * stops[None, :, 2]
+    return (np.sqrt(bk**2 + lead**2 + 2.0 * decel * room) - bk).min(axis=1)
+
+
+def anticipated_reference(world: WorldState, i: int, task: PathReference, steps: int, dt: float, params: Anticipation) -> np.ndarray:
+    """Robot ``i``'s reference (steps+1, 4) along ``task``'s path: its speeds ramp from the
+    robot's speed by at most ``accel`` / ``decel`` per second towards the path's speed, capped
+    by :func:`speed_cap` of :func:`stop_points`, and its positions follow them."""
+    state = world.states[i]
+    stops = stop_points(world, i, task, params)
+    s = np.empty(steps + 1)
+    v = np.empty(steps + 1)
+    s[0], _ = task.project(state[:2])
+    v0 = max(float(state[3]), 0.0)
+    for k in range(steps + 1):
+        target = min(float(task.speed_at(s[k])), float(speed_cap(stops, s[k], params.decel)[0]))
+        v[k] = min(max(target, v0 - params.decel * k * dt), v0 + params.accel * k * dt)
+        v[k] = max(v[k], 0.0)
+        if k < steps:
+            s[k + 1] = s[k] + v[k] * dt
+    poses = task.pose_at(s)
+    heading = state[2] + wrap_angle(poses[:, 2] - state[2])
+    return np.column_stack([poses[:, :2], heading, v])
+
+
+def near_pedestrian(world: WorldState, i: int, distance: float) -> bool:
+    """Whether a pedestrian's centre lies within ``distance`` [m] of robot ``i``'s centre."""
+    centre = world.robot_centres()[i]
+    return any(o.kind == "pedestrian" and np.hypot(*(o.centre - centre)) <= distance for o in world.obstacles)
