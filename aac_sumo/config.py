@@ -291,7 +291,7 @@ class Scenario:
                 raise ScenarioError(self.source, text, "--set KEY=VALUE")
             schema = schema_for(data["scenario"]["kind"])
             section, key = _lookup(schema, dotted.strip(), self.source)
-            data[section][key] = _check(schema, section, key, parse_value(raw.strip()), self.source)
+            data[section][key] = _check(schema, section, key, parse_value(raw.strip(), schema[section][key]), self.source)
         return Scenario(data, self.source)
 
     def to_toml(self) -> str:
@@ -309,8 +309,22 @@ def schema_for(kind: str) -> dict[str, dict[str, Key]]:
     return COMMON | {kind: KIND_SECTIONS[kind]} | KIND_EXTRA_SECTIONS.get(kind, {})
 
 
-def parse_value(raw: str) -> Any:
-    """A ``--set`` value read as a TOML literal (``10``, ``0.5``, ``true``, ``"x"``), else a bare string."""
+def parse_value(raw: str, key: Key) -> Any:
+    """A ``--set`` value as ``key``'s schema type reads it. A string key takes the text as it is
+    (``153177820``, ``264306385#2``, ``:J0_0``, ``-12``; a quoted TOML string loses its quotes). A
+    list key takes a TOML array or comma-separated items (``a.rou.xml,b.rou.xml``, ``1,2``).
+    Anything else is a TOML literal (``10``, ``0.5``, ``true``), or the bare text."""
+    literal = _toml_literal(raw)
+    if key.type is str or isinstance(key.type, tuple):
+        return literal if isinstance(literal, str) else raw
+    if key.type is list and not isinstance(literal, list):
+        items = _toml_literal(f"[{raw}]")
+        return items if isinstance(items, list) else [item.strip() for item in raw.split(",")]
+    return literal
+
+
+def _toml_literal(raw: str) -> Any:
+    """``raw`` read as a TOML value, else ``raw`` itself."""
     try:
         return tomllib.loads(f"v = {raw}")["v"]
     except tomllib.TOMLDecodeError:
