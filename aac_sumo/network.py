@@ -76,9 +76,12 @@ def read(path: Path, key: str, source: str, **options):
     if not Path(path).is_file():
         raise ScenarioError(source, key, "an existing SUMO .net.xml file", str(path))
     try:
-        return sumolib.net.readNet(str(path), **options)
+        net = sumolib.net.readNet(str(path), **options)
     except Exception as exc:  # sumolib raises plain xml / attribute errors
         raise ScenarioError(source, key, f"a readable SUMO network ({type(exc).__name__}: {exc})", str(path)) from None
+    if not any(e.getLanes() for e in net.getEdges()):  # sumolib reads an .edg.xml, say, as edges without lanes
+        raise ScenarioError(source, key, "a SUMO network with lanes (a .net.xml that netconvert built)", str(path))
+    return net
 
 
 def car_lanes(edge) -> list:
