@@ -54,6 +54,8 @@ def _roads(net, need: int) -> list[str]:
         lines.append(f"  ... and {len(chains) - SHOWN} shorter or narrower")
     if chosen is None:
         lines.append(f"  none has {need} lanes: lane_change cannot run on this network")
+    else:
+        lines.append(f"  lane_change's rightmost car lane (where cones close a lane): {' '.join(lane.getID() for lane in chosen.lanes(0))}")
     return lines
 
 
