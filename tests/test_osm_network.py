@@ -4,6 +4,8 @@ a road split into several edges, single-lane ramps and side roads (real netconve
 from __future__ import annotations
 
 import json
+import subprocess
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
@@ -129,3 +131,38 @@ def test_lane_change_runs_on_the_osm_network_with_only_net_and_routes_set(osm, t
     m = json.loads((tmp_path / "metrics.json").read_text())
     assert m["n_robots"] == 15
     assert m["completed"] is True and m["collisions"] == 0
+
+
+EXAMPLE = Path(__file__).resolve().parents[1] / "sumo_networks" / "osm_example"
+OSM_OPTIONS = ["--geometry.remove", "--ramps.guess", "--junctions.join", "--osm.sidewalks", "--crossings.guess"]
+
+
+@pytest.fixture(scope="module")
+def example_net(tmp_path_factory) -> Path:
+    """docs/lane_change.md's OSM path: netconvert --osm-files on the bundled example."""
+    out = tmp_path_factory.mktemp("osm_example") / "example.net.xml"
+    done = subprocess.run([network.sumo_binary("netconvert"), "--osm-files", str(EXAMPLE / "example.osm"), "--connection-files",
+                           str(EXAMPLE / "crossing.con.xml"), *OSM_OPTIONS, "-o", str(out)], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    return out
+
+
+def test_the_osm_example_converts_to_a_road_with_sidewalk_cones_and_a_priority_crossing(example_net, capsys):
+    net = network.read(example_net, "sumo.net", "test", withInternal=True)
+    (chain, *_) = network.candidates(net, MIN_LANES)
+    assert chain.ids == [f"264306385#{i}" for i in range(4)] and chain.n_lanes == 3
+    assert [lane.getIndex() for lane in chain.lanes(0)] == [1, 1, 1, 1]  # lane 0 of every edge is the sidewalk
+    assert main(["net", "info", str(example_net), str(EXAMPLE / "cones.rou.xml"), str(EXAMPLE / "walkers.rou.xml")]) == 0
+    out = capsys.readouterr().out
+    assert "264306385#1_1" in out and "crossings: 2" in out and "person p2: walks 264306385#0 -> 264306385#3" in out
+    onto = [c.get("state") for c in ET.parse(example_net).iter("connection") if c.get("to") == ":3_c0"]  # the zebra at node 3
+    assert onto == ["M"]  # walkers step onto it with priority
+
+
+@pytest.mark.slow
+def test_lane_change_runs_on_the_osm_example_with_cones_and_walkers(example_net, tmp_path):
+    routes = f"{EXAMPLE / 'cones.rou.xml'},{EXAMPLE / 'walkers.rou.xml'}"
+    assert main(["run", "lane_change", "--set", f"sumo.net={example_net}", "--set", f"sumo.routes={routes}", "--out", str(tmp_path)]) == 0
+    m = json.loads((tmp_path / "metrics.json").read_text())
+    assert m["completed"] is True and m["collisions"] == 0
+    assert m["min_pedestrian_clearance_m"] > 1.0
