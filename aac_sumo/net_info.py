@@ -74,14 +74,18 @@ def _pedestrians(net, edges) -> list[str]:
     shared = [e.getID() for e in edges if e.getID() not in walk and e.allows("pedestrian")]
     crossings = [e for e in net.getEdges() if e.getFunction() == "crossing"]
     crossed = sorted({c.getID() for e in crossings for c in e.getCrossingEdges()})
-    lines = [f"pedestrians: sidewalks or footpaths on {len(walk)} edges{_some(walk)}; "
-             f"{len(shared)} more edges let them walk on the road{_some(shared)}",
+    lines = [f"pedestrians: sidewalks or footpaths on {_count(walk, 'edge')}{_some(walk)}; "
+             f"on the road itself on {_count(shared, 'more edge')}{_some(shared)}",
              f"  crossings: {len(crossings)}" + (f" (over {' '.join(crossed)})" if crossed else "")]
     if not walk:
         lines.append("  walkers need sidewalks: netconvert --sidewalks.guess, or sidewalkWidth on the edges")
     if not crossings:
         lines.append("  walkers cannot cross a road: netconvert --crossings.guess, or <crossing> in a .con.xml")
     return lines
+
+
+def _count(items: list, noun: str) -> str:
+    return f"{len(items)} {noun}{'s' * (len(items) != 1)}"
 
 
 def _some(ids: list[str], n: int = 6) -> str:
