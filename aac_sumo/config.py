@@ -254,7 +254,8 @@ KIND_SECTIONS["lane_change"] = {
 SUMO_SECTION: dict[str, Key] = {
     "net": Key(str, "", "SUMO .net.xml (empty: the bundled sumo_networks/lane_change network)"),
     "routes": Key(str, "", "comma-separated SUMO route files with cones, pedestrians, other traffic (empty: the bundled ones with the bundled net, none otherwise)"),
-    "edges": Key(str, "", "space-separated edge ids of the road, in driving order (empty: the longest chain of car edges)"),
+    "edges": Key(str, "", "edge ids of the road in driving order, separated by spaces or commas (empty: the longest chain "
+                 "with the car lanes the scenario needs; aac-sumo net info NET lists them)"),
     "cone_types": Key(str, "cone", "comma-separated vType ids whose vehicles are cones (static obstacles)"),
     "gui": Key(bool, False, "show the run in sumo-gui (set by aac-sumo run --gui)"),
     "fcd": Key(bool, False, "write SUMO's floating-car-data trajectories, fcd.xml, into sumo.output_dir"),
