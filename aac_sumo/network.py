@@ -143,7 +143,7 @@ SEARCH_LIMIT = 20000
 
 
 def chain_of(net, ids: list[str]) -> Chain:
-    """The chain along edge ids ``ids``; ``KeyError``/``ValueError`` for an unknown id or a gap."""
+    """The chain along edge ids ``ids``; ``ValueError`` where an edge does not lead to the next."""
     edges = [net.getEdge(eid) for eid in ids]
     chain = Chain((edges[0],), tuple((i,) for i in range(len(car_lanes(edges[0])))))
     for edge in edges[1:]:
