@@ -1,4 +1,4 @@
-"""The ``aac-sumo`` command line (see CONTRACT.md): run, sweep, table, bench, plus tune and net build.
+"""The ``aac-sumo`` command line (see CONTRACT.md): run, sweep, table, bench, plus tune, net build and net info.
 
 Every user mistake (unknown key, bad value, missing or broken scenario file, bad ``--grid`` /
 ``--set`` syntax, unknown command) ends with exit status 2 and one line on stderr,
@@ -125,9 +125,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--repeats", type=_positive_int, default=3, metavar="R",
                    help="aac: runs per coordinator, scenario and horizon; medians pool them (default 3)")
 
-    p = sub.add_parser("net", help="SUMO networks: net build DIR runs netconvert on DIR's plain-XML sources")
-    p.add_argument("action", choices=("build",), metavar="{build}")
-    p.add_argument("directory", type=Path, metavar="DIR", help="folder with *.netccfg, or *.nod.xml/*.edg.xml/*.con.xml sources")
+    p = sub.add_parser("net", help="SUMO networks: net build DIR runs netconvert on DIR's plain-XML sources; "
+                       "net info NET [ROUTES...] lists the roads a scenario can drive on")
+    net = p.add_subparsers(dest="action", required=True, metavar="{build,info}")
+    q = net.add_parser("build", help="run netconvert on DIR's plain-XML sources")
+    q.add_argument("directory", type=Path, metavar="DIR", help="folder with *.netccfg, or *.nod.xml/*.edg.xml/*.con.xml sources")
+    q = net.add_parser("info", help="candidate roads (edges, lanes, length, allowed classes), sidewalks and crossings, "
+                       "and the vTypes and persons of route files")
+    q.add_argument("net", type=Path, metavar="NET", help="a SUMO .net.xml file")
+    q.add_argument("routes", type=Path, nargs="*", default=[], metavar="ROUTES", help="SUMO route files (cones, pedestrians, traffic)")
     return parser
 
 
@@ -224,8 +230,11 @@ def cmd_run(args) -> int:
 
 
 def cmd_net(args) -> int:
-    from aac_sumo import network
+    from aac_sumo import net_info, network
 
+    if args.action == "info":
+        print(net_info.describe(args.net, args.routes), end="")
+        return 0
     for path in network.build(args.directory):
         print(f"built {path}")
     return 0

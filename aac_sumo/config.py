@@ -265,7 +265,8 @@ KIND_SECTIONS["lane_change"] = {
 SUMO_SECTION: dict[str, Key] = {
     "net": Key(str, "", "SUMO .net.xml (empty: the bundled sumo_networks/lane_change network)"),
     "routes": Key(str, "", "comma-separated SUMO route files with cones, pedestrians, other traffic (empty: the bundled ones with the bundled net, none otherwise)"),
-    "edges": Key(str, "", "space-separated edge ids of the road, in driving order (empty: the longest chain of car edges)"),
+    "edges": Key(str, "", "edge ids of the road in driving order, separated by spaces or commas (empty: the longest chain "
+                 "with the car lanes the scenario needs; aac-sumo net info NET lists them)"),
     "cone_types": Key(str, "cone", "comma-separated vType ids whose vehicles are cones (static obstacles)"),
     "gui": Key(bool, False, "show the run in sumo-gui (set by aac-sumo run --gui)"),
     "fcd": Key(bool, False, "write SUMO's floating-car-data trajectories, fcd.xml, into sumo.output_dir"),
@@ -302,7 +303,7 @@ class Scenario:
                 raise ScenarioError(self.source, text, "--set KEY=VALUE")
             schema = schema_for(data["scenario"]["kind"])
             section, key = _lookup(schema, dotted.strip(), self.source)
-            data[section][key] = _check(schema, section, key, parse_value(raw.strip()), self.source)
+            data[section][key] = _check(schema, section, key, parse_value(raw.strip(), schema[section][key]), self.source)
         return Scenario(data, self.source)
 
     def to_toml(self) -> str:
@@ -320,8 +321,22 @@ def schema_for(kind: str) -> dict[str, dict[str, Key]]:
     return COMMON | {kind: KIND_SECTIONS[kind]} | KIND_EXTRA_SECTIONS.get(kind, {})
 
 
-def parse_value(raw: str) -> Any:
-    """A ``--set`` value read as a TOML literal (``10``, ``0.5``, ``true``, ``"x"``), else a bare string."""
+def parse_value(raw: str, key: Key) -> Any:
+    """A ``--set`` value as ``key``'s schema type reads it. A string key takes the text as it is
+    (``153177820``, ``264306385#2``, ``:J0_0``, ``-12``; a quoted TOML string loses its quotes). A
+    list key takes a TOML array or comma-separated items (``a.rou.xml,b.rou.xml``, ``1,2``).
+    Anything else is a TOML literal (``10``, ``0.5``, ``true``), or the bare text."""
+    literal = _toml_literal(raw)
+    if key.type is str or isinstance(key.type, tuple):
+        return literal if isinstance(literal, str) else raw
+    if key.type is list and not isinstance(literal, list):
+        items = _toml_literal(f"[{raw}]")
+        return items if isinstance(items, list) else [item.strip() for item in raw.split(",")]
+    return literal
+
+
+def _toml_literal(raw: str) -> Any:
+    """``raw`` read as a TOML value, else ``raw`` itself."""
     try:
         return tomllib.loads(f"v = {raw}")["v"]
     except tomllib.TOMLDecodeError:

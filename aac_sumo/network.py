@@ -68,20 +68,114 @@ def _netccfg_output(cfg: Path) -> str:
     return node.get("value")
 
 
-def read(path: Path, key: str, source: str):
-    """The sumolib network at ``path``; a missing or unreadable file is a ``ScenarioError`` on ``key``."""
+def read(path: Path, key: str, source: str, **options):
+    """The sumolib network at ``path`` (``options`` go to ``sumolib.net.readNet``); a missing or
+    unreadable file is a ``ScenarioError`` on ``key``."""
     import sumolib
 
     if not Path(path).is_file():
         raise ScenarioError(source, key, "an existing SUMO .net.xml file", str(path))
     try:
-        return sumolib.net.readNet(str(path))
+        net = sumolib.net.readNet(str(path), **options)
     except Exception as exc:  # sumolib raises plain xml / attribute errors
         raise ScenarioError(source, key, f"a readable SUMO network ({type(exc).__name__}: {exc})", str(path)) from None
+    if not any(e.getLanes() for e in net.getEdges()):  # sumolib reads an .edg.xml, say, as edges without lanes
+        raise ScenarioError(source, key, "a SUMO network with lanes (a .net.xml that netconvert built)", str(path))
+    return net
 
 
-def _car_lanes(edge) -> list:
+def car_lanes(edge) -> list:
+    """The lanes of ``edge`` open to ``VEHICLE_CLASS``, rightmost first."""
     return [lane for lane in edge.getLanes() if lane.allows(VEHICLE_CLASS)]
+
+
+@dataclass(frozen=True)
+class Chain:
+    """Consecutive edges and the car lanes that run through all of them: road lane ``j``
+    (0 = rightmost) is car lane ``tracks[j][i]`` of edge ``i``, following the network's lane
+    connections, so lane counts may differ from edge to edge (a ramp's added lane, a lane drop)."""
+
+    edges: tuple
+    tracks: tuple[tuple[int, ...], ...]
+
+    @property
+    def ids(self) -> list[str]:
+        return [e.getID() for e in self.edges]
+
+    @property
+    def n_lanes(self) -> int:
+        return len(self.tracks)
+
+    @property
+    def length(self) -> float:
+        """Sum of the edges' lengths [m] (junctions left out)."""
+        return float(sum(e.getLength() for e in self.edges))
+
+    def lanes(self, j: int) -> list:
+        """The sumolib lanes of road lane ``j``, one per edge."""
+        return [car_lanes(e)[i] for e, i in zip(self.edges, self.tracks[j])]
+
+    def describe(self) -> str:
+        """``edges A B, 3 lanes, 420 m``."""
+        return f"edges {' '.join(self.ids)}, {self.n_lanes} lane{'s' * (self.n_lanes != 1)}, {self.length:.0f} m"
+
+    def then(self, edge) -> "Chain":
+        """This chain continued by ``edge``: the lanes that connect, with one shift of lane index
+        for all of them (the shift that keeps most adjacent lanes)."""
+        here, there = car_lanes(self.edges[-1]), car_lanes(edge)
+        pairs = {(here.index(c.getFromLane()), there.index(c.getToLane())) for c in self.edges[-1].getConnections(edge)
+                 if c.getFromLane() in here and c.getToLane() in there}
+        runs = [[]]  # runs of adjacent tracks that continue with one shift
+        for shift in sorted({b - a for a, b in pairs}, key=abs):
+            runs.append([])
+            for track in self.tracks:
+                if (track[-1], track[-1] + shift) in pairs:
+                    runs[-1].append(track + (track[-1] + shift,))
+                else:
+                    runs.append([])
+        return Chain(self.edges + (edge,), tuple(max(runs, key=len)))
+
+
+#: Connection directions a road follows: straight on and partial turns, no turns or U-turns.
+THROUGH = frozenset("sLR")
+#: Chains explored before the search stops (a bound on pathological networks).
+SEARCH_LIMIT = 20000
+
+
+def chain_of(net, ids: list[str]) -> Chain:
+    """The chain along edge ids ``ids``; ``ValueError`` where an edge does not lead to the next."""
+    edges = [net.getEdge(eid) for eid in ids]
+    chain = Chain((edges[0],), tuple((i,) for i in range(len(car_lanes(edges[0])))))
+    for edge in edges[1:]:
+        if edge not in chain.edges[-1].getOutgoing():
+            raise ValueError(f"{chain.edges[-1].getID()} does not lead to {edge.getID()}")
+        chain = chain.then(edge)
+    return chain
+
+
+def candidates(net, lanes: int) -> list[Chain]:
+    """Every maximal chain of edges with at least ``lanes`` car lanes running through it, along
+    straight-on connections (``THROUGH``), longest first. Chains start at edges no such chain
+    leads into (anywhere on a ring)."""
+    def onward(chain: Chain) -> list[Chain]:
+        last = chain.edges[-1]
+        nxt = sorted({to for to, conns in last.getOutgoing().items() if any(c.getDirection() in THROUGH for c in conns)}
+                     - set(chain.edges), key=lambda e: e.getID())
+        return [c for c in (chain.then(e) for e in nxt) if c.n_lanes >= lanes]
+
+    singles = [Chain((e,), tuple((i,) for i in range(len(car_lanes(e)))))
+               for e in sorted(net.getEdges(withInternal=False), key=lambda e: e.getID()) if len(car_lanes(e)) >= lanes]
+    entered = {c.edges[-1] for s in singles for c in onward(s)}
+    stack = [s for s in singles if s.edges[0] not in entered] or singles
+    found, explored = [], 0
+    while stack and explored < SEARCH_LIMIT:
+        chain = stack.pop()
+        explored += 1
+        more = onward(chain)
+        stack += more
+        if not more:
+            found.append(chain)
+    return sorted(found, key=lambda c: (-c.length, c.ids))
 
 
 @dataclass
@@ -101,53 +195,31 @@ class Road:
         return float(np.hypot(*np.diff(self.lanes[lane], axis=0).T).sum())
 
 
-def road(net, edges: str, source: str, key: str = "sumo.edges") -> Road:
-    """The road along ``edges`` (space-separated ids), or, when empty, the longest chain of
-    car edges from an edge without car predecessors, following the successor with most lanes."""
-    if edges.strip():
-        chain = []
-        for eid in edges.split():
-            if not net.hasEdge(eid):
-                raise ScenarioError(source, key, "edge ids of the network", eid)
-            edge = net.getEdge(eid)
-            if chain and edge not in chain[-1].getOutgoing():
-                raise ScenarioError(source, key, f"a connected chain of edges ({chain[-1].getID()} does not lead to {eid})")
-            chain.append(edge)
+def road(net, edges: str, lanes: int, source: str) -> Road:
+    """The road along ``edges`` (edge ids separated by spaces or commas, key ``sumo.edges``) or,
+    when empty, the longest chain of :func:`candidates` with ``lanes`` car lanes (key ``sumo.net``).
+    A road with fewer lanes is a one-line ``ScenarioError`` naming the best candidate."""
+    need = f"at least {lanes} lanes open to {VEHICLE_CLASS}"
+    ids = edges.replace(",", " ").split()
+    if ids:
+        unknown = next((eid for eid in ids if not net.hasEdge(eid)), None)
+        if unknown is not None:
+            raise ScenarioError(source, "sumo.edges", "edge ids of the network (aac-sumo net info NET lists its roads)", unknown)
+        try:
+            chain = chain_of(net, ids)
+        except ValueError as exc:
+            raise ScenarioError(source, "sumo.edges", f"a connected chain of edges ({exc})") from None
+        if chain.n_lanes < lanes:
+            raise ScenarioError(source, "sumo.edges", f"a road with {need} running through every edge ({chain.describe()}; "
+                                "aac-sumo net info NET lists the roads)")
     else:
-        chain = _longest_chain(net)
-        if not chain:
-            raise ScenarioError(source, key, f"a network with an edge open to {VEHICLE_CLASS} vehicles")
-    counts = [len(_car_lanes(e)) for e in chain]
-    n = min(counts)
-    lanes, widths = [], []
-    for i in range(n):
-        parts = [np.asarray(_car_lanes(e)[i].getShape(), dtype=float) for e in chain]
-        lanes.append(np.vstack(parts))
-        widths.append(min(_car_lanes(e)[i].getWidth() for e in chain))
-    return Road([e.getID() for e in chain], lanes, widths)
-
-
-def _longest_chain(net) -> list:
-    car_edges = [e for e in net.getEdges() if _car_lanes(e)]
-    has_pred = {o for e in car_edges for o in e.getOutgoing() if _car_lanes(o)}
-    best: list = []
-    for start in sorted((e for e in car_edges if e not in has_pred), key=lambda e: e.getID()) or car_edges[:1]:
-        chain = [start]
-        while True:
-            nxt = sorted((o for o in chain[-1].getOutgoing() if _car_lanes(o) and o not in chain),
-                         key=lambda o: (-len(_car_lanes(o)), o.getID()))
-            if not nxt:
-                break
-            chain.append(nxt[0])
-        if sum(e.getLength() for e in chain) > sum(e.getLength() for e in best):
-            best = chain
-    return best
-
-
-def require_lanes(net, rd: Road, lanes: int, source: str, key: str = "sumo.net") -> None:
-    """``ScenarioError`` naming the narrowest edge when the road has fewer than ``lanes`` car lanes."""
-    if rd.n_lanes < lanes:
-        counts = {eid: len(_car_lanes(net.getEdge(eid))) for eid in rd.edges}
-        eid = min(counts, key=counts.get)
-        n = counts[eid]
-        raise ScenarioError(source, key, f"a road with at least {lanes} car lanes (edge {eid} has {n} lane{'s' * (n != 1)}; lane_change needs at least {lanes})")
+        found = candidates(net, lanes)
+        if not found:
+            best = next((c[0] for k in range(lanes - 1, 0, -1) if (c := candidates(net, k))), None)
+            hint = f"the best candidate: {best.describe()}" if best else f"no edge is open to {VEHICLE_CLASS}"
+            raise ScenarioError(source, "sumo.net", f"a network with a road of {need} (none has them; {hint}; "
+                                "aac-sumo net info NET lists the roads)")
+        chain = found[0]
+    parts = [chain.lanes(j) for j in range(chain.n_lanes)]
+    return Road(chain.ids, [np.vstack([np.asarray(lane.getShape(), dtype=float) for lane in part]) for part in parts],
+                [min(lane.getWidth() for lane in part) for part in parts])

@@ -21,12 +21,10 @@ def _offset(line: np.ndarray, d: float) -> np.ndarray:
 def plot_lane_change(result, path: Path) -> None:
     """Draw the run's road (from its SUMO network), every controlled vehicle's path (solid) and
     reference (dotted), the pedestrians' paths and the cones, with the headline metrics."""
-    from aac_sumo import network
-    from aac_sumo.experiments.lane_change import network_files
+    from aac_sumo.experiments.lane_change import network_files, scenario_road
 
     scenario, traj = result.scenario, result.trajectories
-    net_path, _ = network_files(scenario)
-    rd = network.road(network.read(net_path, "sumo.net", scenario.source), scenario["sumo.edges"], scenario.source)
+    rd = scenario_road(scenario, network_files(scenario)[0])
     fig, ax = plt.subplots(figsize=(14, 5))
     for line, width in zip(rd.lanes, rd.widths):
         ax.fill(*np.vstack([_offset(line, 0.5 * width), _offset(line, -0.5 * width)[::-1]]).T, color="0.88", lw=0)

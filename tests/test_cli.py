@@ -9,7 +9,10 @@ import sys
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
+from aac_sumo import config
 from aac_sumo.cli import main
 from aac_sumo.metrics import METRIC_KEYS
 
@@ -44,6 +47,33 @@ def test_wrong_type(capsys):
     assert main(["run", "braking", "--set", "controller.horizon=abc"]) == 2
     line = error_line(capsys)
     assert "controller.horizon" in line and "integer" in line
+
+
+LANE_CHANGE = config.load("lane_change")
+STRING_KEYS = [f"{section}.{name}" for section, keys in LANE_CHANGE.schema().items() for name, key in keys.items() if key.type is str]
+
+
+@settings(max_examples=60, deadline=None)
+@given(key=st.sampled_from(STRING_KEYS), text=st.text(alphabet="0123456789#", min_size=1, max_size=14))
+def test_a_string_key_takes_ids_of_digits_and_hash_as_text(key, text):
+    """OSM edge ids such as 153177820 or 264306385#2 are text, not a number cut at a TOML comment."""
+    assert LANE_CHANGE.with_overrides([f"{key}={text}"])[key] == text
+
+
+@pytest.mark.parametrize("text", [":J0_0", "-153177820", "-153177820#1", "2026-12-01", "1e5", "true"])
+def test_a_string_key_takes_colons_dashes_and_number_like_text_as_text(text):
+    assert LANE_CHANGE.with_overrides([f"sumo.edges={text}"])["sumo.edges"] == text
+    assert LANE_CHANGE.with_overrides([f'sumo.edges="{text}"'])["sumo.edges"] == text  # quoted, as before
+
+
+@pytest.mark.parametrize("text, rows", [("[1, 2], [3, 4.5]", [[1, 2], [3, 4.5]]), ("[[1, 2]]", [[1, 2]]), ("", [])])
+def test_a_list_key_takes_comma_separated_items(text, rows):
+    assert config.load("swarm_rescue", [f"swarm_rescue.goals={text}"])["swarm_rescue.goals"] == rows
+
+
+def test_a_list_key_with_wrong_items_is_one_line(capsys):
+    assert main(["run", "swarm_rescue", "--set", "swarm_rescue.goals=1,2"]) == 2
+    assert "swarm_rescue.goals" in (line := error_line(capsys)) and "[x, y] rows" in line
 
 
 def test_set_without_value(capsys):
@@ -93,6 +123,8 @@ def test_overlapping_start(capsys):
     ["sweep", "braking", "--grid", "braking.speed=5,,6"],
     ["sweep", "braking", "--seeds", "0", "--grid", "braking.speed=5"],
     ["run"],
+    ["net", "info"],
+    ["net", "frobnicate", "x"],
 ])
 def test_usage_errors_are_one_line(capsys, argv):
     assert main(argv) == 2

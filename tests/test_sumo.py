@@ -196,7 +196,8 @@ def test_one_lane_network_is_rejected_with_one_line(tmp_path, capsys):
     assert main(["run", "lane_change", "--set", f"sumo.net={net}", "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1
-    assert "sumo.net" in err and "edge R has 1 lane; lane_change needs at least 2" in err
+    assert "sumo.net" in err and "at least 2 lanes open to passenger" in err
+    assert "the best candidate: edges R, 1 lane, " in err and "aac-sumo net info" in err
 
 
 def test_scenario_runs_to_completion_on_a_curved_four_lane_network(tmp_path):

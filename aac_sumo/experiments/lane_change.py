@@ -40,6 +40,7 @@ BUNDLED_NET = BUNDLED_NET_DIR / "lane_change.net.xml"
 BUNDLED_ROUTES = [BUNDLED_NET_DIR / "cones.rou.xml", BUNDLED_NET_DIR / "pedestrians.rou.xml"]
 SAMPLE_STEP = 1.0  # reference path resolution along the road [m]
 ROAD_MARGIN = 0.1  # the rear axle keeps half a car width plus this from the road edges [m]
+MIN_LANES = 2  # a lane change needs a second lane [lanes]
 BAND_SETTLE = 10.0  # beyond the end of its lane change a vehicle's band narrows to its target lane over this [m]
 
 
@@ -140,13 +141,17 @@ def network_files(scenario: Scenario) -> tuple[Path, list[Path]]:
     return resolve(su["net"], "sumo.net"), routes
 
 
+def scenario_road(scenario: Scenario, net_path: Path) -> network.Road:
+    """The road of ``[sumo]``: ``sumo.edges``, or the longest chain with ``MIN_LANES`` car lanes."""
+    net = network.read(net_path, "sumo.net", scenario.source)
+    return network.road(net, scenario["sumo.edges"], MIN_LANES, scenario.source)
+
+
 def build_lane_change(scenario: Scenario) -> Setup:
     lc, su = scenario.data["lane_change"], scenario.data["sumo"]
     src = scenario.source
     net_path, routes = network_files(scenario)
-    net = network.read(net_path, "sumo.net", src)
-    rd = network.road(net, su["edges"], src)
-    network.require_lanes(net, rd, 2, src)
+    rd = scenario_road(scenario, net_path)
     n, lanes = lc["vehicles"], rd.n_lanes
     robots = [robot_spec(scenario, f"veh{k}") for k in range(n)]
     if lc["speed"] > robots[0].model.limits.v_max:
