@@ -16,7 +16,10 @@ METRIC_KEYS = (
     "infeasibility_rate", "min_distance_m", "min_clearance_m", "collisions", "sim_collisions", "ttc_mean_s",
     "aggressive_driving_rate", "tracking_error_m", "authority_jain", "delay_jain", "delay_max_s",
     "realtime_factor", "safety_stops", "deadlock", "min_pedestrian_clearance_m", "setup_s", "capped_solves",
+    "emergency_brakes", "aggressive_by_mode",
 )
+#: Where an applied input comes from (``steps.csv``'s ``mode``), in the order ``aggressive_by_mode`` reports them.
+MODES = ("mpc", "plan", "tracking", "safety_stop", "fallback", "hold")
 ROBOT_KINDS = ("robot", "scripted")
 
 
@@ -93,7 +96,7 @@ def compute_metrics(steps: pd.DataFrame, periods: pd.DataFrame, info: dict) -> d
 
     ``info`` carries what ran (scenario, coordinator, barrier, horizon, seed, n_robots),
     ``completed``, ``task_duration_s``, ``collisions``, ``sim_collisions``, ``wall_s``, the
-    aggressive-driving thresholds, ``wheelbase`` per robot, and optionally ``ttc_max``, ``delay_jain``,
+    aggressive-driving thresholds, ``wheelbase`` per robot, and optionally ``comfort_decel`` per robot, ``ttc_max``, ``delay_jain``,
     ``delay_max_s``, ``safety_stops``, ``deadlock`` and ``setup_s`` (the one-off set-up before the
     first period, which ``periods``' ``compute_ms`` leaves out).
 
@@ -133,6 +136,8 @@ def compute_metrics(steps: pd.DataFrame, periods: pd.DataFrame, info: dict) -> d
         min_pedestrian_clearance_m=_finite(steps["pedestrian_clearance_m"].min()) if "pedestrian_clearance_m" in steps and len(steps) else None,
         setup_s=_finite(info.get("setup_s")),
         capped_solves=int(solved["capped"].fillna(False).astype(bool).sum()) if "capped" in solved else 0,
+        emergency_brakes=_emergency_brakes(steps, info) if len(steps) and "comfort_decel" in info else None,
+        aggressive_by_mode=_aggressive_by_mode(steps, info) if len(steps) else None,
     )
     return {k: m[k] for k in METRIC_KEYS} | {k: v for k, v in m.items() if k not in METRIC_KEYS}
 
@@ -143,9 +148,39 @@ def _ttc_mean(ttc: pd.Series, ttc_max: float) -> float | None:
     return _finite(conflicts.mean()) if len(conflicts) else None
 
 
-def _aggressive_rate(steps: pd.DataFrame, info: dict) -> float:
-    """Share of robots whose applied |accel| or v^2 |tan(steer)| / L ever exceeds the thresholds."""
+def _aggressive_steps(steps: pd.DataFrame, info: dict) -> pd.Series:
+    """Whether each step's applied |accel| or v^2 |tan(steer)| / L exceeds the thresholds."""
     wheelbase = steps["robot"].map(info["wheelbase"])
     lat = steps["v"] ** 2 * np.abs(np.tan(steps["steer"])) / wheelbase
-    flagged = (steps["accel"].abs() > info["accel_threshold"]) | (lat > info["lat_accel_threshold"])
-    return float(flagged.groupby(steps["robot"]).any().mean())
+    return (steps["accel"].abs() > info["accel_threshold"]) | (lat > info["lat_accel_threshold"])
+
+
+def _aggressive_rate(steps: pd.DataFrame, info: dict) -> float:
+    """Share of robots whose applied |accel| or v^2 |tan(steer)| / L ever exceeds the thresholds."""
+    return float(_aggressive_steps(steps, info).groupby(steps["robot"]).any().mean())
+
+
+def _aggressive_by_mode(steps: pd.DataFrame, info: dict) -> dict:
+    """Share of the aggressive steps that each input source (``mode``, see ``MODES``; a braking
+    fallback after a failed solve counts as ``fallback``) applied; empty without any."""
+    flagged = _aggressive_steps(steps, info)
+    if not flagged.any():
+        return {}
+    mode = steps["mode"].where(~((steps["mode"] == "mpc") & steps["status"].notna() & (steps["status"] != "solved")), "fallback")
+    counts = mode[flagged].value_counts()
+    order = [m for m in MODES if m in counts] + sorted(set(counts.index) - set(MODES))
+    return {m: float(counts[m] / flagged.sum()) for m in order}
+
+
+def emergency_brake_steps(steps: pd.DataFrame, info: dict) -> pd.Series:
+    """Whether each step brakes harder than its robot's comfort deceleration (``info``'s
+    ``comfort_decel`` per robot name [m/s^2])."""
+    return steps["accel"] < -steps["robot"].map(info["comfort_decel"]) - 1e-9
+
+
+def _emergency_brakes(steps: pd.DataFrame, info: dict) -> int:
+    """Episodes of braking harder than the comfort deceleration: runs of consecutive such steps
+    of one robot count once."""
+    hard = emergency_brake_steps(steps, info)
+    starts = hard & ~hard.groupby(steps["robot"]).shift(fill_value=False)
+    return int(starts.sum())

@@ -1,4 +1,5 @@
-"""``trajectories.png`` of a lane-change run: road, lanes, cones, pedestrians' and vehicles' paths."""
+"""``trajectories.png`` of a lane-change run: road, lanes, cones, pedestrians' and vehicles' paths,
+and every vehicle's speed and lateral acceleration over time."""
 
 from __future__ import annotations
 
@@ -20,12 +21,14 @@ def _offset(line: np.ndarray, d: float) -> np.ndarray:
 
 def plot_lane_change(result, path: Path) -> None:
     """Draw the run's road (from its SUMO network), every controlled vehicle's path (solid) and
-    reference (dotted), the pedestrians' paths and the cones, with the headline metrics."""
+    reference (dotted), the pedestrians' paths and the cones, with the headline metrics; below,
+    every vehicle's speed and applied lateral acceleration over time, with the scenario's
+    aggressive-driving threshold."""
     from aac_sumo.experiments.lane_change import network_files, scenario_road
 
     scenario, traj = result.scenario, result.trajectories
     rd = scenario_road(scenario, network_files(scenario)[0])
-    fig, ax = plt.subplots(figsize=(14, 5))
+    fig, (ax, ax_v, ax_lat) = plt.subplots(3, 1, figsize=(14, 10), gridspec_kw=dict(height_ratios=[2.2, 1, 1]))
     for line, width in zip(rd.lanes, rd.widths):
         ax.fill(*np.vstack([_offset(line, 0.5 * width), _offset(line, -0.5 * width)[::-1]]).T, color="0.88", lw=0)
         for side in (-0.5, 0.5):
@@ -36,6 +39,8 @@ def plot_lane_change(result, path: Path) -> None:
         ref = steps[steps["robot"] == name]
         ax.plot(ref["ref_x"], ref["ref_y"], ls=":", lw=0.8, color=line.get_color())
         ax.annotate(name, (group["x"].iloc[0], group["y"].iloc[0]), fontsize=6, ha="right", va="center")
+        ax_v.plot(ref["t"], ref["v"], lw=0.9, color=line.get_color())
+        ax_lat.plot(ref["t"], ref["lat_accel"], lw=0.9, color=line.get_color())
     for i, (_, group) in enumerate(traj[traj["kind"] == "pedestrian"].groupby("name", sort=False)):
         ax.plot(group["x"], group["y"], color="tab:red", lw=2, label="pedestrians" if i == 0 else None)
         ax.plot(group["x"].iloc[-1], group["y"].iloc[-1], "v", color="tab:red", ms=5)
@@ -50,6 +55,13 @@ def plot_lane_change(result, path: Path) -> None:
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]" if stretch == 1.0 else f"y [m] (stretched x{stretch:g})")
     ax.legend(fontsize="small", loc="upper left", ncol=4)
+    ax_v.set_ylabel("speed [m/s]")
+    threshold = scenario["metrics.lat_accel_threshold"]
+    for sign in (-1, 1):
+        ax_lat.axhline(sign * threshold, color="tab:red", lw=0.8, ls="--", label="aggressive threshold" if sign > 0 else None)
+    ax_lat.set_ylabel("lateral accel. [m/s²]")
+    ax_lat.set_xlabel("t [s]")
+    ax_lat.legend(fontsize="small", loc="upper right")
     m = result.metrics
     ax.set_title(f"{m['scenario']}: {m['coordinator']}, N={m['horizon']}; task {_fmt(m['task_duration_s'])} s, "
                  f"collisions {m['collisions']} (SUMO {m['sim_collisions']}), min clearance {_fmt(m['min_clearance_m'])} m, "

@@ -106,7 +106,7 @@ def run(scenario: Scenario) -> RunResult:
     finally:
         sim.close()
 
-    steps_df = pd.DataFrame(steps, columns=STEP_COLUMNS)
+    steps_df = with_vehicle_columns(pd.DataFrame(steps, columns=STEP_COLUMNS[:-2]), {r.name: r.model.wheelbase for r in robots}, dt)
     periods_df = pd.DataFrame(periods) if periods else pd.DataFrame(columns=["t", "compute_ms"])
     c = scenario.data["controller"]
     info = dict(
@@ -116,6 +116,7 @@ def run(scenario: Scenario) -> RunResult:
         accel_threshold=scenario["metrics.accel_threshold"], lat_accel_threshold=scenario["metrics.lat_accel_threshold"],
         ttc_max=scenario["metrics.ttc_max"],
         wheelbase={r.name: r.model.wheelbase for r in robots},
+        comfort_decel={r.name: r.model.limits.comfort_decel for r in robots},
     )
     if setup.free_flow_s is not None and completed:
         delay = arrival - setup.free_flow_s
@@ -142,8 +143,17 @@ def run(scenario: Scenario) -> RunResult:
 STEP_COLUMNS = [
     "t", "robot", "x", "y", "heading", "v", "accel", "steer", "ref_x", "ref_y", "ref_heading", "ref_v",
     "status", "solver", "solve_ms", "iterations", "capped", "authority", "reason", "mode", "proximity_score",
-    "proximity_progress", "arrived", "clearance_m", "nearest_robot_m", "ttc_s", "pedestrian_clearance_m",
+    "proximity_progress", "arrived", "clearance_m", "nearest_robot_m", "ttc_s", "pedestrian_clearance_m", "lat_accel", "jerk",
 ]
+
+
+def with_vehicle_columns(steps: pd.DataFrame, wheelbase: dict, dt: float) -> pd.DataFrame:
+    """``steps`` with ``lat_accel``, the applied lateral acceleration ``v^2 tan(steer) / L``
+    [m/s^2] (positive to the left), and ``jerk``, the change of the applied acceleration since
+    the robot's previous step over the period ``dt`` [m/s^3] (NaN at its first step)."""
+    steps["lat_accel"] = steps["v"] ** 2 * np.tan(steps["steer"]) / steps["robot"].map(wheelbase)
+    steps["jerk"] = steps.groupby("robot")["accel"].diff() / dt
+    return steps
 
 
 def reference_point(setup: Setup, i: int, state: np.ndarray) -> np.ndarray:
