@@ -259,6 +259,7 @@ KIND_SECTIONS["lane_change"] = {
     "start_jitter": Key(float, 1.0, "the seed shifts every start along its lane uniformly within +- this [m]", **NN),
     "change_start": Key(float, 5.0, "a vehicle's lane change begins this far beyond its start [m]", **NN),
     "change_length": Key(float, 40.0, "arc length over which the reference moves from start lane to target lane [m]", **P),
+    "curve_lat_accel": Key(float, 2.0, "the references slow down on curves to keep their lateral acceleration within this (and within robot.a_lat_max) [m/s^2]", **P),
     "finish_margin": Key(float, 20.0, "a vehicle has passed the cone zone when its rear axle is this far beyond the last cone [m]", **NN),
     "lane_tolerance": Key(float, 0.5, "lateral distance to the target lane's centre line that counts as arrived in it [m]", **P),
 }

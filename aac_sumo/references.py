@@ -16,19 +16,58 @@ from aac_sumo.kernels import closest_on_polyline
 BACK_OFF_HYSTERESIS = 1.5
 
 
+def smooth_path(points, spacing: float = 0.5, tolerance: float = 0.02) -> tuple[np.ndarray, np.ndarray]:
+    """Points (K, 2) every ``spacing`` [m] along a curvature-continuous path through the polyline
+    ``points`` (M, 2) [m], and the signed curvature (K,) [1/m] there (positive: turning left).
+
+    The path is a quintic smoothing spline on arc length (scipy's ``make_splprep``), so its
+    curvature has no jumps where the polyline has corners (lane shapes from SUMO); it keeps
+    within about ``tolerance`` [m] of the polyline's points. Straight polylines stay straight."""
+    from scipy.interpolate import make_splprep
+
+    pts = np.asarray(points, dtype=float)
+    keep = np.r_[True, np.hypot(*np.diff(pts, axis=0).T) > 1e-9]
+    pts = pts[keep]
+    u = np.r_[0.0, np.cumsum(np.hypot(*np.diff(pts, axis=0).T))]
+    if len(pts) < 6:  # too few points for a quintic: a straight piece or one corner, sampled finer first
+        u_fine = np.linspace(0.0, u[-1], max(6, int(np.ceil(u[-1] / spacing)) + 1))
+        pts = np.column_stack([np.interp(u_fine, u, pts[:, 0]), np.interp(u_fine, u, pts[:, 1])])
+        u = u_fine
+    spline, _ = make_splprep(pts.T, u=u, k=5, s=len(pts) * tolerance**2)
+    grid = np.r_[np.arange(0.0, u[-1], spacing), u[-1]]
+    xy = spline(grid).T
+    d1, d2 = spline.derivative(1)(grid).T, spline.derivative(2)(grid).T
+    curvature = (d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]) / np.maximum(np.hypot(*d1.T), 1e-12) ** 3
+    return xy, curvature
+
+
+def curve_speeds(curvature, spacing: float, speed: float, a_lat: float, decel: float) -> np.ndarray:
+    """Speeds [m/s] at path points ``spacing`` [m] apart with ``curvature`` (K,) [1/m]: at most
+    ``speed``, and ``sqrt(a_lat / |curvature|)`` so that the lateral acceleration ``v^2 |k|``
+    stays within ``a_lat`` [m/s^2]; lowered ahead of each curve so that slowing down for it
+    takes at most ``decel`` [m/s^2]."""
+    with np.errstate(divide="ignore"):
+        v = np.minimum(speed, np.sqrt(a_lat / np.abs(np.asarray(curvature, dtype=float))))
+    for k in range(len(v) - 2, -1, -1):
+        v[k] = min(v[k], np.sqrt(v[k + 1] ** 2 + 2.0 * decel * spacing))
+    return v
+
+
 class PathReference:
     """Path ``waypoints`` (M, 2) [m] driven at ``speed`` [m/s]; decelerates at ``decel`` [m/s^2]
     to stop at the last waypoint when ``stop_at_end`` is set. Within ``approach`` [m] of that
-    goal the reference runs straight from the robot to the goal instead (see :meth:`horizon`)."""
+    goal the reference runs straight from the robot to the goal instead (see :meth:`horizon`).
+    ``limits`` (M,) [m/s], one per waypoint, lowers the speed there further (on curves, say)."""
 
     def __init__(self, waypoints, speed: float, decel: float = 1.5, stop_at_end: bool = True, approach: float = 0.0,
-                 turn_radius: float = 0.0, arrive: float = 0.0):
+                 turn_radius: float = 0.0, arrive: float = 0.0, limits=None):
         pts = np.asarray(waypoints, dtype=float)
         if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2:
             raise ValueError("a path needs at least two (x, y) waypoints")
         seg = np.diff(pts, axis=0)
         keep = np.r_[True, np.hypot(seg[:, 0], seg[:, 1]) > 1e-9]
         self.points = pts[keep]
+        self.limits = None if limits is None else np.asarray(limits, dtype=float)[keep]
         seg = np.diff(self.points, axis=0)
         self.seg_len = np.hypot(seg[:, 0], seg[:, 1])
         self.seg_heading = np.arctan2(seg[:, 1], seg[:, 0])
@@ -58,9 +97,10 @@ class PathReference:
     def speed_at(self, s) -> np.ndarray:
         """Reference speed [m/s] at arc length ``s``."""
         s = np.asarray(s, dtype=float)
+        cap = self.speed if self.limits is None else np.interp(s, self.s, self.limits)
         if not self.stop_at_end:
-            return np.full_like(s, self.speed)
-        return np.minimum(self.speed, np.sqrt(2.0 * self.decel * np.clip(self.length - s, 0.0, None)))
+            return np.minimum(np.full_like(s, self.speed), cap)
+        return np.minimum(cap, np.sqrt(2.0 * self.decel * np.clip(self.length - s, 0.0, None)))
 
     def pose_at(self, s) -> np.ndarray:
         """Rows ``[x, y, heading]`` at arc lengths ``s`` (clamped to the path; extrapolated past

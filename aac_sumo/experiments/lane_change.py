@@ -31,7 +31,7 @@ import numpy as np
 from aac_sumo import network
 from aac_sumo.config import Scenario, ScenarioError
 from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_spec
-from aac_sumo.references import LateralBand, PathReference
+from aac_sumo.references import LateralBand, PathReference, curve_speeds, smooth_path
 from aac_sumo.sim.sumo import SumoOptions, SumoSimulator
 from aac_sumo.world import WorldState
 
@@ -39,6 +39,8 @@ BUNDLED_NET_DIR = Path(__file__).resolve().parents[2] / "sumo_networks" / "lane_
 BUNDLED_NET = BUNDLED_NET_DIR / "lane_change.net.xml"
 BUNDLED_ROUTES = [BUNDLED_NET_DIR / "cones.rou.xml", BUNDLED_NET_DIR / "pedestrians.rou.xml"]
 SAMPLE_STEP = 1.0  # reference path resolution along the road [m]
+SMOOTH_SPACING = 0.5  # point spacing of the smoothed reference paths [m]
+CURVE_DECEL = 1.5  # a reference slows down for a curve at most this hard [m/s^2]
 ROAD_MARGIN = 0.1  # the rear axle keeps half a car width plus this from the road edges [m]
 MIN_LANES = 2  # a lane change needs a second lane [lanes]
 BAND_SETTLE = 10.0  # beyond the end of its lane change a vehicle's band narrows to its target lane over this [m]
@@ -90,6 +92,14 @@ def lane_change_path(rd: network.Road, start: int, target: int, s0: float, chang
     """Waypoints (M, 2) [m] of the rear axle from arc length ``s0`` of lane ``start`` to the road's
     end, blending into lane ``target`` between ``s0 + change_start`` and ``+ change_length``."""
     return blend(rd.lanes[start], rd.lanes[target], s0, s0 + change_start, change_length)
+
+
+def smooth_reference(waypoints: np.ndarray, speed: float, a_lat: float) -> PathReference:
+    """The reference along a curvature-continuous version of ``waypoints`` (M, 2) [m]
+    (:func:`~aac_sumo.references.smooth_path`) at ``speed`` [m/s], slower where its curvature
+    would need more than ``a_lat`` [m/s^2] of lateral acceleration."""
+    points, curvature = smooth_path(waypoints, SMOOTH_SPACING)
+    return PathReference(points, speed, stop_at_end=False, limits=curve_speeds(curvature, SMOOTH_SPACING, speed, a_lat, CURVE_DECEL))
 
 
 def offset_polyline(line: np.ndarray, offset: float) -> np.ndarray:
@@ -187,8 +197,8 @@ def build_lane_change(scenario: Scenario) -> Setup:
         centre_lines = [PathReference(line, 1.0, stop_at_end=False) for line in rd.lanes]
         cone_lane = _cone_lane(rd, centre_lines, cones)
         targets = [target_lane(int(a), cone_lane, lanes) for a in start_lane]
-        tasks = [PathReference(lane_change_path(rd, int(a), b, s0[k], lc["change_start"], lc["change_length"]),
-                               lc["speed"], stop_at_end=False) for k, (a, b) in enumerate(zip(start_lane, targets))]
+        tasks = [smooth_reference(lane_change_path(rd, int(a), b, s0[k], lc["change_start"], lc["change_length"]), lc["speed"],
+                                  min(lc["curve_lat_accel"], scenario["robot.a_lat_max"])) for k, (a, b) in enumerate(zip(start_lane, targets))]
         finish_s = []
         for k, b in enumerate(targets):
             line = centre_lines[b]
