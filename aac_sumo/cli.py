@@ -48,8 +48,10 @@ def _int_list(text: str) -> list[int]:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from aac_sumo.cli_views import ANIMATION_FORMATS, add_animation_options, add_commands as add_view_commands
+
     parser = _Parser(prog=PROG, description="AAC + MPC-FCBF experiments: run, sweep, reproduce the paper's tables, benchmark.")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="{run,sweep,tune,table,bench,net}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="{run,animate,compare,sweep,tune,table,bench,net,scenarios,keys}")
 
     def add_executor(p, resume: bool):
         """Where the runs go (local processes or a Dask cluster), resuming, progress bar."""
@@ -71,6 +73,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, help="the run's seed (same as --set scenario.seed=S)")
     p.add_argument("--out", type=Path, help="output directory (default out/<scenario name>)")
     p.add_argument("--gui", action="store_true", help="show the simulator's GUI (SUMO scenarios only)")
+    p.add_argument("--animate", nargs="?", const="gif", choices=ANIMATION_FORMATS, metavar="{gif,mp4}",
+                   help="also write OUT/animation.gif (or .mp4), as aac-sumo animate does")
+    add_animation_options(p, _positive_int)
+
+    add_view_commands(sub, _positive_int)
 
     p = sub.add_parser("sweep", help="every combination of a grid of keys, K seeds each, in parallel")
     p.add_argument("scenario", metavar="SCENARIO")
@@ -134,16 +141,18 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     from aac_sumo.config import ScenarioError
     from aac_sumo.sim.sumo import SumoError
+    from aac_sumo.cli_views import COMMANDS as VIEW_COMMANDS
+    from aac_sumo.run_files import RunDirError
     from aac_sumo.sweep import SweepError
 
     args = None
     try:
         args = build_parser().parse_args(argv)
         return {"run": cmd_run, "sweep": cmd_sweep, "tune": cmd_tune, "table": cmd_table, "bench": cmd_bench,
-                "net": cmd_net}[args.command](args)
+                "net": cmd_net, **VIEW_COMMANDS}[args.command](args)
     except SystemExit as exc:  # --help
         return exc.code if isinstance(exc.code, int) else 0
-    except (UsageError, ScenarioError, SweepError, SumoError, FileNotFoundError) as exc:
+    except (UsageError, ScenarioError, SweepError, SumoError, RunDirError, FileNotFoundError) as exc:
         return _fail(exc)
     except UnicodeDecodeError as exc:  # a scenario file that is not UTF-8 text
         name = getattr(args, "scenario", None) or "scenario file"
@@ -217,6 +226,10 @@ def cmd_run(args) -> int:
     print(f"{scenario['scenario.name']} ({scenario.source})")
     print(metrics_table(result.metrics))
     print(f"outputs: {out}")
+    if args.animate:
+        from aac_sumo.cli_views import write_animation
+
+        write_animation(result, out, args.animate, args)
     if result.metrics.get("error"):
         print(f"{PROG}: run failed: {result.metrics['error']}", file=sys.stderr)
         return 1

@@ -18,20 +18,25 @@ def _offset(line: np.ndarray, d: float) -> np.ndarray:
     return line + d * np.column_stack([-tangent[:, 1], tangent[:, 0]])
 
 
-def plot_lane_change(result, path: Path) -> None:
-    """Draw the run's road (from its SUMO network), every controlled vehicle's path (solid) and
-    reference (dotted), the pedestrians' paths and the cones, with the headline metrics."""
+def draw_road(ax, scenario) -> None:
+    """The lanes of ``scenario``'s SUMO road (grey, dashed lane edges) on ``ax``."""
     from aac_sumo import network
     from aac_sumo.experiments.lane_change import network_files
 
-    scenario, traj = result.scenario, result.trajectories
     net_path, _ = network_files(scenario)
     rd = network.road(network.read(net_path, "sumo.net", scenario.source), scenario["sumo.edges"], scenario.source)
-    fig, ax = plt.subplots(figsize=(14, 5))
     for line, width in zip(rd.lanes, rd.widths):
         ax.fill(*np.vstack([_offset(line, 0.5 * width), _offset(line, -0.5 * width)[::-1]]).T, color="0.88", lw=0)
         for side in (-0.5, 0.5):
             ax.plot(*_offset(line, side * width).T, color="0.55", lw=0.6, ls="--")
+
+
+def plot_lane_change(result, path: Path) -> None:
+    """Draw the run's road (from its SUMO network), every controlled vehicle's path (solid) and
+    reference (dotted), the pedestrians' paths and the cones, with the headline metrics."""
+    traj = result.trajectories
+    fig, ax = plt.subplots(figsize=(14, 5))
+    draw_road(ax, result.scenario)
     steps = result.steps
     for name, group in traj[traj["kind"] == "controlled"].groupby("name", sort=False):
         (line,) = ax.plot(group["x"], group["y"], lw=1.2)

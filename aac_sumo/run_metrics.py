@@ -1,4 +1,5 @@
-"""What a run's loop recorded, and the metrics assembled from it (see :mod:`aac_sumo.metrics`)."""
+"""What a run's loop recorded, the metrics assembled from it (see :mod:`aac_sumo.metrics`), and
+the result a run returns."""
 
 from __future__ import annotations
 
@@ -9,6 +10,22 @@ import pandas as pd
 
 from aac_sumo.config import Scenario
 from aac_sumo.metrics import compute_metrics, jain
+
+
+@dataclass
+class RunResult:
+    """Metrics, the per-robot step table, the per-period table, every agent's trajectory,
+    each robot's goal (the end of its reference path, rear axle [m]) and each robot's delay
+    (arrival time minus free-flow time [s], NaN if it did not arrive; None when the experiment
+    has no free-flow times)."""
+
+    metrics: dict
+    steps: pd.DataFrame
+    periods: pd.DataFrame
+    trajectories: pd.DataFrame
+    scenario: Scenario
+    goals: np.ndarray | None = None
+    delays: np.ndarray | None = None
 
 
 @dataclass

@@ -8,7 +8,6 @@ import json
 from collections import deque
 import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -21,21 +20,8 @@ from aac_sumo.experiments.common import Setup
 from aac_sumo.geometry import pairwise_rect_clearance
 from aac_sumo.metrics import nearest_robot_distance, pedestrian_clearance, time_to_collision
 from aac_sumo.mpc.problem import get_problem
-from aac_sumo.run_metrics import Recording, assemble_metrics
+from aac_sumo.run_metrics import Recording, RunResult, assemble_metrics
 from aac_sumo.world import WorldState
-
-
-@dataclass
-class RunResult:
-    """Metrics, the per-robot step table, the per-period table, every agent's trajectory, and
-    each robot's goal (the end of its reference path, rear axle [m])."""
-
-    metrics: dict
-    steps: pd.DataFrame
-    periods: pd.DataFrame
-    trajectories: pd.DataFrame
-    scenario: Scenario
-    goals: np.ndarray | None = None
 
 
 def run(scenario: Scenario) -> RunResult:
@@ -63,7 +49,8 @@ def run(scenario: Scenario) -> RunResult:
     metrics = assemble_metrics(scenario, rec, steps, periods, robots=first.robots, free_flow_s=setup.free_flow_s,
                                wall_s=time.perf_counter() - wall_start, setup_s=setup_s)
     goals = np.array([task.points[-1] for task in setup.tasks])
-    return RunResult(metrics, steps, periods, pd.DataFrame(rec.traj), scenario, goals)
+    delays = None if setup.free_flow_s is None else rec.arrival - setup.free_flow_s
+    return RunResult(metrics, steps, periods, pd.DataFrame(rec.traj), scenario, goals, delays)
 
 
 def loop(setup: Setup, rec: Recording) -> None:
@@ -163,7 +150,8 @@ def warm_up(setup: Setup, world: WorldState) -> None:
 
 
 def write_outputs(result: RunResult, out: Path, plot: bool = True) -> None:
-    """Write metrics.json, steps.csv, trajectories.csv, scenario.toml and trajectories.png."""
+    """Write metrics.json, steps.csv, trajectories.csv, scenario.toml, and with ``plot``
+    trajectories.png, timeline.png and fairness.png."""
     out.mkdir(parents=True, exist_ok=True)
     (out / "metrics.json").write_text(json.dumps(result.metrics, indent=2) + "\n")
     result.steps.to_csv(out / "steps.csv", index=False)
@@ -171,5 +159,9 @@ def write_outputs(result: RunResult, out: Path, plot: bool = True) -> None:
     (out / "scenario.toml").write_text(result.scenario.to_toml())
     if plot:
         from aac_sumo.report import plot_run
+        from aac_sumo.report_timeline import plot_fairness, plot_timeline
 
         plot_run(result, out / "trajectories.png")
+        if len(result.steps):
+            plot_timeline(result, out / "timeline.png")
+            plot_fairness(result, out / "fairness.png", result.delays)

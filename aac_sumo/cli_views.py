@@ -1,0 +1,57 @@
+"""The ``aac-sumo`` commands that look at runs and at what is bundled: animate, compare,
+scenarios, keys. :mod:`aac_sumo.cli` adds them to its parser and dispatches to them."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+ANIMATION_FORMATS = ("gif", "mp4")
+
+
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}") from None
+    if not value > 0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a number > 0, got {text!r}")
+    return value
+
+
+def add_animation_options(p, positive_int) -> None:
+    """``--fps``, ``--every`` and ``--ellipses``, shared by ``animate`` and ``run --animate``."""
+    p.add_argument("--fps", type=_positive_float, metavar="F", help="frames per second (default: real time)")
+    p.add_argument("--every", type=positive_int, default=1, metavar="K", help="one frame every K control periods (default 1)")
+    p.add_argument("--ellipses", action="store_true", help="draw each robot's safety ellipse (controller.barrier's shape)")
+
+
+def add_commands(sub, positive_int) -> None:
+    """The subcommands of this module, on the ``aac-sumo`` subparsers ``sub``."""
+    p = sub.add_parser("animate", help="an animation of a run: footprints over time, authority highlighted",
+                       description="Writes RUN_DIR/animation.gif (or .mp4): every agent's footprint over time, the authority "
+                       "robot in gold, robots in a safety stop outlined in red, cones, debris and pedestrians, and on every "
+                       "frame the time and the current authority.")
+    p.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a directory written by aac-sumo run --out")
+    p.add_argument("--format", choices=ANIMATION_FORMATS, default="gif", help="gif (Pillow, default) or mp4 (ffmpeg from imageio-ffmpeg)")
+    add_animation_options(p, positive_int)
+
+
+def write_animation(result, out: Path, fmt: str, args) -> Path:
+    """Animate ``result`` into ``out/animation.<fmt>``; print and return the path."""
+    from aac_sumo.animate import animate
+
+    path = out / f"animation.{fmt}"
+    frames = animate(result, path, fps=args.fps, every=args.every, ellipses=args.ellipses)
+    print(f"animation: {path} ({frames} frames)")
+    return path
+
+
+def cmd_animate(args) -> int:
+    from aac_sumo.run_files import read_run
+
+    write_animation(read_run(args.run_dir), args.run_dir, args.format, args)
+    return 0
+
+
+COMMANDS = {"animate": cmd_animate}
