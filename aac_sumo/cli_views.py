@@ -36,6 +36,12 @@ def add_commands(sub, positive_int) -> None:
     p.add_argument("--format", choices=ANIMATION_FORMATS, default="gif", help="gif (Pillow, default) or mp4 (ffmpeg from imageio-ffmpeg)")
     add_animation_options(p, positive_int)
 
+    p = sub.add_parser("compare", help="several runs side by side: metrics table and overlaid plots",
+                       description="Writes OUT/compare.md and OUT/compare.csv (every metric of every run) and OUT/compare.png "
+                       "(mean speed, smallest clearance and robots arrived over time, and the paths, one colour per run).")
+    p.add_argument("run_dirs", type=Path, nargs="+", metavar="RUN_DIR", help="directories written by aac-sumo run --out (two or more)")
+    p.add_argument("--out", type=Path, required=True, help="output directory")
+
 
 def write_animation(result, out: Path, fmt: str, args) -> Path:
     """Animate ``result`` into ``out/animation.<fmt>``; print and return the path."""
@@ -54,4 +60,16 @@ def cmd_animate(args) -> int:
     return 0
 
 
-COMMANDS = {"animate": cmd_animate}
+def cmd_compare(args) -> int:
+    from aac_sumo.cli import UsageError, _check_out
+    from aac_sumo.compare import compare
+
+    if len(args.run_dirs) < 2:
+        raise UsageError(f"compare: expected two or more RUN_DIRs, got {len(args.run_dirs)}")
+    _check_out(args.out)
+    print(compare(args.run_dirs, args.out), end="")
+    print(f"outputs: {args.out / 'compare.md'}, {args.out / 'compare.csv'}, {args.out / 'compare.png'}")
+    return 0
+
+
+COMMANDS = {"animate": cmd_animate, "compare": cmd_compare}

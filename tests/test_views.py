@@ -57,3 +57,27 @@ def test_animate_bad_input_is_one_line(capsys, argv, expected):
     assert main(argv) == 2
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 1 and expected in err[0], err
+
+
+def test_compare_puts_runs_side_by_side(swarm_run, tmp_path, capsys):
+    lfc = tmp_path / "lfc"
+    assert main([*SWARM, "--set", "controller.coordinator=lfc", "--out", str(lfc)]) == 0
+    out = tmp_path / "cmp"
+    assert main(["compare", str(swarm_run), str(lfc), "--out", str(out)]) == 0
+    table = pd.read_csv(out / "compare.csv")
+    assert list(table["run"]) == ["swarm", "lfc"] and list(table["coordinator"]) == ["aac", "lfc"]
+    assert {"min_clearance_m", "authority_jain", "task_duration_s"} <= set(table.columns)
+    md = (out / "compare.md").read_text()
+    assert "| metric | swarm | lfc |" in md and "| coordinator | aac | lfc |" in md
+    assert Image.open(out / "compare.png").format == "PNG"
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["compare", "a", "--out", "x"], "compare: expected two or more RUN_DIRs, got 1"),
+    (["compare", "no/run", "other", "--out", "x"], "no/run: expected a run directory"),
+    (["compare", "a", "b"], "the following arguments are required: --out"),
+])
+def test_compare_bad_input_is_one_line(capsys, argv, expected):
+    assert main(argv) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and expected in err[0], err
