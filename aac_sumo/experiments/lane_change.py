@@ -32,6 +32,7 @@ from aac_sumo import network
 from aac_sumo.config import Scenario, ScenarioError
 from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_spec
 from aac_sumo.references import LateralBand, PathReference
+from aac_sumo.registry import register_experiment
 from aac_sumo.sim.sumo import SumoOptions, SumoSimulator
 from aac_sumo.world import WorldState
 
@@ -140,6 +141,7 @@ def network_files(scenario: Scenario) -> tuple[Path, list[Path]]:
     return resolve(su["net"], "sumo.net"), routes
 
 
+@register_experiment("lane_change")
 def build_lane_change(scenario: Scenario) -> Setup:
     lc, su = scenario.data["lane_change"], scenario.data["sumo"]
     src = scenario.source
