@@ -9,10 +9,14 @@ with failed runs) still writes its outputs and exits with status 1.
 from __future__ import annotations
 
 import argparse
+import difflib
 import json
 import math
+import re
 import sys
 from pathlib import Path
+
+from aac_sumo import __version__
 
 PROG = "aac-sumo"
 
@@ -24,7 +28,16 @@ class UsageError(Exception):
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str):  # one line instead of usage + message, still exit status 2
         where = self.prog[len(PROG):].strip()
-        raise UsageError(f"{where}: {message}" if where else message)
+        raise UsageError((f"{where}: {message}" if where else message) + _did_you_mean(message))
+
+
+def _did_you_mean(message: str) -> str:
+    """``; did you mean 'run'?`` for argparse's "invalid choice: 'rn' (choose from ...)", else nothing."""
+    found = re.search(r"invalid choice: '?([^' ]*)'? \(choose from (.*)\)", message)
+    if not found:
+        return ""
+    match = difflib.get_close_matches(found.group(1), [c.strip(" '") for c in found.group(2).split(",")], n=1)
+    return f"; did you mean '{match[0]}'?" if match else ""
 
 
 def _positive_int(text: str) -> int:
@@ -51,6 +64,7 @@ def build_parser() -> argparse.ArgumentParser:
     from aac_sumo.cli_views import ANIMATION_FORMATS, add_animation_options, add_commands as add_view_commands
 
     parser = _Parser(prog=PROG, description="AAC + MPC-FCBF experiments: run, sweep, reproduce the paper's tables, benchmark.")
+    parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="{run,animate,compare,sweep,tune,table,bench,net,scenarios,keys}")
 
     def add_executor(p, resume: bool):

@@ -42,6 +42,13 @@ def add_commands(sub, positive_int) -> None:
     p.add_argument("run_dirs", type=Path, nargs="+", metavar="RUN_DIR", help="directories written by aac-sumo run --out (two or more)")
     p.add_argument("--out", type=Path, required=True, help="output directory")
 
+    sub.add_parser("scenarios", help="the bundled scenarios, each with its one-line purpose",
+                   description="Lists the bundled scenarios (names for SCENARIO in run, sweep, tune and keys).")
+    p = sub.add_parser("keys", help="every scenario key with its default, unit and meaning",
+                       description="Lists every key of SCENARIO (its value in that file as the default), or without "
+                       "SCENARIO every key of every scenario kind with the schema's default.")
+    p.add_argument("scenario", nargs="?", metavar="SCENARIO", help="a .toml file or a bundled scenario name")
+
 
 def write_animation(result, out: Path, fmt: str, args) -> Path:
     """Animate ``result`` into ``out/animation.<fmt>``; print and return the path."""
@@ -72,4 +79,26 @@ def cmd_compare(args) -> int:
     return 0
 
 
-COMMANDS = {"animate": cmd_animate, "compare": cmd_compare}
+def cmd_scenarios(args) -> int:
+    from aac_sumo.catalog import bundled
+
+    rows = bundled()
+    width = max(len(name) for name, _ in rows)
+    for name, purpose in rows:
+        print(f"{name:<{width}}  {purpose}")
+    return 0
+
+
+def cmd_keys(args) -> int:
+    from aac_sumo import config
+    from aac_sumo.catalog import key_rows
+
+    rows = key_rows(config.load(args.scenario) if args.scenario else None)
+    widths = [max(len(row[i]) for row in rows) for i in range(3)]
+    header = ("key", "default", "unit", "meaning")
+    for row in [header, *rows]:
+        print("  ".join(f"{cell:<{w}}" for cell, w in zip(row[:3], widths)) + "  " + row[3])
+    return 0
+
+
+COMMANDS = {"animate": cmd_animate, "compare": cmd_compare, "scenarios": cmd_scenarios, "keys": cmd_keys}
