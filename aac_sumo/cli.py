@@ -86,7 +86,9 @@ def build_parser() -> argparse.ArgumentParser:
     add_set(p)
     p.add_argument("--seed", type=int, help="the run's seed (same as --set scenario.seed=S)")
     p.add_argument("--out", type=Path, help="output directory (default out/<scenario name>)")
-    p.add_argument("--gui", action="store_true", help="show the simulator's GUI (SUMO scenarios only)")
+    p.add_argument("--gui", action="store_true", help="show the run in sumo-gui (SUMO scenarios only): the authority car gold, "
+                   "cars in a safety stop red; the window stays open at the end until it is closed")
+    p.add_argument("--delay", type=float, metavar="MS", help="with --gui: pause per simulation step [ms], to watch")
     p.add_argument("--animate", nargs="?", const="gif", choices=ANIMATION_FORMATS, metavar="{gif,mp4}",
                    help="also write OUT/animation.gif (or .mp4), as aac-sumo animate does")
     add_animation_options(p, _positive_int)
@@ -206,11 +208,12 @@ def metrics_table(metrics: dict) -> str:
     return "\n".join(f"  {k:<{width}}  {_fmt_value(metrics[k])}" for k in keys)
 
 
-def _gui_overrides(scenario) -> list[str] | None:
-    """``--set <section>.gui=true`` when the scenario's schema has a GUI switch, else None."""
+def _gui_overrides(scenario, delay: float | None) -> list[str] | None:
+    """``--set <section>.gui=true`` (and ``<section>.delay=MS``) when the scenario's schema has a
+    GUI switch, else None."""
     for section, keys in scenario.schema().items():
         if "gui" in keys:
-            return [f"{section}.gui=true"]
+            return [f"{section}.gui=true"] + ([f"{section}.delay={delay!r}"] if delay is not None else [])
     return None
 
 
@@ -225,8 +228,10 @@ def cmd_run(args) -> int:
 
     sets = list(args.sets) + ([f"scenario.seed={args.seed}"] if args.seed is not None else [])
     scenario = config.load(args.scenario, sets)
+    if args.delay is not None and (not args.gui or not 0 <= args.delay < float("inf")):
+        raise UsageError(f"run: --delay {args.delay:g}: expected a number of milliseconds >= 0, with --gui")
     if args.gui:
-        gui = _gui_overrides(scenario)
+        gui = _gui_overrides(scenario, args.delay)
         if gui is None:
             print(f"note: scenario kind '{scenario.kind}' runs on the internal simulator, which has no GUI; continuing without one")
         else:

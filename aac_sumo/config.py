@@ -258,6 +258,7 @@ SUMO_SECTION: dict[str, Key] = {
     "edges": Key(str, "", "space-separated edge ids of the road, in driving order (empty: the longest chain of car edges)"),
     "cone_types": Key(str, "cone", "comma-separated vType ids whose vehicles are cones (static obstacles)"),
     "gui": Key(bool, False, "show the run in sumo-gui (set by aac-sumo run --gui)"),
+    "delay": Key(float, 0.0, "sumo-gui's pause per simulation step, to watch a run (set by aac-sumo run --delay) [ms]", **NN),
     "fcd": Key(bool, False, "write SUMO's floating-car-data trajectories, fcd.xml, into sumo.output_dir"),
     "output_dir": Key(str, "", "directory of SUMO's own output files (aac-sumo run sets it to --out; empty: out/<scenario name>)"),
 }

@@ -82,6 +82,8 @@ def loop(setup: Setup, rec: Recording) -> None:
         ttc = time_to_collision(world)
         nearest = nearest_robot_distance(world)
         to_pedestrians = pedestrian_clearance(world)
+        sim.show({robot.name for robot, r in zip(world.robots, decision.robots) if r.authority},
+                 {robot.name for robot, r in zip(world.robots, decision.robots) if r.mode == "safety_stop"})
         contacts = sim.step(decision.inputs)
         rec.collisions += len(contacts.overlaps - active_overlaps)
         active_overlaps = contacts.overlaps

@@ -175,7 +175,7 @@ def build_lane_change(scenario: Scenario) -> Setup:
         out.mkdir(parents=True, exist_ok=True)
         fcd = out / "fcd.xml"
     options = SumoOptions(net_path, routes, tuple(t.strip() for t in su["cone_types"].split(",") if t.strip()),
-                          su["gui"], fcd, scenario["scenario.seed"])
+                          su["gui"], fcd, scenario["scenario.seed"], su["delay"])
     sim = SumoSimulator(robots, states, scenario["scenario.dt"], rd.edges, options)
     try:
         world = sim.observe()
