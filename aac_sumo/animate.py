@@ -145,12 +145,14 @@ def _figure(traj, dpi: int):
         spread = ours.groupby(ours["t"].round(6))["x"].agg(lambda x: x.max() - x.min()).max()
         width = max(spread + 4.0 * pad, FOLLOW_ASPECT * (y1 - y0))
 
-        def window(ax, rows):
+        centre = 0.5 * (x0 + x1)
+
+        def follow_robots(ax, rows):
             mine = rows.loc[rows["kind"] == "controlled", "x"]
-            mid = 0.5 * (mine.min() + mine.max()) if len(mine) else 0.5 * (x0 + x1)
+            mid = 0.5 * (mine.min() + mine.max()) if len(mine) else centre
             ax.set_xlim(mid - 0.5 * width, mid + 0.5 * width)
 
-        x0, x1 = 0.0, width
+        window, x0, x1 = follow_robots, 0.0, width
     inches_w = 10.0 if window is None else 12.0
     inches_h = float(np.clip(inches_w * (y1 - y0) / (x1 - x0), 2.5, 8.0)) + 1.0
     size = [2 * round(v * dpi / 2) / dpi for v in (inches_w, inches_h)]

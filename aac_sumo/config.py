@@ -284,10 +284,11 @@ class Scenario:
     def schema(self) -> dict[str, dict[str, Key]]:
         return schema_for(self.kind)
 
-    def with_overrides(self, assignments: list[str]) -> "Scenario":
-        """A copy with ``section.key=value`` assignments applied and type-checked."""
+    def with_overrides(self, assignments: list[str], flag: str = "--set") -> "Scenario":
+        """A copy with ``section.key=value`` assignments applied and type-checked; errors name
+        the command-line ``flag`` they came from."""
         data = copy.deepcopy(self.data)
-        where = f"{self.source} --set"
+        where = f"{self.source} {flag}"
         for text in assignments:
             dotted, sep, raw = text.partition("=")
             if not sep:
@@ -351,14 +352,15 @@ def resolve(name_or_path: str) -> Path:
     return path
 
 
-def load(name_or_path: str, overrides: list[str] | None = None) -> Scenario:
-    """Load, validate and fill defaults; then apply ``overrides`` (``section.key=value``)."""
+def load(name_or_path: str, overrides: list[str] | None = None, flag: str = "--set") -> Scenario:
+    """Load, validate and fill defaults; then apply ``overrides`` (``section.key=value``, given
+    with the command-line ``flag``)."""
     path = resolve(name_or_path)
     try:
         raw = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(path, "(syntax)", f"valid TOML ({exc})") from None
-    return Scenario.from_dict(raw, str(path)).with_overrides(overrides or [])
+    return Scenario.from_dict(raw, str(path)).with_overrides(overrides or [], flag)
 
 
 def _did_you_mean(word: str, known) -> str:

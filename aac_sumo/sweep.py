@@ -89,12 +89,12 @@ def plan_tasks(scenario: str, sets: list[str], grid: list[tuple[str, list[str]]]
     if seeds < 1:
         raise SweepError(f"--seeds {seeds}: expected an integer >= 1")
     source = str(config.resolve(scenario).resolve())
-    config.load(source, list(sets))  # the --set overrides alone, so their errors name no grid value
+    base_scenario = config.load(source, list(sets))  # the --set overrides alone, so their errors name no grid value
     keys = [k for k, _ in grid]
     tasks: list[Task] = []
     for combo in itertools.product(*(values for _, values in grid)):
         combo_sets = [f"{k}={v}" for k, v in zip(keys, combo)]
-        loaded = config.load(source, list(sets) + combo_sets)
+        loaded = base_scenario.with_overrides(combo_sets, "--grid")
         values = tuple((k, loaded[k]) for k in keys)
         base = loaded["scenario.seed"]
         for i in range(seeds):
