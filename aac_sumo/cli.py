@@ -123,7 +123,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, help="output directory (default out/tune/<scenario name>)")
     add_executor(p, resume=False)
 
-    from aac_sumo.tables import LAYER_CHOICES, TABLES
+    from aac_sumo.table_common import LAYER_CHOICES
+    from aac_sumo.tables import TABLES
 
     p = sub.add_parser("table", help="one of the paper's tables, ours beside the paper's values; or the circle swap",
                        description="swarm: Table I (AAC vs LFC, horizons 5/10/15); lane-change: Table II (SUMO); "

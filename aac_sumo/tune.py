@@ -3,7 +3,7 @@
 ``aac-sumo tune SCENARIO --param KEY=LO:HI[:log|:int] ... --objective [max:]METRIC
 [--constraint METRIC<op>VALUE ...] --trials T --seeds K`` proposes T candidates one after the
 other. Each candidate (a value for every ``--param``) is run on K scenario seeds in parallel
-through the same :class:`~aac_sumo.sweep.Executor` as sweeps (local processes or a Dask cluster),
+through the same :class:`~aac_sumo.executor.Executor` as sweeps (local processes or a Dask cluster),
 and scored by the mean of the objective metric over the seeds.
 
 The parts: :mod:`aac_sumo.tune_search` (specifications, trials, penalties and the samplers: how a
@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from aac_sumo import config
-from aac_sumo.sweep import Executor
+from aac_sumo.executor import Executor
 from aac_sumo.tune_objectives import ScenarioEvaluator, analytic_evaluator, benchmark, branin, check_params, hartmann3
 from aac_sumo.tune_outputs import best_toml, plot_tuning, read_trials, summary, write_trials
 from aac_sumo.tune_search import (Constraint, Objective, Param, Search, Trial, TuneError, best_trial, default_init, judge,

@@ -11,7 +11,8 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from aac_sumo import config
-from aac_sumo.sweep import Executor, Task, error_row, run_task
+from aac_sumo.executor import Executor
+from aac_sumo.sweep import Task, error_row, run_task
 from aac_sumo.tune_search import SAMPLERS, Evaluate, Objective, Param, Search, TuneError
 
 
@@ -37,7 +38,7 @@ def check_params(source: str, sets: list[str], params: Sequence[Param]) -> confi
 
 class ScenarioEvaluator:
     """Runs candidates on ``seeds`` seeds (base seed + 0..seeds-1) of a scenario through an
-    :class:`~aac_sumo.sweep.Executor`, all runs of a batch at once."""
+    :class:`~aac_sumo.executor.Executor`, all runs of a batch at once."""
 
     def __init__(self, source: str, sets: list[str], params: Sequence[Param], seeds: int, executor: Executor):
         self.source, self.sets, self.params, self.seeds, self.executor = source, list(sets), list(params), seeds, executor

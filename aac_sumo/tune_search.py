@@ -5,7 +5,7 @@ Improvement, and random search).
 ``aac-sumo tune SCENARIO --param KEY=LO:HI[:log|:int] ... --objective [max:]METRIC
 [--constraint METRIC<op>VALUE ...] --trials T --seeds K`` proposes T candidates one after the
 other. Each candidate (a value for every ``--param``) is run on K scenario seeds in parallel
-through the same :class:`~aac_sumo.sweep.Executor` as sweeps (local processes or a Dask cluster),
+through the same :class:`~aac_sumo.executor.Executor` as sweeps (local processes or a Dask cluster),
 and scored by the mean of the objective metric over the seeds.
 
 How a candidate is proposed (``--sampler``):
