@@ -73,10 +73,31 @@ def animate(result, path: Path, fps: float | None = None, every: int = 1, ellips
     """Write the animation of ``result`` (a :class:`~aac_sumo.run_metrics.RunResult`) to ``path``
     (``.gif`` or ``.mp4``): one frame per ``every`` recorded periods, ``fps`` frames per second
     (default: real time). Returns the number of frames."""
+    fig, draw, times = scene(result, ellipses, dpi)
+    times = times[::every]
+    fps = fps or 1.0 / (result.scenario["scenario.dt"] * every)
+    animation = FuncAnimation(fig, draw, frames=list(times), blit=False, cache_frame_data=False)
+    animation.save(str(path), writer=_writer(Path(path).suffix.lstrip("."), fps), dpi=dpi)
+    plt.close(fig)
+    return len(times)
+
+
+def still(result, path: Path, t: float, ellipses: bool = False, dpi: int = 100) -> float:
+    """Write the frame of the recorded time nearest to ``t`` [s] as a picture (``.png``); returns
+    that time [s]."""
+    fig, draw, times = scene(result, ellipses, dpi)
+    nearest = float(times[np.argmin(np.abs(times - t))])
+    draw(nearest)
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return nearest
+
+
+def scene(result, ellipses: bool, dpi: int):
+    """The figure of a run, ``draw(t)`` that shows it at recorded time ``t`` [s], and the
+    recorded times (sorted)."""
     scenario, traj, m = result.scenario, result.trajectories, result.metrics
-    dt = scenario["scenario.dt"]
-    fps = fps or 1.0 / (dt * every)
-    times = np.sort(traj["t"].round(6).unique())[::every]
+    times = np.sort(traj["t"].round(6).unique())
     frames = {t: rows for t, rows in traj.groupby(traj["t"].round(6), sort=True)}
     notes = frame_notes(result.steps)
     robots = list(dict.fromkeys(traj.loc[traj["kind"] == "controlled", "name"]))
@@ -127,10 +148,7 @@ def animate(result, path: Path, fps: float | None = None, every: int = 1, ellips
         caption.set_text(f"{title}\nt = {t:6.2f} s   authority: {', '.join(authority) or '-'}{extra}")
         return bodies, regions, caption
 
-    animation = FuncAnimation(fig, draw, frames=list(times), blit=False, cache_frame_data=False)
-    animation.save(str(path), writer=_writer(Path(path).suffix.lstrip("."), fps), dpi=dpi)
-    plt.close(fig)
-    return len(times)
+    return fig, draw, times
 
 
 def _figure(traj, dpi: int):

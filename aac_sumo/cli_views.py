@@ -19,6 +19,16 @@ def _positive_float(text: str) -> float:
     return value
 
 
+def _time(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a time >= 0 [s], got {text!r}") from None
+    if not 0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a time >= 0 [s], got {text!r}")
+    return value
+
+
 def add_animation_options(p, positive_int) -> None:
     """``--fps``, ``--every`` and ``--ellipses``, shared by ``animate`` and ``run --animate``."""
     p.add_argument("--fps", type=_positive_float, metavar="F", help="frames per second (default: real time)")
@@ -35,6 +45,7 @@ def add_commands(sub, positive_int) -> None:
     p.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a directory written by aac-sumo run --out")
     p.add_argument("--format", choices=ANIMATION_FORMATS, default="gif", help="gif (Pillow, default) or mp4 (ffmpeg from imageio-ffmpeg)")
     add_animation_options(p, positive_int)
+    p.add_argument("--still", type=_time, metavar="T", help="write only the frame nearest to time T [s], as RUN_DIR/frame_T.png")
 
     p = sub.add_parser("compare", help="several runs side by side: metrics table and overlaid plots",
                        description="Writes OUT/compare.md and OUT/compare.csv (every metric of every run) and OUT/compare.png "
@@ -61,9 +72,16 @@ def write_animation(result, out: Path, fmt: str, args) -> Path:
 
 
 def cmd_animate(args) -> int:
+    from aac_sumo.animate import still
     from aac_sumo.run_files import read_run
 
-    write_animation(read_run(args.run_dir), args.run_dir, args.format, args)
+    result = read_run(args.run_dir)
+    if args.still is None:
+        write_animation(result, args.run_dir, args.format, args)
+        return 0
+    path = args.run_dir / f"frame_{args.still:g}.png"
+    t = still(result, path, args.still, ellipses=args.ellipses)
+    print(f"frame: {path} (t = {t:g} s)")
     return 0
 
 

@@ -42,6 +42,13 @@ def test_animate_writes_an_mp4_with_every_kth_frame(swarm_run, capsys):
     assert frames == 6 and seconds == pytest.approx(6 / 5, abs=0.01)
 
 
+def test_animate_still_writes_the_frame_nearest_to_a_time(swarm_run, capsys):
+    assert main(["animate", str(swarm_run), "--still", "0.52"]) == 0
+    assert "t = 0.5 s" in capsys.readouterr().out
+    with Image.open(swarm_run / "frame_0.52.png") as frame:
+        assert frame.size == Image.open(swarm_run / "animation.gif").size
+
+
 def test_every_run_writes_its_timeline_and_fairness_pictures(swarm_run):
     for name in ("timeline.png", "fairness.png"):
         with Image.open(swarm_run / name) as picture:
