@@ -9,10 +9,14 @@ with failed runs) still writes its outputs and exits with status 1.
 from __future__ import annotations
 
 import argparse
+import difflib
 import json
 import math
+import re
 import sys
 from pathlib import Path
+
+from aac_sumo import __version__
 
 PROG = "aac-sumo"
 
@@ -24,7 +28,16 @@ class UsageError(Exception):
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str):  # one line instead of usage + message, still exit status 2
         where = self.prog[len(PROG):].strip()
-        raise UsageError(f"{where}: {message}" if where else message)
+        raise UsageError((f"{where}: {message}" if where else message) + _did_you_mean(message))
+
+
+def _did_you_mean(message: str) -> str:
+    """``; did you mean 'run'?`` for argparse's "invalid choice: 'rn' (choose from ...)", else nothing."""
+    found = re.search(r"invalid choice: '?([^' ]*)'? \(choose from (.*)\)", message)
+    if not found:
+        return ""
+    match = difflib.get_close_matches(found.group(1), [c.strip(" '") for c in found.group(2).split(",")], n=1)
+    return f"; did you mean '{match[0]}'?" if match else ""
 
 
 def _positive_int(text: str) -> int:
@@ -48,8 +61,11 @@ def _int_list(text: str) -> list[int]:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from aac_sumo.cli_views import ANIMATION_FORMATS, add_animation_options, add_commands as add_view_commands
+
     parser = _Parser(prog=PROG, description="AAC + MPC-FCBF experiments: run, sweep, reproduce the paper's tables, benchmark.")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="{run,sweep,tune,table,bench,net}")
+    parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="{run,animate,compare,sweep,tune,table,bench,net,scenarios,keys}")
 
     def add_executor(p, resume: bool):
         """Where the runs go (local processes or a Dask cluster), resuming, progress bar."""
@@ -70,7 +86,14 @@ def build_parser() -> argparse.ArgumentParser:
     add_set(p)
     p.add_argument("--seed", type=int, help="the run's seed (same as --set scenario.seed=S)")
     p.add_argument("--out", type=Path, help="output directory (default out/<scenario name>)")
-    p.add_argument("--gui", action="store_true", help="show the simulator's GUI (SUMO scenarios only)")
+    p.add_argument("--gui", action="store_true", help="show the run in sumo-gui (SUMO scenarios only): the authority car gold, "
+                   "cars in a safety stop red; the window stays open at the end until it is closed")
+    p.add_argument("--delay", type=float, metavar="MS", help="with --gui: pause per simulation step [ms], to watch")
+    p.add_argument("--animate", nargs="?", const="gif", choices=ANIMATION_FORMATS, metavar="{gif,mp4}",
+                   help="also write OUT/animation.gif (or .mp4), as aac-sumo animate does")
+    add_animation_options(p, _positive_int)
+
+    add_view_commands(sub, _positive_int)
 
     p = sub.add_parser("sweep", help="every combination of a grid of keys, K seeds each, in parallel")
     p.add_argument("scenario", metavar="SCENARIO")
@@ -100,7 +123,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", type=Path, help="output directory (default out/tune/<scenario name>)")
     add_executor(p, resume=False)
 
-    from aac_sumo.tables import LAYER_CHOICES, TABLES
+    from aac_sumo.table_common import LAYER_CHOICES
+    from aac_sumo.tables import TABLES
 
     p = sub.add_parser("table", help="one of the paper's tables, ours beside the paper's values; or the circle swap",
                        description="swarm: Table I (AAC vs LFC, horizons 5/10/15); lane-change: Table II (SUMO); "
@@ -140,16 +164,18 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     from aac_sumo.config import ScenarioError
     from aac_sumo.sim.sumo import SumoError
+    from aac_sumo.cli_views import COMMANDS as VIEW_COMMANDS
+    from aac_sumo.run_files import RunDirError
     from aac_sumo.sweep import SweepError
 
     args = None
     try:
         args = build_parser().parse_args(argv)
         return {"run": cmd_run, "sweep": cmd_sweep, "tune": cmd_tune, "table": cmd_table, "bench": cmd_bench,
-                "net": cmd_net}[args.command](args)
+                "net": cmd_net, **VIEW_COMMANDS}[args.command](args)
     except SystemExit as exc:  # --help
         return exc.code if isinstance(exc.code, int) else 0
-    except (UsageError, ScenarioError, SweepError, SumoError, FileNotFoundError) as exc:
+    except (UsageError, ScenarioError, SweepError, SumoError, RunDirError, FileNotFoundError) as exc:
         return _fail(exc)
     except UnicodeDecodeError as exc:  # a scenario file that is not UTF-8 text
         name = getattr(args, "scenario", None) or "scenario file"
@@ -189,11 +215,12 @@ def metrics_table(metrics: dict) -> str:
     return "\n".join(f"  {k:<{width}}  {_fmt_value(metrics[k])}" for k in keys)
 
 
-def _gui_overrides(scenario) -> list[str] | None:
-    """``--set <section>.gui=true`` when the scenario's schema has a GUI switch, else None."""
+def _gui_overrides(scenario, delay: float | None) -> list[str] | None:
+    """``--set <section>.gui=true`` (and ``<section>.delay=MS``) when the scenario's schema has a
+    GUI switch, else None."""
     for section, keys in scenario.schema().items():
         if "gui" in keys:
-            return [f"{section}.gui=true"]
+            return [f"{section}.gui=true"] + ([f"{section}.delay={delay!r}"] if delay is not None else [])
     return None
 
 
@@ -208,8 +235,10 @@ def cmd_run(args) -> int:
 
     sets = list(args.sets) + ([f"scenario.seed={args.seed}"] if args.seed is not None else [])
     scenario = config.load(args.scenario, sets)
+    if args.delay is not None and (not args.gui or not 0 <= args.delay < float("inf")):
+        raise UsageError(f"run: --delay {args.delay:g}: expected a number of milliseconds >= 0, with --gui")
     if args.gui:
-        gui = _gui_overrides(scenario)
+        gui = _gui_overrides(scenario, args.delay)
         if gui is None:
             print(f"note: scenario kind '{scenario.kind}' runs on the internal simulator, which has no GUI; continuing without one")
         else:
@@ -223,6 +252,10 @@ def cmd_run(args) -> int:
     print(f"{scenario['scenario.name']} ({scenario.source})")
     print(metrics_table(result.metrics))
     print(f"outputs: {out}")
+    if args.animate:
+        from aac_sumo.cli_views import write_animation
+
+        write_animation(result, out, args.animate, args)
     if result.metrics.get("error"):
         print(f"{PROG}: run failed: {result.metrics['error']}", file=sys.stderr)
         return 1

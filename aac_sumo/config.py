@@ -10,6 +10,7 @@ message is one line naming the file, the key and what was expected.
 from __future__ import annotations
 
 import copy
+import difflib
 import math
 import tomllib
 from dataclasses import dataclass
@@ -270,6 +271,7 @@ SUMO_SECTION: dict[str, Key] = {
                  "with the car lanes the scenario needs; aac-sumo net info NET lists them)"),
     "cone_types": Key(str, "cone", "comma-separated vType ids whose vehicles are cones (static obstacles)"),
     "gui": Key(bool, False, "show the run in sumo-gui (set by aac-sumo run --gui)"),
+    "delay": Key(float, 0.0, "sumo-gui's pause per simulation step, to watch a run (set by aac-sumo run --delay) [ms]", **NN),
     "fcd": Key(bool, False, "write SUMO's floating-car-data trajectories, fcd.xml, into sumo.output_dir"),
     "output_dir": Key(str, "", "directory of SUMO's own output files (aac-sumo run sets it to --out; empty: out/<scenario name>)"),
 }
@@ -295,17 +297,38 @@ class Scenario:
     def schema(self) -> dict[str, dict[str, Key]]:
         return schema_for(self.kind)
 
-    def with_overrides(self, assignments: list[str]) -> "Scenario":
-        """A copy with ``section.key=value`` assignments applied and type-checked."""
+    def with_overrides(self, assignments: list[str], flag: str = "--set") -> "Scenario":
+        """A copy with ``section.key=value`` assignments applied and type-checked; errors name
+        the command-line ``flag`` they came from."""
         data = copy.deepcopy(self.data)
+        where = f"{self.source} {flag}"
         for text in assignments:
             dotted, sep, raw = text.partition("=")
             if not sep:
                 raise ScenarioError(self.source, text, "--set KEY=VALUE")
             schema = schema_for(data["scenario"]["kind"])
-            section, key = _lookup(schema, dotted.strip(), self.source)
-            data[section][key] = _check(schema, section, key, parse_value(raw.strip(), schema[section][key]), self.source)
+            section, key = _lookup(schema, dotted.strip(), where)
+            data[section][key] = _check(schema, section, key, parse_value(raw.strip(), schema[section][key]), where)
         return Scenario(data, self.source)
+
+    @classmethod
+    def from_dict(cls, raw: dict[str, dict[str, Any]], source: str = "<dict>") -> "Scenario":
+        """A scenario from nested ``{section: {key: value}}`` as a TOML file would hold it:
+        validated, defaults filled; ``source`` names it in errors."""
+        kind = raw.get("scenario", {}).get("kind", COMMON["scenario"]["kind"].default)
+        if kind not in KIND_SECTIONS:
+            raise ScenarioError(source, "scenario.kind", COMMON["scenario"]["kind"].expected(), kind)
+        schema = schema_for(kind)
+        data = {section: {k: key.default for k, key in keys.items()} for section, keys in schema.items()}
+        for section, table in raw.items():
+            if section not in schema:
+                raise ScenarioError(source, section, "a section among " + ", ".join(schema) + _did_you_mean(section, schema))
+            if not isinstance(table, dict):
+                raise ScenarioError(source, section, "a [section] table", table)
+            for key, value in table.items():
+                _lookup(schema, f"{section}.{key}", source)
+                data[section][key] = _check(schema, section, key, value, source)
+        return cls(data, source)
 
     def to_toml(self) -> str:
         """The full scenario as TOML text (every key, defaults included)."""
@@ -350,39 +373,35 @@ def resolve(name_or_path: str) -> Path:
     if path.suffix != ".toml" and not path.exists():
         path = BUNDLED_DIR / f"{name_or_path}.toml"
     if not path.is_file():
-        bundled = ", ".join(sorted(p.stem for p in BUNDLED_DIR.glob("*.toml")))
-        raise ScenarioError(name_or_path, "scenario", f"an existing .toml file or a bundled name ({bundled})")
+        names = sorted(p.stem for p in BUNDLED_DIR.glob("*.toml"))
+        hint = _did_you_mean(name_or_path, names) or f" ({', '.join(names)})"
+        raise ScenarioError(name_or_path, "scenario", f"an existing .toml file or a bundled name{hint}")
     return path
 
 
-def load(name_or_path: str, overrides: list[str] | None = None) -> Scenario:
-    """Load, validate and fill defaults; then apply ``overrides`` (``section.key=value``)."""
+def load(name_or_path: str, overrides: list[str] | None = None, flag: str = "--set") -> Scenario:
+    """Load, validate and fill defaults; then apply ``overrides`` (``section.key=value``, given
+    with the command-line ``flag``)."""
     path = resolve(name_or_path)
     try:
         raw = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(path, "(syntax)", f"valid TOML ({exc})") from None
-    kind = raw.get("scenario", {}).get("kind", COMMON["scenario"]["kind"].default)
-    if kind not in KIND_SECTIONS:
-        raise ScenarioError(path, "scenario.kind", COMMON["scenario"]["kind"].expected(), kind)
-    schema = schema_for(kind)
-    data = {section: {k: key.default for k, key in keys.items()} for section, keys in schema.items()}
-    for section, table in raw.items():
-        if section not in schema:
-            raise ScenarioError(path, section, "a section among " + ", ".join(schema))
-        if not isinstance(table, dict):
-            raise ScenarioError(path, section, "a [section] table", table)
-        for key, value in table.items():
-            _lookup(schema, f"{section}.{key}", path)
-            data[section][key] = _check(schema, section, key, value, path)
-    return Scenario(data, str(path)).with_overrides(overrides or [])
+    return Scenario.from_dict(raw, str(path)).with_overrides(overrides or [], flag)
+
+
+def _did_you_mean(word: str, known) -> str:
+    """`` (did you mean X?)`` for the closest of ``known`` to ``word``, or nothing."""
+    match = difflib.get_close_matches(word, list(known), n=1, cutoff=0.6)
+    return f" (did you mean {match[0]}?)" if match else ""
 
 
 def _lookup(schema, dotted: str, source) -> tuple[str, str]:
     section, _, key = dotted.partition(".")
     if section not in schema or key not in schema[section]:
+        hint = _did_you_mean(dotted, [f"{s}.{k}" for s, keys in schema.items() for k in keys])
         known = ", ".join(f"{section}.{k}" for k in schema.get(section, {})) or ", ".join(schema)
-        raise ScenarioError(source, dotted, f"a known key ({known})")
+        raise ScenarioError(source, dotted, f"a known key{hint}" if hint else f"a known key ({known})")
     return section, key
 
 

@@ -70,21 +70,25 @@ def jain(values) -> float | None:
     return float(x.sum() ** 2 / (x.size * (x**2).sum()))
 
 
-def authority_jain(steps: pd.DataFrame) -> float | None:
-    """Jain's index over robots of received / fair authority, counted while robots are unfinished.
-
-    In each period the robots that have not yet arrived share one fair unit of authority
-    equally (1/m each of m); a robot's ratio is its authority periods over its summed fair
-    shares. Pure round robin over robots that stay unfinished gives 1. Without an ``arrived``
-    column every robot counts in every period.
-    """
+def authority_share(steps: pd.DataFrame) -> pd.Series:
+    """Per robot, authority periods received over its summed fair shares, counted while robots
+    are unfinished: in each period the robots that have not yet arrived share one fair unit of
+    authority equally (1/m each of m). Without an ``arrived`` column every robot counts in
+    every period. Robots that arrived before the first period are left out."""
     rows = steps[~steps["arrived"].astype(bool)] if "arrived" in steps else steps
-    if rows.empty:
-        return None
     share = 1.0 / rows.groupby("t")["robot"].transform("size")
     fair = share.groupby(rows["robot"]).sum()
     got = rows["authority"].astype(float).groupby(rows["robot"]).sum()
-    return jain(got / fair)
+    return got / fair
+
+
+def authority_jain(steps: pd.DataFrame) -> float | None:
+    """Jain's index over robots of :func:`authority_share`; pure round robin over robots that
+    stay unfinished gives 1. None when no robot is unfinished."""
+    rows = steps[~steps["arrived"].astype(bool)] if "arrived" in steps else steps
+    if rows.empty:
+        return None
+    return jain(authority_share(steps))
 
 
 def _finite(x) -> float | None:

@@ -19,20 +19,25 @@ def _offset(line: np.ndarray, d: float) -> np.ndarray:
     return line + d * np.column_stack([-tangent[:, 1], tangent[:, 0]])
 
 
+def draw_road(ax, scenario) -> None:
+    """The lanes of ``scenario``'s SUMO road (grey, dashed lane edges) on ``ax``: the road the run drives on."""
+    from aac_sumo.experiments.lane_change import network_files, scenario_road
+
+    rd = scenario_road(scenario, network_files(scenario)[0])
+    for line, width in zip(rd.lanes, rd.widths):
+        ax.fill(*np.vstack([_offset(line, 0.5 * width), _offset(line, -0.5 * width)[::-1]]).T, color="0.88", lw=0)
+        for side in (-0.5, 0.5):
+            ax.plot(*_offset(line, side * width).T, color="0.55", lw=0.6, ls="--")
+
+
 def plot_lane_change(result, path: Path) -> None:
     """Draw the run's road (from its SUMO network), every controlled vehicle's path (solid) and
     reference (dotted), the pedestrians' paths and the cones, with the headline metrics; below,
     every vehicle's speed and applied lateral acceleration over time, with the scenario's
     aggressive-driving threshold."""
-    from aac_sumo.experiments.lane_change import network_files, scenario_road
-
-    scenario, traj = result.scenario, result.trajectories
-    rd = scenario_road(scenario, network_files(scenario)[0])
+    traj = result.trajectories
     fig, (ax, ax_v, ax_lat) = plt.subplots(3, 1, figsize=(14, 10), gridspec_kw=dict(height_ratios=[2.2, 1, 1]))
-    for line, width in zip(rd.lanes, rd.widths):
-        ax.fill(*np.vstack([_offset(line, 0.5 * width), _offset(line, -0.5 * width)[::-1]]).T, color="0.88", lw=0)
-        for side in (-0.5, 0.5):
-            ax.plot(*_offset(line, side * width).T, color="0.55", lw=0.6, ls="--")
+    draw_road(ax, result.scenario)
     steps = result.steps
     for name, group in traj[traj["kind"] == "controlled"].groupby("name", sort=False):
         (line,) = ax.plot(group["x"], group["y"], lw=1.2)
@@ -56,7 +61,7 @@ def plot_lane_change(result, path: Path) -> None:
     ax.set_ylabel("y [m]" if stretch == 1.0 else f"y [m] (stretched x{stretch:g})")
     ax.legend(fontsize="small", loc="upper left", ncol=4)
     ax_v.set_ylabel("speed [m/s]")
-    threshold = scenario["metrics.lat_accel_threshold"]
+    threshold = result.scenario["metrics.lat_accel_threshold"]
     for sign in (-1, 1):
         ax_lat.axhline(sign * threshold, color="tab:red", lw=0.8, ls="--", label="aggressive threshold" if sign > 0 else None)
     ax_lat.set_ylabel("lateral accel. [m/s²]")

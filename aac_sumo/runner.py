@@ -1,5 +1,5 @@
-"""The closed loop: observe, decide, step, record; then metrics. A failure mid-run is caught and
-reported, and everything recorded up to it is kept."""
+"""The closed loop: observe, decide, step, record; then the metrics (:mod:`aac_sumo.run_metrics`).
+A failure mid-run is caught and reported, and everything recorded up to it is kept."""
 
 from __future__ import annotations
 
@@ -8,7 +8,6 @@ import json
 from collections import deque
 import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -19,22 +18,10 @@ from aac_sumo.config import Scenario
 from aac_sumo.coordination.proximity import ProximityParams, proximity_decision
 from aac_sumo.experiments.common import Setup
 from aac_sumo.geometry import pairwise_rect_clearance
-from aac_sumo.metrics import compute_metrics, jain, nearest_robot_distance, pedestrian_clearance, time_to_collision
+from aac_sumo.metrics import nearest_robot_distance, pedestrian_clearance, time_to_collision
 from aac_sumo.mpc.problem import get_problem
+from aac_sumo.run_metrics import Recording, RunResult, assemble_metrics
 from aac_sumo.world import WorldState
-
-
-@dataclass
-class RunResult:
-    """Metrics, the per-robot step table, the per-period table, every agent's trajectory, and
-    each robot's goal (the end of its reference path, rear axle [m])."""
-
-    metrics: dict
-    steps: pd.DataFrame
-    periods: pd.DataFrame
-    trajectories: pd.DataFrame
-    scenario: Scenario
-    goals: np.ndarray | None = None
 
 
 def run(scenario: Scenario) -> RunResult:
@@ -46,98 +33,77 @@ def run(scenario: Scenario) -> RunResult:
     wall_start = time.perf_counter()
     get_problem.cache_clear()  # solvers keep state between solves: every run starts from fresh ones
     setup = experiments.build(scenario)
-    sim, coord = setup.sim, setup.coordinator
-    first = sim.observe()
-    robots = first.robots
-    dt, duration = scenario["scenario.dt"], scenario["scenario.duration"]
+    first = setup.sim.observe()
     warm_up(setup, first)
     setup_s = time.perf_counter() - wall_start
-    steps, periods, traj = [], [], []
-    active_overlaps: set = set()
-    collisions, sim_collisions = 0, None
-    completed, task_duration, error, deadlock = False, None, None, False
-    arrival = np.full(len(setup.tasks), np.nan)
+    rec = Recording(arrival=np.full(len(setup.tasks), np.nan))
+    try:
+        loop(setup, rec)
+    except Exception as exc:  # keep what was recorded; report the failure in metrics
+        rec.error = f"{type(exc).__name__}: {exc}".splitlines()[0]
+        print(f"aac-sumo: run stopped at t={len(rec.periods) * scenario['scenario.dt']:.2f} s: {rec.error}", file=sys.stderr)
+    finally:
+        setup.sim.close()
+    steps = with_vehicle_columns(pd.DataFrame(rec.steps, columns=STEP_COLUMNS[:-2]), {r.name: r.model.wheelbase for r in first.robots},
+                                 scenario["scenario.dt"])
+    periods = pd.DataFrame(rec.periods) if rec.periods else pd.DataFrame(columns=["t", "compute_ms"])
+    metrics = assemble_metrics(scenario, rec, steps, periods, robots=first.robots, free_flow_s=setup.free_flow_s,
+                               wall_s=time.perf_counter() - wall_start, setup_s=setup_s)
+    goals = np.array([task.points[-1] for task in setup.tasks])
+    delays = None if setup.free_flow_s is None else rec.arrival - setup.free_flow_s
+    return RunResult(metrics, steps, periods, pd.DataFrame(rec.traj), scenario, goals, delays)
+
+
+def loop(setup: Setup, rec: Recording) -> None:
+    """The closed loop, one control period per step until every task is finished, the time
+    limit, or a deadlock: observe, decide, step, and record into ``rec``."""
+    scenario, sim, coord = setup.scenario, setup.sim, setup.coordinator
+    dt, duration = scenario["scenario.dt"], scenario["scenario.duration"]
     stop, patience = scenario["metrics.stop_speed"], scenario["metrics.deadlock_time"]
     window = int(round(patience / dt))
     history: deque[np.ndarray] = deque(maxlen=window + 1)  # rear-axle positions, for the deadlock rule
-    try:
-        for k in range(int(round(duration / dt)) + 1):
-            world = sim.observe()
-            traj += [dict(t=round(world.t, 9), **a) for a in sim.agents()]
-            done = np.asarray(setup.finished(world), dtype=bool)
-            arrival[done & np.isnan(arrival)] = world.t
-            if done.all():
-                completed, task_duration = True, world.t
-                break
-            if k * dt >= duration - 1e-9:
-                break
-            history.append(world.states[:, :2].copy())
-            if len(history) > window:
-                moved = np.hypot(*(history[-1] - history[0]).T)[~done]
-                if moved.size and moved.max() <= stop * patience:
-                    deadlock = True
-                    break
-            decision = coord.decide(world)
-            ttc = time_to_collision(world)
-            nearest = nearest_robot_distance(world)
-            to_pedestrians = pedestrian_clearance(world)
-            contacts = sim.step(decision.inputs)
-            collisions += len(contacts.overlaps - active_overlaps)
-            active_overlaps = contacts.overlaps
-            if contacts.sim_collisions is not None:
-                sim_collisions = (sim_collisions or 0) + contacts.sim_collisions
-            periods.append(dict(t=world.t, compute_ms=decision.compute_ms, **decision.notes))
-            for i, (robot, rec) in enumerate(zip(world.robots, decision.robots)):
-                x = world.states[i]
-                ref = reference_point(setup, i, x)
-                steps.append(dict(
-                    t=world.t, robot=robot.name, x=x[0], y=x[1], heading=x[2], v=x[3],
-                    accel=decision.inputs[i, 0], steer=decision.inputs[i, 1],
-                    ref_x=ref[0], ref_y=ref[1], ref_heading=ref[2], ref_v=ref[3],
-                    status=rec.status, solver=rec.solver, solve_ms=rec.solve_ms, iterations=rec.iterations, capped=rec.capped,
-                    authority=rec.authority,
-                    reason=rec.reason, mode=rec.mode, proximity_score=rec.score, proximity_progress=rec.progress,
-                    arrived=bool(done[i]), clearance_m=contacts.clearance[i], nearest_robot_m=nearest[i], ttc_s=ttc[i],
-                    pedestrian_clearance_m=to_pedestrians[i],
-                ))
-    except Exception as exc:  # keep what was recorded; report the failure in metrics
-        error = f"{type(exc).__name__}: {exc}".splitlines()[0]
-        print(f"aac-sumo: run stopped at t={len(periods) * dt:.2f} s: {error}", file=sys.stderr)
-    finally:
-        sim.close()
-
-    steps_df = with_vehicle_columns(pd.DataFrame(steps, columns=STEP_COLUMNS[:-2]), {r.name: r.model.wheelbase for r in robots}, dt)
-    periods_df = pd.DataFrame(periods) if periods else pd.DataFrame(columns=["t", "compute_ms"])
-    c = scenario.data["controller"]
-    info = dict(
-        scenario=scenario["scenario.name"], coordinator=c["coordinator"], barrier=c["barrier"], horizon=c["horizon"],
-        seed=scenario["scenario.seed"], n_robots=len(setup.tasks), completed=completed, task_duration_s=task_duration,
-        collisions=collisions, sim_collisions=sim_collisions, wall_s=time.perf_counter() - wall_start, dt=dt, setup_s=setup_s,
-        accel_threshold=scenario["metrics.accel_threshold"], lat_accel_threshold=scenario["metrics.lat_accel_threshold"],
-        ttc_max=scenario["metrics.ttc_max"],
-        wheelbase={r.name: r.model.wheelbase for r in robots},
-        comfort_decel={r.name: r.model.limits.comfort_decel for r in robots},
-    )
-    if setup.free_flow_s is not None and completed:
-        delay = arrival - setup.free_flow_s
-        info.update(delay_jain=jain(np.maximum(delay, 0.0)), delay_max_s=float(delay.max()))
-    info.update(deadlock=deadlock, safety_stops=int(periods_df["safety_stops"].sum()) if "safety_stops" in periods_df else 0)
-    metrics = compute_metrics(steps_df, periods_df, info)
-    reasons = []
-    if error is not None:
-        metrics["error"] = error
-    if collisions:
-        metrics["completed"], metrics["task_duration_s"] = False, None
-        reasons.append(f"{collisions} collision(s); wrecked robots stop where they hit")
-    if deadlock:
-        reasons.append(f"deadlock: no unfinished robot got further than {stop * patience:.2f} m from where it was "
-                       f"{patience} s before (t = {len(periods) * dt:.1f} s)")
-    elif not completed and error is None:
-        reasons.append(f"time limit {duration} s reached")
-    if reasons:
-        metrics["incomplete_reason"] = "; ".join(reasons)
-    goals = np.array([task.points[-1] for task in setup.tasks])
-    return RunResult(metrics, steps_df, periods_df, pd.DataFrame(traj), scenario, goals)
+    active_overlaps: set = set()
+    for k in range(int(round(duration / dt)) + 1):
+        world = sim.observe()
+        rec.traj += [dict(t=round(world.t, 9), **a) for a in sim.agents()]
+        done = np.asarray(setup.finished(world), dtype=bool)
+        rec.arrival[done & np.isnan(rec.arrival)] = world.t
+        if done.all():
+            rec.completed, rec.task_duration = True, world.t
+            return
+        if k * dt >= duration - 1e-9:
+            return
+        history.append(world.states[:, :2].copy())
+        if len(history) > window:
+            moved = np.hypot(*(history[-1] - history[0]).T)[~done]
+            if moved.size and moved.max() <= stop * patience:
+                rec.deadlock = True
+                return
+        decision = coord.decide(world)
+        ttc = time_to_collision(world)
+        nearest = nearest_robot_distance(world)
+        to_pedestrians = pedestrian_clearance(world)
+        sim.show({robot.name for robot, r in zip(world.robots, decision.robots) if r.authority},
+                 {robot.name for robot, r in zip(world.robots, decision.robots) if r.mode == "safety_stop"})
+        contacts = sim.step(decision.inputs)
+        rec.collisions += len(contacts.overlaps - active_overlaps)
+        active_overlaps = contacts.overlaps
+        if contacts.sim_collisions is not None:
+            rec.sim_collisions = (rec.sim_collisions or 0) + contacts.sim_collisions
+        rec.periods.append(dict(t=world.t, compute_ms=decision.compute_ms, **decision.notes))
+        for i, (robot, r) in enumerate(zip(world.robots, decision.robots)):
+            x = world.states[i]
+            ref = reference_point(setup, i, x)
+            rec.steps.append(dict(
+                t=world.t, robot=robot.name, x=x[0], y=x[1], heading=x[2], v=x[3],
+                accel=decision.inputs[i, 0], steer=decision.inputs[i, 1],
+                ref_x=ref[0], ref_y=ref[1], ref_heading=ref[2], ref_v=ref[3],
+                status=r.status, solver=r.solver, solve_ms=r.solve_ms, iterations=r.iterations, capped=r.capped,
+                authority=r.authority,
+                reason=r.reason, mode=r.mode, proximity_score=r.score, proximity_progress=r.progress,
+                arrived=bool(done[i]), clearance_m=contacts.clearance[i], nearest_robot_m=nearest[i], ttc_s=ttc[i],
+                pedestrian_clearance_m=to_pedestrians[i],
+            ))
 
 
 STEP_COLUMNS = [
@@ -196,7 +162,8 @@ def warm_up(setup: Setup, world: WorldState) -> None:
 
 
 def write_outputs(result: RunResult, out: Path, plot: bool = True) -> None:
-    """Write metrics.json, steps.csv, trajectories.csv, scenario.toml and trajectories.png."""
+    """Write metrics.json, steps.csv, trajectories.csv, scenario.toml, and with ``plot``
+    trajectories.png, timeline.png and fairness.png."""
     out.mkdir(parents=True, exist_ok=True)
     (out / "metrics.json").write_text(json.dumps(result.metrics, indent=2) + "\n")
     result.steps.to_csv(out / "steps.csv", index=False)
@@ -204,5 +171,9 @@ def write_outputs(result: RunResult, out: Path, plot: bool = True) -> None:
     (out / "scenario.toml").write_text(result.scenario.to_toml())
     if plot:
         from aac_sumo.report import plot_run
+        from aac_sumo.report_timeline import plot_fairness, plot_timeline
 
         plot_run(result, out / "trajectories.png")
+        if len(result.steps):
+            plot_timeline(result, out / "timeline.png")
+            plot_fairness(result, out / "fairness.png", result.delays)

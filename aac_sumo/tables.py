@@ -12,223 +12,31 @@ the safety stop. The paper's values stand beside the ``off`` rows only.
 
 from __future__ import annotations
 
-import csv
-import dataclasses
-import math
 from pathlib import Path
 
 from aac_sumo import config, sweep
+from aac_sumo.table_braking import braking_table
+from aac_sumo.table_common import (COORDINATORS, LAYER_KEYS, SAFETY_LAYERS, check_table_sets, fill_metrics, layer_sets,
+                                   layered_markdown, layers_of, run_grid, write_csv)
+
 
 TABLES = ("swarm", "lane-change", "braking", "circle-swap")
-
-# --- Emergency layers: the same setting for both coordinators ----------------------------------
-
-#: ``safety_layers`` values: ``off`` = neither coordinator has an emergency layer (the paper),
-#: ``on`` = both brake through the safety stop (the safer variant).
-SAFETY_LAYERS = ("off", "on")
-#: What ``--layers`` accepts: one setting, or both (``off`` rows first).
-LAYER_CHOICES = ("off", "on", "both")
-#: The keys each setting fixes, for AAC and LFC together, in every run of a layered table.
-LAYER_KEYS = ("aac.safety_stop", "lfc.safety_stop")
-LAYER_TITLES = {
-    "off": "Safety layers off: neither coordinator has an emergency layer (the paper's setting)",
-    "on": "Safety layers on: both coordinators brake through the safety stop (the safer variant)",
-}
-
-
-def layer_sets(layer: str) -> list[str]:
-    """The ``--set`` overrides of one ``safety_layers`` value, the same for AAC and LFC."""
-    value = {"off": "false", "on": "true"}[layer]
-    return [f"{key}={value}" for key in LAYER_KEYS]
-
-
-def layers_of(choice: str) -> tuple[str, ...]:
-    """``--layers off|on|both`` as the settings to run, ``off`` first."""
-    if choice not in LAYER_CHOICES:
-        raise sweep.SweepError(f"--layers {choice}: expected one of {', '.join(LAYER_CHOICES)}")
-    return SAFETY_LAYERS if choice == "both" else (choice,)
-
-
-def check_table_sets(sets: list[str], fixed: tuple[str, ...], name: str) -> None:
-    """Refuse a ``--set`` of a key the table itself sets in every run (it would be overridden)."""
-    for text in sets:
-        key = text.split("=", 1)[0].strip()
-        if key in fixed:
-            hint = " (choose with --layers off|on|both)" if key in LAYER_KEYS else ""
-            raise sweep.SweepError(f"--set {text}: {key}: expected a key that table {name} does not set itself; "
-                                   f"it sets {', '.join(fixed)} in every run{hint}")
-
-
-def plan_bundled_tasks(scenario: str, sets: list[str], bundles, grid, seeds: int) -> tuple[list[sweep.Task], list[str]]:
-    """Tasks for keys that vary together: each bundle is ``(values, bundle_sets)``, with
-    ``values`` the ``(column, value)`` pairs it records in ``results.csv`` and ``bundle_sets``
-    the overrides it applies after ``sets``; every bundle runs the whole ``grid`` x ``seeds``.
-    Returns the tasks (indexed in order) and the grid keys (bundle columns, then ``grid``'s)."""
-    tasks: list[sweep.Task] = []
-    for values, bundle_sets in bundles:
-        for t in sweep.plan_tasks(scenario, list(sets) + list(bundle_sets), grid, seeds):
-            tasks.append(dataclasses.replace(t, index=len(tasks), grid=tuple(values) + t.grid))
-    return tasks, [k for k, _ in bundles[0][0]] + [k for k, _ in grid]
-
-BRAKING_SPEEDS = (5, 10, 15, 20, 25)
-BRAKING_BARRIERS = ("cbf", "fcbf")
-BRAKING_METRICS = ("infeasibility_rate", "min_distance_m", "ttc_mean_s", "collisions", "min_clearance_m")
-PAPER_METRICS = ("infeasibility_rate", "min_distance_m", "ttc_mean_s")
-#: Paper Table III: (infeasibility rate, min distance [m], mean TTC [s]); None where it has no value.
-PAPER_TABLE_III: dict[tuple[str, int], tuple[float | None, float | None, float | None]] = {
-    ("cbf", 5): (0.433, 1.50, 2.04),
-    ("fcbf", 5): (0.0, 1.65, 2.10),
-    ("cbf", 10): (0.333, 0.87, 2.13),
-    ("fcbf", 10): (0.0, 1.05, 3.55),
-    ("cbf", 15): (1.0, None, None),
-    ("fcbf", 15): (0.0, 4.04, 5.62),
-}
-BARRIER_LABELS = {"cbf": "CBF", "fcbf": "F-CBF"}
-
-
-def _speed(value) -> int | float:
-    v = float(value)
-    return int(v) if v.is_integer() else v
-
-
-def braking_rows(runs: list[dict], seeds: int) -> list[dict]:
-    """One table.csv row per (speed, barrier) from the per-run rows (grid keys
-    ``braking.speed`` and ``controller.barrier``); means over the seeds that ran without error."""
-    table = []
-    for (speed, barrier), group in sweep.groups(runs, ["braking.speed", "controller.barrier"]):
-        good = [r for r in group if r.get("status") == "ok"]
-        row: dict = {"barrier": barrier, "speed": _speed(speed)}
-        for m in BRAKING_METRICS:
-            mean, std, _ = sweep.mean_std(r.get(m) for r in good)
-            row[m] = mean
-            if seeds > 1:
-                row[f"{m}_std"] = std
-        paper = PAPER_TABLE_III.get((barrier, _speed(speed)), (None,) * len(PAPER_METRICS))
-        for m, value in zip(PAPER_METRICS, paper):
-            row[f"paper_{m}"] = value
-        row["runs"] = len(good)
-        row["errors"] = len(group) - len(good)
-        table.append(row)
-    return table
-
-
-def braking_columns(seeds: int) -> list[str]:
-    cols = ["barrier", "speed"]
-    for m in BRAKING_METRICS:
-        cols += [m] + ([f"{m}_std"] if seeds > 1 else [])
-    return cols + [f"paper_{m}" for m in PAPER_METRICS] + ["runs", "errors"]
-
-
-def _cell(value) -> str:
-    if value is None or (isinstance(value, float) and not math.isfinite(value)):
-        return ""
-    return repr(value) if isinstance(value, float) else str(value)
-
-
-def write_csv(rows: list[dict], cols: list[str], path: Path) -> None:
-    with open(path, "w", newline="") as fh:
-        writer = csv.writer(fh, lineterminator="\n")
-        writer.writerow(cols)
-        writer.writerows([_cell(r.get(c)) for c in cols] for r in rows)
-
-
-def _num(value) -> float:
-    return math.nan if value is None else float(value)
-
-
-def _fmt(mean, std=None, kind: str = "f2") -> str:
-    """``kind``: ``pct`` (rate as %), ``f2`` (two decimals), ``count``."""
-    mean, std = _num(mean), _num(std)
-    if not math.isfinite(mean):
-        return "—"
-    if kind == "pct":
-        return f"{100 * mean:.1f} ± {100 * std:.1f}%" if math.isfinite(std) else f"{100 * mean:.1f}%"
-    if kind == "count" and not math.isfinite(std):
-        return f"{mean:.0f}" if float(mean).is_integer() else f"{mean:.2f}"
-    return f"{mean:.2f} ± {std:.2f}" if math.isfinite(std) else f"{mean:.2f}"
-
-
-def braking_markdown(rows: list[dict], scenario: config.Scenario, seeds: int) -> str:
-    c, b = scenario.data["controller"], scenario.data["braking"]
-    kinds = {"infeasibility_rate": "pct", "collisions": "count"}
-    head = ["Barrier", "Speed [m/s]", "Infeasibility (ours)", "Infeasibility (paper)", "Min distance [m] (ours)",
-            "Min distance [m] (paper)", "Mean TTC [s] (ours)", "Mean TTC [s] (paper)", "Collisions (ours)",
-            "Min clearance [m] (ours)"]
-    lines = [
-        "# Table III: emergency braking, CBF vs F-CBF",
-        "",
-        f"Ego (MPC, N = {c['horizon']}, {c['solver']}{' compiled to C' if c['codegen'] else ''}{' + ipopt retry' if c['retry_with_ipopt'] else ''}, "
-        f"dt = {scenario['scenario.dt']} s) follows a lead {b['gap']} m ahead (centre to centre) at the same speed; "
-        f"the lead brakes at {b['lead_decel']} m/s² from t = {b['t_brake']} s. "
-        + (f"Ours: mean ± sample std over {seeds} seeds." if seeds > 1 else "Ours: one seed.")
-        + " Min distance is the smallest centre-to-centre distance between ego and lead; min clearance the"
-        " smallest footprint gap (negative = overlap); mean TTC is over the steps where the ego closes in;"
-        " infeasibility is the share of MPC solves that failed or were infeasible. The paper reports no"
-        " values at 20 and 25 m/s, nor collisions or clearance; — marks a missing value.",
-        "",
-        "| " + " | ".join(head) + " |",
-        "|---|---:|" + "---:|" * (len(head) - 2),
-    ]
-    for r in rows:
-        cells = [BARRIER_LABELS.get(r["barrier"], r["barrier"]), str(r["speed"])]
-        for m in ("infeasibility_rate", "min_distance_m", "ttc_mean_s"):
-            kind = kinds.get(m, "f2")
-            cells += [_fmt(r[m], r.get(f"{m}_std"), kind), _fmt(r[f"paper_{m}"], None, kind)]
-        cells += [_fmt(r["collisions"], r.get("collisions_std"), "count"), _fmt(r["min_clearance_m"], r.get("min_clearance_m_std"))]
-        if r["errors"]:
-            cells[0] += f" ({r['errors']} failed run{'s' if r['errors'] > 1 else ''})"
-        lines.append("| " + " | ".join(cells) + " |")
-    return "\n".join(lines) + "\n"
-
-
-def braking_table(seeds: int, workers: int | None, out: Path, sets: list[str] | None = None,
-                  progress: bool = True, scheduler: str | None = None, resume: bool = False) -> tuple[list[dict], str, list[dict]]:
-    """Run Table III (speeds x barriers x seeds) and write results.csv, table.csv and table.md;
-    returns the table rows, the markdown and the per-run rows."""
-    sets = list(sets or [])
-    grid = [("braking.speed", [str(s) for s in BRAKING_SPEEDS]), ("controller.barrier", list(BRAKING_BARRIERS))]
-    runs = run_grid("braking", grid, seeds, workers, out, sets, progress, "table braking", scheduler, resume)
-    rows = braking_rows(runs, seeds)
-    write_csv(rows, braking_columns(seeds), out / "table.csv")
-    text = braking_markdown(rows, config.load("braking", sets), seeds)
-    (out / "table.md").write_text(text)
-    return rows, text, runs
-
 
 # --- Tables I and II: AAC against LFC over the MPC horizon ------------------------------------
 
 HORIZONS = (5, 10, 15)
-COORDINATORS = ("aac", "lfc")
-COORDINATOR_LABELS = {"aac": "AAC-MPC-FCBF", "lfc": "LFC-MPC-FCBF"}
+
 SWARM_METRICS = ("task_duration_s", "compute_ms_mean", "compute_ms_median", "min_distance_m", "collisions",
                  "authority_jain", "delay_jain", "delay_max_s", "completed", "infeasibility_rate", "safety_stops")
+
 #: Paper Table I: (task duration [s], computation time [ms], minimum distance [m]).
 PAPER_TABLE_I: dict[tuple[str, int], tuple[float, float, float]] = {
     ("aac", 5): (18.3, 58.7, 1.19), ("lfc", 5): (22.6, 79.6, 0.47),
     ("aac", 10): (18.1, 68.4, 1.13), ("lfc", 10): (21.2, 125.6, 0.48),
     ("aac", 15): (17.6, 85.6, 1.05), ("lfc", 15): (20.8, 236.5, 0.48),
 }
+
 PAPER_I_METRICS = ("task_duration_s", "compute_ms_mean", "min_distance_m")
-
-
-#: Yes/no metrics that a table row gives as the share of runs (``completed``: completed rate).
-SHARE_METRICS = ("completed", "deadlock")
-
-
-def fill_metrics(row: dict, group: list[dict], seeds: int, metrics) -> dict:
-    """Means (and stds when ``seeds`` > 1) over the runs of ``group`` that ran without error, plus
-    ``runs`` and ``errors``; yes/no metrics become shares, and a metric that is null in a run
-    (task duration of an incomplete run) is averaged over the others."""
-    good = [r for r in group if r.get("status") == "ok"]
-    for m in metrics:
-        values = [float(bool(r.get(m))) if m in SHARE_METRICS else r.get(m) for r in good]
-        mean, std, _ = sweep.mean_std(values)
-        row[m] = mean
-        if seeds > 1:
-            row[f"{m}_std"] = std
-    row["runs"] = len(good)
-    row["errors"] = len(group) - len(good)
-    return row
 
 
 def _layer_rank(row: dict) -> int:
@@ -268,20 +76,6 @@ def horizon_columns(seeds: int, metrics, paper_metrics, layered: bool = False) -
     return cols + [f"paper_{m}" for m in paper_metrics] + ["runs", "errors"]
 
 
-def run_grid(scenario: str, grid, seeds: int, workers: int | None, out: Path, sets: list[str] | None,
-             progress: bool, desc: str, scheduler: str | None = None, resume: bool = False, bundles=None) -> list[dict]:
-    """Every grid combination x seeds run of ``scenario`` through the sweep executor (local
-    processes, or the Dask scheduler at ``scheduler``; ``resume`` skips finished runs); with
-    ``bundles`` (see :func:`plan_bundled_tasks`) the grid runs once per bundle."""
-    sets = list(sets or [])
-    if bundles:
-        tasks, keys = plan_bundled_tasks(scenario, sets, bundles, grid, seeds)
-    else:
-        tasks, keys = sweep.plan_tasks(scenario, sets, grid, seeds), [k for k, _ in grid]
-    return sweep.run_tasks(tasks, keys, out, workers, progress, desc=desc, scheduler=scheduler,
-                           resume=resume, manifest=sweep.sweep_manifest(tasks[0].source, sets))
-
-
 def run_horizon_table(scenario: str, seeds: int, workers: int | None, out: Path, sets: list[str] | None,
                       progress: bool, desc: str, scheduler: str | None = None, resume: bool = False,
                       layers: tuple[str, ...] | None = None) -> list[dict]:
@@ -300,40 +94,6 @@ SWARM_COLUMNS = (
     ("authority_jain", "authority_jain", "f2"), ("delay_jain", "delay_jain", "f2"), ("delay_max_s [s]", "delay_max_s", "f2"),
     ("Infeasible", "infeasibility_rate", "pct"), ("Safety stops", "safety_stops", "count"),
 )
-
-
-def markdown_table(rows: list[dict], first, columns) -> list[str]:
-    """The lines of a markdown table: ``first`` are (header, key) columns shown as they are (the
-    coordinator by its label), ``columns`` (header, key, kind) with kind as in :func:`_fmt`. Ours
-    carry their std (not rates); the paper's never do."""
-    lines = ["| " + " | ".join([h for h, _ in first] + [h for h, _, _ in columns]) + " |",
-             "|---|" + "---:|" * (len(first) - 1 + len(columns))]
-    for r in rows:
-        cells = [COORDINATOR_LABELS.get(r[key], r[key]) if key == "coordinator" else str(r[key]) for _, key in first]
-        for _, key, kind in columns:
-            plain = key.startswith("paper_") or kind == "pct"
-            cells.append(_fmt(r[key], None if plain else r.get(f"{key}_std"), kind))
-        if r["errors"]:
-            cells[0] += f" ({r['errors']} failed run{'s' if r['errors'] > 1 else ''})"
-        lines.append("| " + " | ".join(cells) + " |")
-    return lines
-
-
-def layered_markdown(title: str, intro: str, first, columns, rows: list[dict]) -> str:
-    """A markdown table per ``safety_layers`` value under its own heading (one table when the
-    rows carry none); the paper's columns only where the paper's setting ran (``off``)."""
-    lines = [f"# {title}", "", intro]
-    layers = [layer for layer in SAFETY_LAYERS if any(r.get("safety_layers") == layer for r in rows)]
-    if not layers:
-        return "\n".join(lines + [""] + markdown_table(rows, first, columns)) + "\n"
-    for layer in layers:
-        part = [r for r in rows if r.get("safety_layers") == layer]
-        shown = columns if layer == "off" else [c for c in columns if not c[1].startswith("paper_")]
-        lines += ["", f"## {LAYER_TITLES[layer]}", "",
-                  f"`safety_layers = {layer}`: " + ", ".join(f"`{k} = {layer == 'on'}`".lower() for k in LAYER_KEYS)
-                  + " in every run of this table" + ("" if layer == "off" else "; the paper has no such rows") + ".", ""]
-        lines += markdown_table(part, first, shown)
-    return "\n".join(lines) + "\n"
 
 
 def horizon_markdown(title: str, intro: str, columns, rows: list[dict]) -> str:
@@ -378,10 +138,13 @@ def swarm_table(seeds: int, workers: int | None, out: Path, sets: list[str] | No
 
 #: (robots, circle radius [m]) of the circle-swap table.
 CIRCLE_SIZES = ((8, 4.0), (16, 6.0), (24, 8.0))
+
 CIRCLE_KEYS = ("circle_swap.n_robots", "circle_swap.radius")
+
 CIRCLE_METRICS = ("completed", "task_duration_s", "collisions", "deadlock", "min_distance_m", "min_clearance_m",
                   "compute_ms_mean", "compute_ms_median", "infeasibility_rate", "safety_stops", "authority_jain",
                   "delay_max_s")
+
 CIRCLE_COLUMNS = (
     ("Completed", "completed", "pct"), ("Task duration [s]", "task_duration_s", "f2"), ("Collisions", "collisions", "count"),
     ("Deadlock", "deadlock", "pct"), ("Min distance [m]", "min_distance_m", "f2"), ("Min clearance [m]", "min_clearance_m", "f2"),
@@ -448,14 +211,15 @@ def circle_swap_table(seeds: int, workers: int | None, out: Path, sets: list[str
 
 LANE_METRICS = ("task_duration_s", "compute_ms_mean", "compute_ms_median", "aggressive_driving_rate", "tracking_error_m",
                 "min_pedestrian_clearance_m", "collisions", "sim_collisions", "completed", "infeasibility_rate", "safety_stops")
+
 #: Paper Table II: (task duration [s], computation time [ms], aggressive driving rate, tracking error [m]).
 PAPER_TABLE_II: dict[tuple[str, int], tuple[float, float, float, float]] = {
     ("aac", 5): (6.73, 39.4, 0.0909, 0.4899), ("lfc", 5): (7.41, 183.3, 0.1818, 0.4809),
     ("aac", 10): (6.72, 136.3, 0.0909, 0.4765), ("lfc", 10): (7.32, 516.7, 0.1818, 0.4755),
     ("aac", 15): (6.68, 540.8, 0.0909, 0.4586), ("lfc", 15): (7.02, 4025.0, 0.1818, 0.4559),
 }
-PAPER_II_METRICS = ("task_duration_s", "compute_ms_mean", "aggressive_driving_rate", "tracking_error_m")
 
+PAPER_II_METRICS = ("task_duration_s", "compute_ms_mean", "aggressive_driving_rate", "tracking_error_m")
 
 LANE_COLUMNS = (
     ("Task duration [s] (ours)", "task_duration_s", "f2"), ("(paper)", "paper_task_duration_s", "f2"),
@@ -495,5 +259,6 @@ def lane_change_table(seeds: int, workers: int | None, out: Path, sets: list[str
 
 BUILDERS = {"swarm": swarm_table, "lane-change": lane_change_table, "braking": braking_table,
             "circle-swap": circle_swap_table}
+
 #: The tables that run AAC and LFC with switchable emergency layers, and their ``--layers`` default.
 LAYERED = {"swarm": "both", "circle-swap": "off"}

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from aac_sumo import sweep, tables
+from aac_sumo import executor, sweep, table_braking
 from aac_sumo.cli import main
 from aac_sumo.metrics import METRIC_KEYS
 
@@ -56,7 +56,7 @@ def test_bad_grid_stops_before_any_run(capsys, tmp_path):
     assert main(["sweep", "braking", "--grid", "braking.speed=5,6", "--grid", "controller.horizon=5,abc",
                  "--out", str(tmp_path), *SHORT]) == 2
     err = capsys.readouterr().err
-    assert len(err.splitlines()) == 1 and "controller.horizon" in err
+    assert len(err.splitlines()) == 1 and "braking.toml --grid: controller.horizon: expected an integer" in err
     assert not (tmp_path / "results.csv").exists()
     assert main(["sweep", "braking", "--grid", "controller.nope=1,2", "--out", str(tmp_path), *SHORT]) == 2
     assert "controller.nope" in capsys.readouterr().err
@@ -102,11 +102,11 @@ def test_table_rows_with_seeds():
              "infeasibility_rate": 0.0, "ttc_mean_s": None, "collisions": 0, "min_clearance_m": 0.1}
             for d in (1.0, 2.0)]
     runs.append({"braking.speed": 5.0, "controller.barrier": "cbf", "status": "error", "min_distance_m": 9.0})
-    (row,) = tables.braking_rows(runs, seeds=3)
+    (row,) = table_braking.braking_rows(runs, seeds=3)
     assert row["min_distance_m"] == 1.5 and row["min_distance_m_std"] == pytest.approx(math.sqrt(0.5))
     assert math.isnan(row["ttc_mean_s"]) and row["runs"] == 2 and row["errors"] == 1
     assert row["paper_min_distance_m"] == 1.50
-    assert "min_distance_m_std" in tables.braking_columns(3)
+    assert "min_distance_m_std" in table_braking.braking_columns(3)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -144,7 +144,7 @@ def test_dask_cluster_gives_the_process_pool_results(capsys, tmp_path):
 
 def test_unreachable_scheduler_is_a_one_line_error(capsys, tmp_path, monkeypatch):
     pytest.importorskip("distributed")
-    monkeypatch.setattr(sweep, "CONNECT_TIMEOUT_S", 1.0)
+    monkeypatch.setattr(executor, "CONNECT_TIMEOUT_S", 1.0)
     rc = main(["sweep", "braking", "--grid", "braking.speed=5", "--scheduler", "tcp://127.0.0.1:9",
                "--out", str(tmp_path), *SHORT])
     assert rc == 2

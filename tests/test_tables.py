@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from aac_sumo import config, sweep, tables
+from aac_sumo import config, sweep, table_common, tables
 from aac_sumo.cli import main
 
 
@@ -49,7 +49,7 @@ def _check_equal_layers(tasks: list[sweep.Task]) -> None:
     for t in tasks:
         layer = dict(t.grid)["safety_layers"]
         assert t.scenario["aac.safety_stop"] is t.scenario["lfc.safety_stop"] is (layer == "on"), t.overrides
-        assert set(tables.layer_sets(layer)) <= set(t.overrides)
+        assert set(table_common.layer_sets(layer)) <= set(t.overrides)
 
 
 def test_swarm_table_runs_both_settings_with_equal_layers(planned, capsys, tmp_path):
@@ -80,8 +80,8 @@ def test_swarm_table_runs_both_settings_with_equal_layers(planned, capsys, tmp_p
     assert rows[2]["paper_task_duration_s"] == "18.1"  # AAC at N = 10
 
     md = (tmp_path / "table.md").read_text()
-    off, on = md.split("## " + tables.LAYER_TITLES["on"])
-    assert "## " + tables.LAYER_TITLES["off"] in off and "`aac.safety_stop = false`, `lfc.safety_stop = false`" in off
+    off, on = md.split("## " + table_common.LAYER_TITLES["on"])
+    assert "## " + table_common.LAYER_TITLES["off"] in off and "`aac.safety_stop = false`, `lfc.safety_stop = false`" in off
     assert "`aac.safety_stop = true`, `lfc.safety_stop = true`" in on
     assert "(paper)" in off and "18.10" in off
     assert "(paper)" not in on and "18.10" not in on
@@ -96,7 +96,7 @@ def test_layers_option_restricts_the_table_to_one_setting(planned, capsys, tmp_p
     cols, rows = read_rows(tmp_path / "table.csv")
     assert "task_duration_s_std" in cols
     assert {r["safety_layers"] for r in rows} == {"on"} and all(r["paper_min_distance_m"] == "" for r in rows)
-    assert tables.LAYER_TITLES["off"] not in (tmp_path / "table.md").read_text()
+    assert table_common.LAYER_TITLES["off"] not in (tmp_path / "table.md").read_text()
 
 
 @pytest.mark.parametrize("argv, words", [
@@ -133,7 +133,7 @@ def test_circle_swap_table_grid(planned, capsys, tmp_path):
         (c, str(n), str(r), "off") for n, r in ((8, 4.0), (16, 6.0), (24, 8.0)) for c in ("aac", "lfc")]
     assert rows[0]["completed"] == "1.0" and rows[0]["deadlock"] == "0.0"
     md = (tmp_path / "table.md").read_text()
-    assert tables.LAYER_TITLES["off"] in md and tables.LAYER_TITLES["on"] not in md
+    assert table_common.LAYER_TITLES["off"] in md and table_common.LAYER_TITLES["on"] not in md
     assert "| AAC-MPC-FCBF | 24 | 8.0 | 100.0% |" in md
 
     planned.clear()

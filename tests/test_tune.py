@@ -64,10 +64,10 @@ def test_param_scales_map_to_values_in_range():
     ("controller.horizon=5.5:20:int", "--param controller.horizon: range: expected integer bounds"),
     ("controller.gamma", "expected KEY=LO:HI[:log|:int]"),
     ("controller.gamma=0.1", "expected KEY=LO:HI[:log|:int]"),
-    ("controller.horizn=5:20:int", "braking.toml: controller.horizn: expected a known key"),
+    ("controller.horizn=5:20:int", "braking.toml --param: controller.horizn: expected a known key (did you mean controller.horizon?)"),
     ("controller.horizon=5:20", "--param controller.horizon=5:20: scale: expected :int for the integer key"),
     ("controller.barrier=0:1", "--param controller.barrier: expected a numeric key"),
-    ("controller.gamma=0.05:1.5", "braking.toml: controller.gamma: expected a number in (0, 1]"),
+    ("controller.gamma=0.05:1.5", "braking.toml --param: controller.gamma: expected a number in (0, 1]"),
     ("scenario.seed=0:9:int", "--param scenario.seed: expected a scenario key other than the seed"),
 ])
 def test_bad_param_is_exit_2_and_one_line(capsys, tmp_path, param, says):

@@ -12,10 +12,12 @@ import numpy as np
 from aac_sumo.config import Scenario, ScenarioError
 from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_spec
 from aac_sumo.references import PathReference
+from aac_sumo.registry import register_experiment
 from aac_sumo.sim.internal import InternalSimulator, ScriptedAgent
 from aac_sumo.world import WorldState
 
 
+@register_experiment("braking")
 def build_braking(scenario: Scenario) -> Setup:
     b = scenario.data["braking"]
     ego = robot_spec(scenario, "ego")

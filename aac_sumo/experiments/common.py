@@ -20,10 +20,10 @@ from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.geometry import pairwise_rect_clearance
 from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
 from aac_sumo.references import LateralBand, PathReference
+from aac_sumo.registry import COORDINATORS, register_coordinator
 from aac_sumo.sim.base import Simulator
 from aac_sumo.world import RobotSpec, WorldState
 
-COORDINATORS: dict[str, type[Coordinator]] = {"aac": AacCoordinator, "lfc": LfcCoordinator, "independent": IndependentCoordinator}
 
 
 @dataclass
@@ -97,18 +97,29 @@ def _check_safety_options(scenario: Scenario, section: str) -> None:
         raise ScenarioError(scenario.source, f"{section}.ignore_followers", f"false unless {section}.safety_stop is true", True)
 
 
+@register_coordinator("aac")
+def aac_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corridors, finished) -> AacCoordinator:
+    _check_safety_options(scenario, "aac")
+    return AacCoordinator(planner, tasks, corridors, finished, params=aac_params(scenario))
+
+
+@register_coordinator("lfc")
+def lfc_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corridors, finished) -> LfcCoordinator:
+    _check_safety_options(scenario, "lfc")
+    return LfcCoordinator(planner, tasks, corridors, finished, params=lfc_params(scenario))
+
+
+@register_coordinator("independent")
+def independent_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corridors, finished) -> IndependentCoordinator:
+    return IndependentCoordinator(planner, tasks, corridors, finished)
+
+
 def coordinator(scenario: Scenario, tasks: list[PathReference], corridors=None, finished: Finished | None = None) -> Coordinator:
-    """The ``controller.coordinator`` with its own MPC planner; ``finished`` tells it which
-    robots have finished their task (they no longer take authority)."""
-    name = scenario["controller.coordinator"]
-    if name in ("aac", "lfc"):
-        _check_safety_options(scenario, name)
-    extra = dict(params=aac_params(scenario)) if name == "aac" else {}
-    if name == "lfc":
-        extra = dict(params=lfc_params(scenario))
+    """The registered ``controller.coordinator`` with its own MPC planner; ``finished`` tells it
+    which robots have finished their task (they no longer take authority)."""
     band = any(isinstance(c, LateralBand) for c in corridors or [])
     planner = MpcPlanner(dataclasses.replace(mpc_config(scenario), band=band))
-    coord = COORDINATORS[name](planner, tasks, corridors, finished, **extra)
+    coord = COORDINATORS[scenario["controller.coordinator"]](scenario, planner, tasks, corridors, finished)
     coord.anticipation = anticipation(scenario)
     return coord
 
@@ -119,7 +130,8 @@ def anticipation(scenario: Scenario) -> Anticipation | None:
     if not c["anticipate"]:
         return None
     return Anticipation(decel=c["anticipate_decel"], accel=c["anticipate_accel"], gap=c["anticipate_gap"], time_gap=c["anticipate_time_gap"],
-                        pedestrian_margin=c["pedestrian_margin"], pedestrian_reach=c["pedestrian_reach"], yield_distance=c["yield_distance"], yield_band=c["yield_band"])
+                        pedestrian_margin=c["pedestrian_margin"], pedestrian_reach=c["pedestrian_reach"], yield_distance=c["yield_distance"],
+                        yield_band=c["yield_band"])
 
 
 def check_start(scenario: Scenario, world: WorldState, key: str) -> None:

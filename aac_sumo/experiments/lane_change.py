@@ -32,6 +32,7 @@ from aac_sumo import network
 from aac_sumo.config import Scenario, ScenarioError
 from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_spec
 from aac_sumo.references import LateralBand, PathReference, curve_speeds, smooth_path
+from aac_sumo.registry import register_experiment
 from aac_sumo.sim.sumo import SumoOptions, SumoSimulator
 from aac_sumo.world import WorldState
 
@@ -157,6 +158,7 @@ def scenario_road(scenario: Scenario, net_path: Path) -> network.Road:
     return network.road(net, scenario["sumo.edges"], MIN_LANES, scenario.source)
 
 
+@register_experiment("lane_change")
 def build_lane_change(scenario: Scenario) -> Setup:
     lc, su = scenario.data["lane_change"], scenario.data["sumo"]
     src = scenario.source
@@ -188,7 +190,7 @@ def build_lane_change(scenario: Scenario) -> Setup:
         out.mkdir(parents=True, exist_ok=True)
         fcd = out / "fcd.xml"
     options = SumoOptions(net_path, routes, tuple(t.strip() for t in su["cone_types"].split(",") if t.strip()),
-                          su["gui"], fcd, scenario["scenario.seed"])
+                          su["gui"], fcd, scenario["scenario.seed"], su["delay"])
     sim = SumoSimulator(robots, states, scenario["scenario.dt"], rd.edges, options)
     try:
         world = sim.observe()

@@ -45,6 +45,7 @@ from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_s
 from aac_sumo.experiments.swarm import GOAL_APPROACH, turn_radius
 from aac_sumo.geometry import pairwise_rect_clearance, rect_corners
 from aac_sumo.references import PathReference
+from aac_sumo.registry import register_experiment
 from aac_sumo.sim.internal import InternalSimulator
 from aac_sumo.world import Obstacle, WorldState
 
@@ -214,6 +215,7 @@ def _segment_rects(p0: np.ndarray, p1: np.ndarray, rects: np.ndarray, corners: n
     return np.where(meets, 0.0, np.minimum(ends, corner))
 
 
+@register_experiment("random_crossing")
 def build_random_crossing(scenario: Scenario) -> Setup:
     """The drawn robots, each on a straight path to its goal, on the internal simulator."""
     p = scenario.data[SECTION]

@@ -18,6 +18,7 @@ from aac_sumo.config import Scenario, ScenarioError
 from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_spec
 from aac_sumo.geometry import point_rect_signed_distance, OrientedRect
 from aac_sumo.references import PathReference
+from aac_sumo.registry import register_experiment
 from aac_sumo.sim.internal import InternalSimulator
 from aac_sumo.world import Obstacle, WorldState
 
@@ -33,6 +34,7 @@ def turn_radius(robot) -> float:
 GOAL_APPROACH = 3.0
 
 
+@register_experiment("swarm_rescue")
 def build_swarm_rescue(scenario: Scenario) -> Setup:
     s = scenario.data["swarm_rescue"]
     starts, goals = np.array(s["starts"], dtype=float).reshape(-1, 3), np.array(s["goals"], dtype=float).reshape(-1, 2)
@@ -45,6 +47,7 @@ def build_swarm_rescue(scenario: Scenario) -> Setup:
     return _goal_setup(scenario, "swarm_rescue", starts, goals, debris)
 
 
+@register_experiment("circle_swap")
 def build_circle_swap(scenario: Scenario) -> Setup:
     c = scenario.data["circle_swap"]
     angle = 2.0 * np.pi * np.arange(c["n_robots"]) / c["n_robots"]

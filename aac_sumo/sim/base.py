@@ -76,5 +76,9 @@ class Simulator(ABC):
         """Every agent's current pose for ``trajectories.csv``: name, kind, x, y (footprint
         centre [m]), heading [rad], v [m/s], length, width [m]."""
 
+    def show(self, authority: set[str], stopped: set[str]) -> None:
+        """Mark in the simulator's GUI which robots (by name) hold authority and which are in a
+        safety stop this period (nothing without a GUI)."""
+
     def close(self) -> None:
         """Release resources (nothing for the internal simulator)."""

@@ -38,7 +38,8 @@ class SumoError(RuntimeError):
 @dataclass
 class SumoOptions:
     """How to start SUMO: network, route files (cones, pedestrians, other traffic), the vTypes
-    that are cones, GUI, FCD output file (None for none) and SUMO's random seed."""
+    that are cones, GUI, FCD output file (None for none), SUMO's random seed, and the GUI's delay.
+    The GUI starts running at once and stays open when the run ends, until its window is closed."""
 
     net: Path
     routes: list[Path] = field(default_factory=list)
@@ -46,6 +47,7 @@ class SumoOptions:
     gui: bool = False
     fcd: Path | None = None
     seed: int = 0
+    delay: float = 0.0  # sumo-gui's pause per simulation step [ms]
 
     def command(self, dt: float) -> list[str]:
         cmd = [sumo_binary("sumo-gui" if self.gui else "sumo"), "-n", str(self.net),
@@ -58,8 +60,12 @@ class SumoOptions:
         if self.fcd is not None:
             cmd += ["--fcd-output", str(self.fcd)]
         if self.gui:
-            cmd += ["--start", "--quit-on-end"]
+            cmd += ["--start", "--delay", repr(float(self.delay))]
         return cmd
+
+
+#: sumo-gui colours (RGBA) of the controlled vehicles: plain, holding authority, in a safety stop.
+PLAIN, AUTHORITY, SAFETY_STOP = (30, 120, 255, 255), (255, 200, 0, 255), (230, 20, 20, 255)
 
 
 def _api(gui: bool):
@@ -120,7 +126,7 @@ class SumoSimulator(Simulator):
                 self.api.vehicletype.setLength(vtype, robot.length)
                 self.api.vehicletype.setWidth(vtype, robot.width)
                 self.api.vehicletype.setMinGap(vtype, 0.0)
-                self.api.vehicletype.setColor(vtype, (30, 120, 255, 255))
+                self.api.vehicletype.setColor(vtype, PLAIN)
             v.add(robot.name, ROUTE_ID, vtype, depart="now", departSpeed="0")
             v.setSpeedMode(robot.name, 0)
             v.setLaneChangeMode(robot.name, 0)
@@ -223,11 +229,25 @@ class SumoSimulator(Simulator):
     def agents(self) -> list[dict]:
         return agent_rows(self.observe())
 
+    def show(self, authority: set[str], stopped: set[str]) -> None:
+        """In sumo-gui, colour the authority vehicles gold and those in a safety stop red."""
+        if not self.options.gui:
+            return
+        shown = getattr(self, "_shown", {})
+        for robot in self.robots:
+            colour = SAFETY_STOP if robot.name in stopped else AUTHORITY if robot.name in authority else PLAIN
+            if shown.get(robot.name, PLAIN) != colour and robot.name not in self.removed:
+                self.api.vehicle.setColor(robot.name, colour)
+                shown[robot.name] = colour
+        self._shown = shown
+
     def close(self) -> None:
         if getattr(self, "_running", False):
             self._running = False
+            if self.options.gui:
+                print("aac-sumo: the run has ended; close the sumo-gui window to finish", file=sys.stderr, flush=True)
             try:
-                self.api.close()
+                self.api.close()  # traci waits for sumo-gui to exit
             except Exception:  # SUMO already gone; nothing left to release
                 pass
 

@@ -1,0 +1,85 @@
+"""What a run's loop recorded, the metrics assembled from it (see :mod:`aac_sumo.metrics`), and
+the result a run returns."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from aac_sumo.config import Scenario
+from aac_sumo.metrics import compute_metrics, jain
+
+
+@dataclass
+class RunResult:
+    """Metrics, the per-robot step table, the per-period table, every agent's trajectory,
+    each robot's goal (the end of its reference path, rear axle [m]) and each robot's delay
+    (arrival time minus free-flow time [s], NaN if it did not arrive; None when the experiment
+    has no free-flow times)."""
+
+    metrics: dict
+    steps: pd.DataFrame
+    periods: pd.DataFrame
+    trajectories: pd.DataFrame
+    scenario: Scenario
+    goals: np.ndarray | None = None
+    delays: np.ndarray | None = None
+
+
+@dataclass
+class Recording:
+    """Everything the closed loop recorded: per-robot ``steps`` rows, per-period ``periods``
+    rows, every agent's ``traj`` rows, and how the loop ended. ``arrival`` is each task's
+    arrival time [s] (NaN if it never arrived)."""
+
+    steps: list = field(default_factory=list)
+    periods: list = field(default_factory=list)
+    traj: list = field(default_factory=list)
+    collisions: int = 0
+    sim_collisions: int | None = None
+    completed: bool = False
+    task_duration: float | None = None
+    deadlock: bool = False
+    error: str | None = None
+    arrival: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+
+def assemble_metrics(scenario: Scenario, rec: Recording, steps: pd.DataFrame, periods: pd.DataFrame, *,
+                     robots: list, free_flow_s: np.ndarray | None, wall_s: float, setup_s: float) -> dict:
+    """The metrics.json of a run: what ran, :func:`~aac_sumo.metrics.compute_metrics` of its
+    tables, the delay metrics (when every task arrived and free-flow times exist), ``error``
+    and ``incomplete_reason`` (collisions, deadlock or time limit)."""
+    c = scenario.data["controller"]
+    dt, duration = scenario["scenario.dt"], scenario["scenario.duration"]
+    stop, patience = scenario["metrics.stop_speed"], scenario["metrics.deadlock_time"]
+    info = dict(
+        scenario=scenario["scenario.name"], coordinator=c["coordinator"], barrier=c["barrier"], horizon=c["horizon"],
+        seed=scenario["scenario.seed"], n_robots=len(rec.arrival), completed=rec.completed,
+        task_duration_s=rec.task_duration, collisions=rec.collisions, sim_collisions=rec.sim_collisions,
+        wall_s=wall_s, dt=dt, setup_s=setup_s,
+        accel_threshold=scenario["metrics.accel_threshold"], lat_accel_threshold=scenario["metrics.lat_accel_threshold"],
+        ttc_max=scenario["metrics.ttc_max"],
+        wheelbase={r.name: r.model.wheelbase for r in robots},
+        comfort_decel={r.name: r.model.limits.comfort_decel for r in robots},
+    )
+    if free_flow_s is not None and rec.completed:
+        delay = rec.arrival - free_flow_s
+        info.update(delay_jain=jain(np.maximum(delay, 0.0)), delay_max_s=float(delay.max()))
+    info.update(deadlock=rec.deadlock, safety_stops=int(periods["safety_stops"].sum()) if "safety_stops" in periods else 0)
+    metrics = compute_metrics(steps, periods, info)
+    reasons = []
+    if rec.error is not None:
+        metrics["error"] = rec.error
+    if rec.collisions:
+        metrics["completed"], metrics["task_duration_s"] = False, None
+        reasons.append(f"{rec.collisions} collision(s); wrecked robots stop where they hit")
+    if rec.deadlock:
+        reasons.append(f"deadlock: no unfinished robot got further than {stop * patience:.2f} m from where it was "
+                       f"{patience} s before (t = {len(rec.periods) * dt:.1f} s)")
+    elif not rec.completed and rec.error is None:
+        reasons.append(f"time limit {duration} s reached")
+    if reasons:
+        metrics["incomplete_reason"] = "; ".join(reasons)
+    return metrics

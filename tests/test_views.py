@@ -1,0 +1,90 @@
+"""Seeing runs: animations, the timeline and fairness pictures, and comparisons of run directories."""
+
+from __future__ import annotations
+
+import pandas as pd
+import pytest
+from PIL import Image
+
+from aac_sumo.cli import main
+
+SWARM = ["run", "swarm_rescue", "--set", "scenario.duration=1.0", "--set", "controller.horizon=5"]
+
+
+@pytest.fixture(scope="module")
+def swarm_run(tmp_path_factory):
+    """A one-second swarm rescue written with ``run --animate``."""
+    out = tmp_path_factory.mktemp("views") / "swarm"
+    assert main([*SWARM, "--out", str(out), "--animate", "--ellipses"]) == 0
+    return out
+
+
+def recorded_times(run_dir) -> int:
+    return pd.read_csv(run_dir / "trajectories.csv")["t"].nunique()
+
+
+def test_run_animate_writes_one_gif_frame_per_recorded_period(swarm_run):
+    gif = Image.open(swarm_run / "animation.gif")
+    assert gif.n_frames == recorded_times(swarm_run) == 11  # t = 0.0 .. 1.0 s
+    sizes = set()
+    for k in range(gif.n_frames):
+        gif.seek(k)
+        sizes.add(gif.size)
+    assert sizes == {(1000, gif.size[1])} and gif.size[1] % 2 == 0 and gif.size[1] > 200
+
+
+def test_animate_writes_an_mp4_with_every_kth_frame(swarm_run, capsys):
+    import imageio_ffmpeg
+
+    assert main(["animate", str(swarm_run), "--format", "mp4", "--every", "2", "--fps", "5"]) == 0
+    assert "6 frames" in capsys.readouterr().out
+    frames, seconds = imageio_ffmpeg.count_frames_and_secs(str(swarm_run / "animation.mp4"))
+    assert frames == 6 and seconds == pytest.approx(6 / 5, abs=0.01)
+
+
+def test_animate_still_writes_the_frame_nearest_to_a_time(swarm_run, capsys):
+    assert main(["animate", str(swarm_run), "--still", "0.52"]) == 0
+    assert "t = 0.5 s" in capsys.readouterr().out
+    with Image.open(swarm_run / "frame_0.52.png") as frame:
+        assert frame.size == Image.open(swarm_run / "animation.gif").size
+
+
+def test_every_run_writes_its_timeline_and_fairness_pictures(swarm_run):
+    for name in ("timeline.png", "fairness.png"):
+        with Image.open(swarm_run / name) as picture:
+            assert picture.format == "PNG" and min(picture.size) > 300, name
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["animate", "no/such/dir"], "no/such/dir: expected a run directory"),
+    (["animate", ".", "--format", "avi"], "--format: invalid choice: 'avi'"),
+    (["animate", ".", "--fps", "-1"], "--fps: expected a number > 0"),
+])
+def test_animate_bad_input_is_one_line(capsys, argv, expected):
+    assert main(argv) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and expected in err[0], err
+
+
+def test_compare_puts_runs_side_by_side(swarm_run, tmp_path, capsys):
+    lfc = tmp_path / "lfc"
+    assert main([*SWARM, "--set", "controller.coordinator=lfc", "--out", str(lfc)]) == 0
+    out = tmp_path / "cmp"
+    assert main(["compare", str(swarm_run), str(lfc), "--out", str(out)]) == 0
+    table = pd.read_csv(out / "compare.csv")
+    assert list(table["run"]) == ["swarm", "lfc"] and list(table["coordinator"]) == ["aac", "lfc"]
+    assert {"min_clearance_m", "authority_jain", "task_duration_s"} <= set(table.columns)
+    md = (out / "compare.md").read_text()
+    assert "| metric | swarm | lfc |" in md and "| coordinator | aac | lfc |" in md
+    assert Image.open(out / "compare.png").format == "PNG"
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["compare", "a", "--out", "x"], "compare: expected two or more RUN_DIRs, got 1"),
+    (["compare", "no/run", "other", "--out", "x"], "no/run: expected a run directory"),
+    (["compare", "a", "b"], "the following arguments are required: --out"),
+])
+def test_compare_bad_input_is_one_line(capsys, argv, expected):
+    assert main(argv) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and expected in err[0], err
