@@ -5,8 +5,9 @@ The MPC looks one horizon ahead (1 s at car scale, 10 m at 10 m/s), too short to
 (25 m from 10 m/s at 2 m/s^2). Here every agent ahead on the robot's path caps its reference
 speed with a comfortable stopping profile, as a driver's car following does:
 
-- another robot or a moving obstacle whose footprint reaches within ``lateral_margin`` of the
-  path, ahead of the robot's front: the robot may drive at ``sqrt(v_lead^2 + 2 b (s_stop - s))``
+- another robot or a moving obstacle whose footprint reaches within ``lateral_margin`` [m] of
+  the path ahead of the robot, or will within ``cut_in`` [s] at its speed towards the path
+  (a car cutting in, so that the robot behind makes room early): the robot may drive at ``sqrt(v_lead^2 + 2 b (s_stop - s))``
   at arc length ``s``, with ``v_lead`` its speed along the path and ``s_stop`` the point
   ``gap + time_gap * v_lead`` [m] behind it;
 - a pedestrian near or on the path counts with ``v_lead = 0``: the robot yields, it does not
@@ -45,6 +46,7 @@ class Anticipation:
     time_gap: float = 1.0
     look: float = 80.0
     lateral_margin: float = 0.3
+    cut_in: float = 2.0
     pedestrian_margin: float = 1.0
     pedestrian_reach: float = 0.0
     yield_distance: float = 20.0
@@ -102,7 +104,8 @@ def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipa
                 continue
             lead, keep, grow = 0.0, params.pedestrian_margin, params.pedestrian_reach / params.decel
         else:
-            if gap_across > params.lateral_margin:
+            toward = max(0.0, -side * float(vel @ normal))  # cutting in
+            if gap_across - toward * params.cut_in > params.lateral_margin:
                 continue
             lead, keep, grow = max(along, 0.0), 0.0, 0.0
         s_stop = s - _along_extent(length, width, rel) - front - params.gap - keep - params.time_gap * lead
