@@ -16,12 +16,13 @@ from aac_sumo.kernels import closest_on_polyline
 BACK_OFF_HYSTERESIS = 1.5
 
 
-def smooth_path(points, spacing: float = 0.5, tolerance: float = 0.02) -> tuple[np.ndarray, np.ndarray]:
+def smooth_path(points, spacing: float = 0.5, tolerance: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
     """Points (K, 2) every ``spacing`` [m] along a curvature-continuous path through the polyline
     ``points`` (M, 2) [m], and the signed curvature (K,) [1/m] there (positive: turning left).
 
     The path is a quintic smoothing spline on arc length (scipy's ``make_splprep``), so its
-    curvature has no jumps where the polyline has corners (lane shapes from SUMO); it keeps
+    curvature has no jumps where the polyline has corners (lane shapes from SUMO, whose chords
+    on a curve lie up to ``c^2 / 8R`` inside the arc: 7 cm for 9 m chords at R = 150 m); it keeps
     within about ``tolerance`` [m] of the polyline's points. Straight polylines stay straight."""
     from scipy.interpolate import make_splprep
 

@@ -126,19 +126,20 @@ def speed_cap(stops: np.ndarray, s, decel: float) -> np.ndarray:
 
 
 def anticipated_reference(world: WorldState, i: int, task: PathReference, steps: int, dt: float, params: Anticipation) -> np.ndarray:
-    """Robot ``i``'s reference (steps+1, 4) along ``task``'s path: its speeds ramp from the
-    robot's speed by at most ``accel`` / ``decel`` per second towards the path's speed, capped
-    by :func:`speed_cap` of :func:`stop_points`, and its positions follow them."""
+    """Robot ``i``'s reference (steps+1, 4) along ``task``'s path: its speeds start at the
+    robot's speed and change by at most ``accel`` / ``decel`` [m/s^2] from stage to stage
+    towards the path's speed, capped by :func:`speed_cap` of :func:`stop_points`; its
+    positions follow them."""
     state = world.states[i]
     stops = stop_points(world, i, task, params)
     s = np.empty(steps + 1)
     v = np.empty(steps + 1)
     s[0], _ = task.project(state[:2])
-    v0 = max(float(state[3]), 0.0)
+    v[0] = max(float(state[3]), 0.0)
     for k in range(steps + 1):
-        target = min(float(task.speed_at(s[k])), float(speed_cap(stops, s[k], params.decel)[0]))
-        v[k] = min(max(target, v0 - params.decel * k * dt), v0 + params.accel * k * dt)
-        v[k] = max(v[k], 0.0)
+        if k:
+            target = min(float(task.speed_at(s[k])), float(speed_cap(stops, s[k], params.decel)[0]))
+            v[k] = max(min(max(target, v[k - 1] - params.decel * dt), v[k - 1] + params.accel * dt), 0.0)
         if k < steps:
             s[k + 1] = s[k] + v[k] * dt
     poses = task.pose_at(s)

@@ -1,0 +1,222 @@
+"""Driving like a car: vehicle limits wherever inputs are made, smooth references, anticipation,
+yielding to walkers (docs/lane_change.md, "How the cars are driven")."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from aac_sumo import config, network, runner
+from aac_sumo.coordination.anticipation import Anticipation, anticipated_reference, speed_cap, stop_points
+from aac_sumo.coordination.tracking import track
+from aac_sumo.dynamics import BicycleModel, VehicleLimits
+from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
+from aac_sumo.references import PathReference, curve_speeds, smooth_path
+from aac_sumo.world import Obstacle, RobotSpec, WorldState
+
+DT = 0.1
+CAR_LIMITS = VehicleLimits(a_min=-6.0, a_max=3.0, steer_max=0.5, v_min=0.0, v_max=20.0, a_lat_max=3.0, steer_rate_max=0.5, a_comfort=3.0)
+CAR = RobotSpec("car", 4.0, 1.8, BicycleModel(2.6, CAR_LIMITS))
+
+
+def lateral(speed, steer, wheelbase=2.6):
+    return np.asarray(speed) ** 2 * np.abs(np.tan(steer)) / wheelbase
+
+
+# --- the limits ---------------------------------------------------------------------------------
+
+
+@settings(max_examples=200, deadline=None)
+@given(steer=st.floats(-1.0, 1.0), speed=st.floats(0.0, 25.0), previous=st.floats(-0.5, 0.5), accel=st.floats(-6.0, 3.0))
+def test_limited_steering_keeps_the_lateral_limit_and_else_the_rate(steer, speed, previous, accel):
+    """The lateral limit always holds, at the speed now and after the input; the rate limit
+    holds whenever the lateral bound leaves room for it."""
+    got = float(CAR.model.limit_steer(steer, speed, previous, DT, accel))
+    after = max(speed, speed + accel * DT)
+    assert abs(got) <= CAR_LIMITS.steer_max + 1e-12
+    assert lateral(after, got) <= CAR_LIMITS.a_lat_max + 1e-9
+    bound = float(CAR.model.steer_bound(after))
+    if abs(previous) <= bound:
+        assert abs(got - previous) <= CAR_LIMITS.steer_rate_max * DT + 1e-12
+
+
+def test_a_planned_swerve_at_speed_stays_within_the_limits():
+    """At 10 m/s, told to be 3 m to the left at once, the MPC's plan keeps the lateral
+    acceleration within 3 m/s^2 and the steering rate within 0.5 rad/s at every stage, the
+    first against the steering applied before."""
+    planner = MpcPlanner(MpcConfig(horizon=10, dt=DT, slots=2, discs=2))
+    state = np.array([0.0, 0.0, 0.0, 10.0])
+    reference = np.column_stack([np.arange(11) * 1.0, np.full(11, 3.0), np.zeros(11), np.full(11, 10.0)])
+    u_prev = np.array([0.0, 0.02])
+    plan = planner.plan(CAR, state, reference, u_prev, [])
+    assert plan.status == "solved"
+    steer = np.r_[u_prev[1], plan.inputs[:, 1]]
+    assert np.all(lateral(plan.states[:-1, 3], plan.inputs[:, 1]) <= 3.0 + 1e-6)
+    assert np.all(np.abs(np.diff(steer)) <= 0.05 + 1e-6)
+    assert plan.inputs[:, 1].max() > 0.02  # it does steer towards the reference
+
+
+def test_braking_beyond_comfort_only_in_an_emergency():
+    """Braking for a stop sign 30 m ahead at 10 m/s needs 1.7 m/s^2: the plan stays within the
+    3 m/s^2 comfort level. A cone 5 m ahead needs more: the plan brakes harder and says so."""
+    planner = MpcPlanner(MpcConfig(horizon=10, dt=DT, slots=2, discs=2, d_safe=0.1))
+    state = np.array([0.0, 0.0, 0.0, 10.0])
+    slowing = np.column_stack([np.arange(11) * 0.9, np.zeros((11, 2)), np.linspace(10.0, 8.3, 11)])
+    gentle = planner.plan(CAR, state, slowing, np.zeros(2), [])
+    assert gentle.status == "solved" and not gentle.emergency
+    assert gentle.inputs[:, 0].min() >= -3.0 - 1e-9
+    cone = Obstacle("cone", "cone", np.array([9.5, 0.0]), np.zeros(2), 0.0, 0.4, 0.4)
+    hard = planner.plan(CAR, state, slowing, np.zeros(2), [cone])
+    assert hard.emergency and hard.inputs[:, 0].min() < -3.0
+
+
+@settings(max_examples=100, deadline=None)
+@given(x=st.floats(-5, 5), y=st.floats(-5, 5), heading=st.floats(-3.0, 3.0), speed=st.floats(0.0, 15.0),
+       previous=st.floats(-0.05, 0.05))
+def test_the_tracking_law_keeps_the_limits(x, y, heading, speed, previous):
+    """Whatever the pose, the tracking law brakes within comfort and steers within the limits."""
+    task = PathReference([[0.0, 0.0], [50.0, 10.0], [100.0, 0.0]], 10.0, stop_at_end=False)
+    accel, steer = track(CAR, np.array([x, y, heading, speed]), task, 10.0, 1.0, previous, DT)
+    assert -CAR_LIMITS.a_comfort - 1e-12 <= accel <= CAR_LIMITS.a_max
+    assert abs(steer - previous) <= CAR_LIMITS.steer_rate_max * DT + 1e-12
+    assert lateral(max(speed, speed + accel * DT), steer) <= CAR_LIMITS.a_lat_max + 1e-9
+
+
+# --- smooth references --------------------------------------------------------------------------
+
+
+@settings(max_examples=30, deadline=None)
+@given(radius=st.floats(30.0, 400.0), chord=st.floats(0.3, 1.0), speed=st.floats(5.0, 20.0))
+def test_a_lane_shape_with_corners_becomes_a_smooth_path_with_speeds_for_its_curves(radius, chord, speed):
+    """A lane shape as SUMO gives it: an arc of ``radius`` m as a polyline with a corner at every
+    vertex, the vertices far enough apart that each chord lies up to 1 to 10 cm inside the arc
+    (``chord``: 0.3 to 1 of the 0.8 sqrt(R) m chord that lies 10 cm inside), resampled every
+    metre as the lane change does. The smoothed path keeps within twice its 10 cm (RMS) tolerance of the
+    polyline, its curvature stays within 20 % of the arc's and changes
+    little from point to point (no steering spikes at the corners), and the speeds keep
+    v^2 |curvature| within 2 m/s^2, slowing for the curve no harder than 1.5 m/s^2."""
+    spacing = chord * np.sqrt(0.8 * radius)  # sagitta spacing^2 / (8 R) <= 0.1 m
+    vertices = np.arange(0.0, 150.0, spacing) / radius
+    corners = radius * np.column_stack([np.sin(vertices), 1.0 - np.cos(vertices)])
+    seg = np.r_[0.0, np.cumsum(np.hypot(*np.diff(corners, axis=0).T))]
+    fine = np.arange(0.0, seg[-1], 1.0)
+    points = np.column_stack([np.interp(fine, seg, corners[:, 0]), np.interp(fine, seg, corners[:, 1])])
+    xy, curvature = smooth_path(points, 0.5)
+    inner = slice(20, -20)  # away from the ends, where the spline has no neighbours to go by
+    sagitta = radius * (1 - np.cos(0.5 * spacing / radius))  # how far the chords lie inside the arc
+    assert np.abs(np.hypot(xy[inner, 0], xy[inner, 1] - radius) - radius).max() < 2 * 0.1 + sagitta  # twice the 10 cm (RMS) tolerance
+    np.testing.assert_allclose(curvature[inner], 1.0 / radius, rtol=0.2)
+    assert np.abs(np.diff(curvature[inner])).max() < 0.1 / radius
+    v = curve_speeds(curvature, 0.5, speed, 2.0, 1.5)
+    assert np.all(v**2 * np.abs(curvature) <= 2.0 + 1e-9)
+    assert np.all(np.diff(v**2) >= -2 * 1.5 * 0.5 - 1e-9)  # slowing: v^2 drops by at most 2 b ds per step
+
+
+def test_a_straight_polyline_stays_straight():
+    xy, curvature = smooth_path(np.array([[0.0, -1.6], [420.0, -1.6]]), 0.5)
+    np.testing.assert_allclose(xy[:, 1], -1.6, atol=1e-9)
+    np.testing.assert_allclose(curvature, 0.0, atol=1e-9)
+
+
+# --- anticipation -------------------------------------------------------------------------------
+
+
+def one_lane_world(other_x: float, other_y: float = 0.0, other_speed: float = 0.0, kind: str = "cone", velocity=(0.0, 0.0)):
+    task = PathReference([[0.0, 0.0], [500.0, 0.0]], 10.0, stop_at_end=False)
+    obstacle = Obstacle("o", kind, np.array([other_x, other_y]), np.array(velocity, dtype=float), 0.0, 0.4, 0.4)
+    return WorldState(0.0, np.array([[0.0, 0.0, 0.0, 10.0]]), [CAR], [obstacle]), task
+
+
+@settings(max_examples=50, deadline=None)
+@given(distance=st.floats(10.0, 70.0))
+def test_the_reference_slows_for_what_stands_on_the_path_within_comfort(distance):
+    """A cone on the path ``distance`` m ahead: the stop row lies the gap, the cone's and the
+    car's front extents before it; the reference speed keeps to the cap there, unless it is
+    already slowing at the comfortable rate, never faster."""
+    params = Anticipation()
+    world, task = one_lane_world(distance)
+    stops = stop_points(world, 0, task, params)
+    front = CAR.centre_offset + 0.5 * CAR.length
+    np.testing.assert_allclose(stops, [[distance - 0.2 - front - params.gap, 0.0, 0.0]])
+    ref = anticipated_reference(world, 0, task, 10, DT, params)
+    s = ref[:, 0]
+    cap = speed_cap(stops, s, params.decel)
+    assert np.all((ref[1:, 3] <= cap[1:] + 1e-9) | np.isclose(np.diff(ref[:, 3]), -params.decel * DT))
+    assert np.all(np.diff(ref[:, 3]) >= -params.decel * DT - 1e-9)
+
+
+def test_walkers_count_when_near_or_heading_for_the_path_and_not_when_walking_away():
+    params = Anticipation(pedestrian_margin=1.0, pedestrian_reach=0.0)
+    on_path, _ = one_lane_world(30.0, 0.5, kind="pedestrian")
+    coming, _ = one_lane_world(30.0, 5.0, kind="pedestrian", velocity=(0.0, -1.5))
+    leaving, task = one_lane_world(30.0, 5.0, kind="pedestrian", velocity=(0.0, 1.5))
+    assert len(stop_points(on_path, 0, task, params)) == 1
+    assert len(stop_points(coming, 0, task, params)) == 1  # it reaches the path in the 3 s the car needs
+    assert len(stop_points(leaving, 0, task, params)) == 0
+
+
+# --- on SUMO roads ------------------------------------------------------------------------------
+
+
+def write_sidewalk_curve(folder: Path) -> tuple[Path, Path]:
+    """A curved road (radius 150 m, about 340 m) with a 2 m sidewalk (lane 0) and three 3.2 m car
+    lanes, built by netconvert; three cones close the rightmost car lane from 150 m to 170 m and
+    two walkers walk along the sidewalk. Returns the network and the route file."""
+    folder.mkdir()
+    arc = [(150 * np.sin(t), 150 * (1 - np.cos(t))) for t in np.linspace(0, 2.3, 40)]
+    shape = " ".join(f"{x:.2f},{y:.2f}" for x, y in arc)
+    (folder / "road.nod.xml").write_text(
+        f'<nodes><node id="A" x="0" y="0"/><node id="B" x="{arc[-1][0]:.2f}" y="{arc[-1][1]:.2f}"/></nodes>')
+    (folder / "road.edg.xml").write_text(
+        f'<edges><edge id="R" from="A" to="B" numLanes="4" speed="13.9" width="3.2" shape="{shape}">'
+        '<lane index="0" allow="pedestrian" width="2.0"/></edge></edges>')
+    net = network.build(folder)[0]
+    routes = folder / "cones_walkers.rou.xml"
+    routes.write_text(
+        '<routes><vType id="cone" length="0.4" width="0.4" minGap="0"/>'
+        + "".join(f'<vehicle id="c{i}" type="cone" depart="0" departLane="1" departPos="{p}" departSpeed="0"><route edges="R"/>'
+                  f'<stop lane="R_1" startPos="{p - 0.4}" endPos="{p}" duration="1000"/></vehicle>' for i, p in enumerate((150, 160, 170)))
+        + '<person id="w0" depart="0" departPos="60"><walk edges="R" arrivalPos="300"/></person>'
+        + '<person id="w1" depart="0" departPos="250"><walk edges="R" arrivalPos="20"/></person>'
+        + "</routes>")
+    return net, routes
+
+
+@pytest.mark.slow
+def test_aac_drives_a_curved_road_with_a_sidewalk_calmly(tmp_path):
+    """AAC on the curved sidewalk road: it completes with 0 collisions, and no applied input
+    breaks the lateral or steering-rate limit. (The issue's target of at most one car in ten
+    driving aggressively is not met yet: docs/lane_change.md.)"""
+    net, routes = write_sidewalk_curve(tmp_path / "road")
+    scenario = config.load("lane_change", [f"sumo.net={net}", f"sumo.routes={routes}", "lane_change.vehicles=9"])
+    result = runner.run(scenario)
+    m = result.metrics
+    assert "error" not in m
+    assert m["completed"] is True and m["collisions"] == 0
+    assert_limits_hold(result.steps)
+
+
+def assert_limits_hold(steps) -> None:
+    """No applied input exceeds a_lat_max (3 m/s^2) or steer_rate_max (0.5 rad/s)."""
+    assert steps["lat_accel"].abs().max() <= 3.0 + 1e-6
+    rate = steps.sort_values(["robot", "t"]).groupby("robot")["steer"].diff().abs()
+    assert rate.max() <= 0.5 * DT + 1e-6
+
+
+@pytest.mark.slow
+def test_seed_zero_lane_change_keeps_the_limits_and_yields_in_lane():
+    """The bundled lane change, seed 0 (``make demo``): every applied input keeps the vehicle
+    limits; within 20 m of the crossing (x = 239 m) no car leaves its reference by 0.3 m or more,
+    and no car comes within pedestrian_margin (1 m) of a walker."""
+    result = runner.run(config.load("lane_change"))
+    m, steps = result.metrics, result.steps
+    assert m["completed"] is True and m["collisions"] == 0
+    assert_limits_hold(steps)
+    near = (steps["x"] - 239.0).abs() <= 20.0
+    deviation = np.hypot(steps["x"] - steps["ref_x"], steps["y"] - steps["ref_y"])[near]
+    assert deviation.max() < 0.3
+    assert m["min_pedestrian_clearance_m"] >= 1.0
