@@ -20,8 +20,6 @@ from aac_sumo.barriers import ObstaclePrediction, predict_constant_velocity
 from aac_sumo.world import Obstacle, WorldState
 
 PREDICTIONS = ("constant_velocity", "constant_acceleration")
-#: Below this speed [m/s] the direction of motion is the obstacle's heading.
-STANDING = 1e-6
 
 
 def predict_constant_acceleration(centre, velocity, accel: float, heading: float, length, width, horizon: int, dt: float) -> ObstaclePrediction:
@@ -32,7 +30,7 @@ def predict_constant_acceleration(centre, velocity, accel: float, heading: float
     centre = np.asarray(centre, dtype=float)
     velocity = np.asarray(velocity, dtype=float)
     speed = float(np.hypot(*velocity))
-    direction = velocity / speed if speed > STANDING else np.array([np.cos(heading), np.sin(heading)])
+    direction = velocity / speed if speed > 0.0 else np.array([np.cos(heading), np.sin(heading)])
     t = np.arange(horizon + 1) * dt
     if accel < 0.0:
         t = np.minimum(t, speed / -accel)  # moving time up to each stage

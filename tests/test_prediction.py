@@ -8,6 +8,7 @@ from hypothesis import strategies as st
 
 from aac_sumo import config
 from aac_sumo.barriers import predict_constant_velocity
+from aac_sumo.cli import main
 from aac_sumo.experiments import build
 from aac_sumo.prediction import PREDICTIONS, SpeedHistory, predict_constant_acceleration, predict_obstacle, speed_slope
 from aac_sumo.sim.internal import ScriptedAgent
@@ -46,7 +47,7 @@ def test_constant_acceleration_in_closed_form(vx, vy, accel, horizon):
     pred = predict_constant_acceleration([1.0, 2.0], v, accel, 0.3, 4.0, 1.8, horizon, 0.1)
     t = np.arange(horizon + 1) * 0.1
     speed = np.hypot(vx, vy)
-    direction = v / speed if speed > 1e-6 else np.array([np.cos(0.3), np.sin(0.3)])
+    direction = v / speed if speed > 0.0 else np.array([np.cos(0.3), np.sin(0.3)])
     np.testing.assert_allclose(pred.centres, [1.0, 2.0] + (speed * t + 0.5 * accel * t**2)[:, None] * direction, atol=1e-9)
     np.testing.assert_allclose(pred.velocities, (speed + accel * t)[:, None] * direction, atol=1e-9)
     cv = predict_constant_velocity([1.0, 2.0], v, 0.3, 4.0, 1.8, horizon, 0.1)
@@ -145,3 +146,12 @@ def test_cbf_and_fcbf_get_the_same_predicted_centres(prediction):
     assert accels["fcbf"][-1] == pytest.approx(-6.0 if prediction == "constant_acceleration" else 0.0)
     np.testing.assert_array_equal(regions["cbf"][..., :2], regions["fcbf"][..., :2])
     assert np.any(regions["cbf"][..., 2] != regions["fcbf"][..., 2])
+
+
+@pytest.mark.parametrize("value, expected", [("constant_jerk", "one of constant_velocity, constant_acceleration"),
+                                              ("1", "in 2..50")])
+def test_bad_prediction_settings_exit_2_on_one_line(capsys, value, expected):
+    key = "controller.prediction" if value == "constant_jerk" else "controller.prediction_window"
+    assert main(["run", "braking", "--set", f"{key}={value}"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.splitlines()) == 1 and "braking.toml" in err and key in err and expected in err
