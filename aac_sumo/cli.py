@@ -128,7 +128,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("table", help="one of the paper's tables, ours beside the paper's values; or the circle swap",
                        description="swarm: Table I (AAC vs LFC, horizons 5/10/15); lane-change: Table II (SUMO); "
-                       "braking: Table III (CBF vs F-CBF); circle-swap: AAC vs LFC with 8/16/24 robots on radii 4/6/8 m "
+                       "braking: Table III (CBF vs F-CBF, once per controller.prediction, the scenario's own first); circle-swap: AAC vs LFC with 8/16/24 robots on radii 4/6/8 m "
                        "(not in the paper). swarm and circle-swap give AAC and LFC the same emergency layers in every "
                        "run (the safety_layers column): off = neither has the safety stop (the paper), on = both have it.")
     p.add_argument("name", choices=TABLES, metavar="{" + ",".join(TABLES) + "}")

@@ -123,6 +123,13 @@ COMMON: dict[str, dict[str, Key]] = {
         "v0": Key(float, 1.0, "F-CBF sigmoid threshold v0 [m/s]", **NN),
         "pedestrian_reach": Key(float, 0.0, "pedestrians may start, stop or turn at any moment: their regions grow by this speed times the look-ahead time in every direction [m/s]", **NN),
         "pedestrian_margin": Key(float, 0.0, "extra clearance every robot keeps from pedestrians, on top of d_safe [m]", **NN),
+        "prediction": Key(("constant_velocity", "constant_acceleration"), "constant_velocity",
+                          "how obstacles move over the horizon, the same for every barrier: constant_velocity, or "
+                          "constant_acceleration (each keeps its direction and changes its speed at the acceleration "
+                          "estimated from its last prediction_window observed speeds, stopping at zero, never reversing)"),
+        "prediction_window": Key(int, 2, "observed speeds (one per control period) whose least-squares slope is an "
+                                 "obstacle's estimated acceleration; 2 = the backward difference",
+                                 check=lambda n: 2 <= n <= 50, expect="in 2..50"),
         "obstacle_slots": Key(int, 8, "obstacles the MPC considers (nearest first)", check=lambda n: n >= 1, expect=">= 1"),
         "ego_discs": Key(int, 1, "discs covering the ego footprint", check=lambda n: 1 <= n <= 5, expect="in 1..5"),
         "q_pos": Key(float, 1.0, "Q weight on position error [1/m^2]", **NN),

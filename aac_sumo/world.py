@@ -36,7 +36,9 @@ class Obstacle:
 
     ``centre`` is the footprint centre [m], ``velocity`` world-frame [m/s]. ``predicted`` is an
     optional (M, 2) array of future centres at the control period (M >= horizon + 1, row 0 now);
-    without it the planner predicts constant velocity.
+    without it the planner predicts the obstacle with ``controller.prediction`` (see
+    :mod:`aac_sumo.prediction`). ``accel`` is its longitudinal acceleration along its velocity
+    [m/s^2] as a coordinator estimated it from the speeds it observed (0 when not estimated).
     """
 
     name: str
@@ -47,6 +49,7 @@ class Obstacle:
     length: float
     width: float
     predicted: np.ndarray | None = None
+    accel: float = 0.0
 
     def footprint(self) -> np.ndarray:
         """Row ``[cx, cy, length, width, heading]``."""

@@ -21,7 +21,8 @@ from hypothesis import strategies as st
 from aac_sumo.barriers import barrier_value, inactive_slot, safety_ellipses
 from aac_sumo.dynamics import BicycleModel, VehicleLimits, bicycle_step
 from aac_sumo.geometry import ellipse_signed_distance
-from aac_sumo.mpc.planner import STATUSES, MpcConfig, MpcPlanner, Plan, ego_discs, predict
+from aac_sumo.mpc.planner import STATUSES, MpcConfig, MpcPlanner, Plan, ego_discs
+from aac_sumo.prediction import predict_obstacle
 from aac_sumo.world import Obstacle, RobotSpec
 
 HORIZON, DT, SLOTS = 10, 0.1, 2
@@ -57,7 +58,7 @@ def clearance_margins(states, obstacles, cfg: MpcConfig):
     centres = disc_centres(states, offsets)
     out = []
     for ob in obstacles:
-        ell = safety_ellipses(predict(ob, len(states) - 1, cfg.dt), cfg.barrier, cfg.fcbf)
+        ell = safety_ellipses(predict_obstacle(ob, len(states) - 1, cfg.dt), cfg.barrier, cfg.fcbf)
         sd = ellipse_signed_distance(centres, *(ell[:, i, None] for i in range(5)))
         out.append(sd - radius - cfg.d_safe)
     return np.array(out)

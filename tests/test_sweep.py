@@ -10,9 +10,10 @@ from pathlib import Path
 
 import pytest
 
-from aac_sumo import executor, sweep, table_braking
+from aac_sumo import config, executor, sweep, table_braking
 from aac_sumo.cli import main
 from aac_sumo.metrics import METRIC_KEYS
+from aac_sumo.prediction import PREDICTIONS
 
 SHORT = ["--set", "controller.horizon=5", "--set", "scenario.duration=3", "--no-progress"]
 
@@ -82,19 +83,33 @@ def test_braking_table_short(capsys, tmp_path):
                "--no-progress"])
     assert rc == 0, capsys.readouterr().err
     cols, rows = read_rows(tmp_path / "table.csv")
-    assert cols[:2] == ["barrier", "speed"]
+    assert cols[:3] == ["barrier", "speed", "prediction"]
     assert {"infeasibility_rate", "min_distance_m", "ttc_mean_s", "collisions", "min_clearance_m",
             "paper_infeasibility_rate", "paper_min_distance_m", "paper_ttc_mean_s"} <= set(cols)
     assert not any(c.endswith("_std") for c in cols)
-    assert [(r["barrier"], r["speed"]) for r in rows] == [(b, str(s)) for s in (5, 10, 15, 20, 25) for b in ("cbf", "fcbf")]
-    paper = {(r["barrier"], r["speed"]): (r["paper_infeasibility_rate"], r["paper_min_distance_m"]) for r in rows}
-    assert paper[("cbf", "5")] == ("0.433", "1.5")
-    assert paper[("cbf", "15")] == ("1.0", "")
-    assert paper[("fcbf", "25")] == ("", "")
+    own = config.load("braking")["controller.prediction"]
+    order = sorted(PREDICTIONS, key=lambda p: p != own)  # the scenario's own prediction first
+    assert [(r["prediction"], r["barrier"], r["speed"]) for r in rows] == [
+        (p, b, str(s)) for p in order for s in (5, 10, 15, 20, 25) for b in ("cbf", "fcbf")]
+    paper = {(r["prediction"], r["barrier"], r["speed"]): (r["paper_infeasibility_rate"], r["paper_min_distance_m"]) for r in rows}
+    for p in PREDICTIONS:
+        assert paper[(p, "cbf", "5")] == ("0.433", "1.5")
+        assert paper[(p, "cbf", "15")] == ("1.0", "")
+        assert paper[(p, "fcbf", "25")] == ("", "")
     md = (tmp_path / "table.md").read_text()
     assert "| CBF | 5 |" in md and "43.3%" in md and "—" in md
+    assert md.index("## Prediction: " + own.replace("_", " ") + " (the scenario's default)") < md.index("## Prediction: " + order[1].replace("_", " "))
     assert md in capsys.readouterr().out
-    assert len(read_rows(tmp_path / "results.csv")[1]) == 10
+    _, results = read_rows(tmp_path / "results.csv")
+    assert len(results) == 20
+    assert {r["prediction"] for r in results} == set(PREDICTIONS)
+
+
+def test_braking_table_sets_the_prediction_itself(capsys, tmp_path):
+    rc = main(["table", "braking", "--out", str(tmp_path), "--set", "controller.prediction=constant_velocity", "--no-progress"])
+    assert rc == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "controller.prediction" in err
 
 
 def test_table_rows_with_seeds():

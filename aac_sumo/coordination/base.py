@@ -15,6 +15,7 @@ from aac_sumo.coordination.anticipation import Anticipation, anticipated_referen
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.coordination.safety import SafetyCheck
 from aac_sumo.mpc.planner import MpcPlanner, Plan
+from aac_sumo.prediction import SpeedHistory
 from aac_sumo.references import LateralBand, PathReference
 from aac_sumo.world import Obstacle, WorldState
 
@@ -86,7 +87,9 @@ class Decision:
 class Coordinator(ABC):
     """Holds the planner, each robot's task (reference path), optional position box
     (``[x_min, x_max, y_min, y_max]``, see :meth:`MpcPlanner.plan`), last plan and last input.
-    ``finished(world)`` tells which robots have finished their task (none, without it)."""
+    ``finished(world)`` tells which robots have finished their task (none, without it). With the
+    planner's ``constant_acceleration`` prediction it keeps every moving obstacle's observed
+    speeds and hands the obstacles on with their estimated acceleration."""
 
     name = "base"
     #: Reference speeds and lanes that look beyond the horizon (:mod:`~aac_sumo.coordination.anticipation`); None: the task's.
@@ -101,12 +104,16 @@ class Coordinator(ABC):
         self.plans: list[Plan | None] = [None] * len(tasks)
         self.last_inputs = np.zeros((len(tasks), 2))
         self.fleet: Fleet | None = None
+        cfg = planner.config
+        self.speeds = SpeedHistory(cfg.prediction_window, cfg.dt) if cfg.prediction == "constant_acceleration" else None
 
     def decide(self, world: WorldState) -> Decision:
         """Inputs for this period; ``compute_ms`` is the wall time of the whole decision."""
         start = time.perf_counter()
         if self.fleet is None:
             self.fleet = Fleet(world.robots)
+        if self.speeds is not None:
+            world = self.speeds.annotate(world)
         decision = self._decide(world)
         decision.compute_ms = (time.perf_counter() - start) * 1e3
         self.last_inputs = decision.inputs.copy()

@@ -62,6 +62,7 @@ def mpc_config(scenario: Scenario) -> MpcConfig:
         max_cpu_time=c["max_cpu_time"], retry_with_ipopt=c["retry_with_ipopt"], codegen=c["codegen"],
         warm_start=c["warm_start"],
         pedestrian_reach=c["pedestrian_reach"], pedestrian_margin=c["pedestrian_margin"],
+        prediction=c["prediction"], prediction_window=c["prediction_window"],
     )
 
 

@@ -13,12 +13,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aac_sumo.barriers import (N_STAGE_FIELDS, FcbfParams, ObstaclePrediction, RegionTrack, barrier_value, inactive_slot, predict_constant_velocity,
+from aac_sumo.barriers import (N_STAGE_FIELDS, FcbfParams, ObstaclePrediction, RegionTrack, barrier_value, inactive_slot,
                                safety_ellipses, stack_predictions, stage_parameters)
 from aac_sumo.dynamics import heading_hold_steer
 from aac_sumo.geometry import wrap_angle
 from aac_sumo.kernels import rollouts
 from aac_sumo.mpc.problem import NO_LIMIT, OPEN_BAND, ProblemShape, get_problem
+from aac_sumo.prediction import predict_obstacle
 from aac_sumo.references import LateralBand
 from aac_sumo.world import Obstacle, RobotSpec
 
@@ -47,6 +48,9 @@ class MpcConfig:
     [m] grows it at every stage (pedestrians have priority: cars keep clear of them).
     ``warm_start`` starts each solve from the robot's previous plan, shifted by one period,
     instead of the zero-input rollout (a failed warm start is retried cold either way).
+    ``prediction`` is how obstacles move over the horizon (see :mod:`aac_sumo.prediction`);
+    with ``constant_acceleration`` the coordinator estimates each one's acceleration from its
+    last ``prediction_window`` observed speeds.
     """
 
     horizon: int = 10
@@ -74,6 +78,8 @@ class MpcConfig:
     band: bool = False
     pedestrian_reach: float = 0.0
     pedestrian_margin: float = 0.0
+    prediction: str = "constant_velocity"
+    prediction_window: int = 2
 
     def weights(self) -> np.ndarray:
         q = np.array([self.q_pos, self.q_pos, self.q_heading, self.q_speed])
@@ -119,17 +125,6 @@ def ego_discs(robot: RobotSpec, discs: int) -> tuple[np.ndarray, float]:
     return offsets, float(np.hypot(0.5 * piece, 0.5 * robot.width))
 
 
-def predict(obstacle: Obstacle, horizon: int, dt: float) -> ObstaclePrediction:
-    """The obstacle's centres and velocities over stages ``0..horizon``: its given prediction if
-    long enough, else constant velocity."""
-    if obstacle.predicted is not None and len(obstacle.predicted) >= horizon + 1:
-        centres = np.asarray(obstacle.predicted[: horizon + 1], dtype=float)
-        vel = np.vstack([np.diff(centres, axis=0) / dt, obstacle.velocity[None, :]])
-        vel[-1] = vel[-2] if horizon >= 1 else obstacle.velocity
-        return ObstaclePrediction(centres, vel, np.full(horizon + 1, obstacle.heading), obstacle.length, obstacle.width)
-    return predict_constant_velocity(obstacle.centre, obstacle.velocity, obstacle.heading, obstacle.length, obstacle.width, horizon, dt)
-
-
 class MpcPlanner:
     """Plans one robot at a time with the compiled MPC-FCBF problem for ``config``."""
 
@@ -149,7 +144,8 @@ class MpcPlanner:
         if swept.any():
             ellipses[swept] = [o.ellipses[: cfg.horizon + 1] for o in obstacles if isinstance(o, RegionTrack)]
         if not swept.all():
-            preds = [o if isinstance(o, ObstaclePrediction) else predict(o, cfg.horizon, cfg.dt) for o in obstacles if not isinstance(o, RegionTrack)]
+            preds = [o if isinstance(o, ObstaclePrediction) else predict_obstacle(o, cfg.horizon, cfg.dt, cfg.prediction)
+                     for o in obstacles if not isinstance(o, RegionTrack)]
             ellipses[~swept] = safety_ellipses(stack_predictions(preds), cfg.barrier, cfg.fcbf)
         if cfg.pedestrian_reach > 0.0 or cfg.pedestrian_margin > 0.0:
             walker = np.array([isinstance(o, Obstacle) and o.kind == "pedestrian" for o in obstacles], dtype=bool)
