@@ -1,7 +1,8 @@
 """The paper's tables, ours beside the paper's values: ``aac-sumo table NAME``.
 
 Table I (swarm rescue) and Table II (lane change) compare AAC with LFC at MPC horizons 5, 10 and
-15; Table III (emergency braking) compares CBF with F-CBF over the initial speed. The circle-swap
+15; Table III (emergency braking) compares CBF with F-CBF over the initial speed, once per
+obstacle prediction (see table_braking). The circle-swap
 table (not in the paper) compares AAC with LFC over the number of robots. The runs go through the
 same process pool as ``aac-sumo sweep`` (and leave the same ``results.csv``).
 

