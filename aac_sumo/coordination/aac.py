@@ -184,7 +184,7 @@ class AacCoordinator(Coordinator):
             if decided.status != "solved" and self.params.fallback == "tracking":
                 inputs[authority] = track(world.robots[authority], world.states[authority], self.tasks[authority],
                                           self.params.lookahead, self.params.speed_gain, self.last_inputs[authority, 1], cfg.dt,
-                                          target_speed=self.tracking_speed(world, authority))
+                                          target_speed=self.tracking_speed(world, authority, self.params.speed_gain))
                 self.used[authority] = len(self.plans[authority].inputs)  # no plan to follow: tracking until its next turn
                 decided.mode, margin = "tracking", self.params.safety_margin
             checked = safety.safe_inputs(np.array([authority]), inputs, margin)
@@ -230,7 +230,7 @@ class AacCoordinator(Coordinator):
             out[: len(rest)] = rest
             return out, "plan"
         out[0] = track(world.robots[j], world.states[j], task, self.params.lookahead, self.params.speed_gain, self.last_inputs[j, 1],
-                       self.planner.config.dt, target_speed=self.tracking_speed(world, j))
+                       self.planner.config.dt, target_speed=self.tracking_speed(world, j, self.params.speed_gain))
         return out, "tracking"
 
     def reference(self, world: WorldState, i: int) -> np.ndarray:

@@ -146,10 +146,16 @@ class Coordinator(ABC):
         return RobotDecision(True, plan.status, plan.solve_ms, plan.solver, ref, reason=reason, mode="mpc",
                              iterations=plan.iterations, capped=plan.capped)
 
-    def tracking_speed(self, world: WorldState, i: int) -> float | None:
-        """The speed [m/s] robot ``i``'s tracking law drives towards: its anticipated reference
-        speed one horizon ahead when ``anticipation`` is set, else None (its task's)."""
-        return float(self.reference(world, i)[-1, 3]) if self.anticipation is not None else None
+    def tracking_speed(self, world: WorldState, i: int, speed_gain: float) -> float | None:
+        """The speed [m/s] robot ``i``'s tracking law (gain ``speed_gain`` [1/s]) drives towards
+        when ``anticipation`` is set: its anticipated reference speed ``1 / speed_gain`` seconds
+        ahead, so that the law accelerates and brakes as the reference does; else None (its
+        task's speed)."""
+        if self.anticipation is None:
+            return None
+        dt = self.planner.config.dt
+        ahead = max(1, int(round(1.0 / (speed_gain * dt))))
+        return float(anticipated_reference(world, i, self.tasks[i], ahead, dt, self.anticipation)[-1, 3])
 
     def safety_check(self, world: WorldState) -> SafetyCheck:
         """The safety stop of this period: robots brake turning towards their reference's heading

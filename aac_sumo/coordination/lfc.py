@@ -76,7 +76,7 @@ class LfcCoordinator(Coordinator):
             plan = self.plans[i]
             if plan.status != "solved" and self.params.fallback == "tracking":
                 inputs[i] = track(world.robots[i], world.states[i], self.tasks[i], self.params.lookahead, self.params.speed_gain,
-                                  self.last_inputs[i, 1], cfg.dt, target_speed=self.tracking_speed(world, i))
+                                  self.last_inputs[i, 1], cfg.dt, target_speed=self.tracking_speed(world, i, self.params.speed_gain))
                 records[i].mode = "tracking"
                 once = np.zeros((1, cfg.horizon + 1, 2))
                 once[0, 0] = inputs[i]

@@ -7,9 +7,10 @@ lane-change mode 0 and, every step, placed at the pose our bicycle model reached
 our model's: after ``moveToXY`` SUMO only knows the distance travelled in the step.
 
 Every step SUMO's own collision check (``simulation.getCollisions``) is read beside our footprint
-check. A controlled vehicle SUMO removes (say, it left the network) is frozen at its last pose with
-speed 0, counts as finished, is left out of the collision checks, and the event is reported on
-stderr and in :attr:`SumoSimulator.events`.
+check. A controlled vehicle SUMO removes (say, it left the network at the road's end) drives on
+in our model alone, as its reference does beyond the road (a car frozen there stood in the way
+of the cars behind it as a ghost), counts as finished, is left out of the collision checks, and
+the event is reported on stderr and in :attr:`SumoSimulator.events`.
 """
 
 from __future__ import annotations
@@ -136,13 +137,12 @@ class SumoSimulator(Simulator):
     # -- reading -----------------------------------------------------------------------------
 
     def _note_removed(self) -> None:
-        """Freeze every controlled vehicle SUMO no longer has, and report it once."""
+        """Note every controlled vehicle SUMO no longer has, and report it once."""
         present = set(self.api.vehicle.getIDList())
-        for i, robot in enumerate(self.robots):
+        for robot in self.robots:
             if robot.name not in self.removed and robot.name not in present:
                 self.removed.add(robot.name)
-                self.states[i, 3] = 0.0
-                event = f"t={self.t:.2f} s: SUMO removed controlled vehicle {robot.name}; frozen at its last pose, counted finished"
+                event = f"t={self.t:.2f} s: SUMO removed controlled vehicle {robot.name}; it drives on off SUMO's road, counted finished"
                 self.events.append(event)
                 print(f"aac-sumo: warning: {event}", file=sys.stderr)
 
@@ -190,7 +190,7 @@ class SumoSimulator(Simulator):
         inputs = np.asarray(inputs, dtype=float)
         with self._sumo_errors("stepping"):
             self._note_removed()  # removed since the last step (by another TraCI client, say)
-            moving = np.array([r.name not in self.removed and r.name not in self.wrecked for r in self.robots], dtype=bool)
+            moving = np.array([r.name not in self.wrecked for r in self.robots], dtype=bool)
             self.states[moving] = self.model.step(self.states, inputs, self.dt)[moving]
             for i, robot in enumerate(self.robots):
                 if robot.name in self.removed:
