@@ -72,7 +72,6 @@ def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipa
     robot, state = world.robots[i], world.states[i]
     s0, _ = task.project(state[:2])
     front = robot.centre_offset + 0.5 * robot.length  # rear axle to front bumper [m]
-    half_width = 0.5 * robot.width
     others = [j for j in range(len(world.robots)) if j != i]
     centres = np.vstack([world.robot_centres()[others]] + [o.centre[None, :] for o in world.obstacles]).reshape(-1, 2)
     if len(centres) == 0:
@@ -83,34 +82,30 @@ def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipa
     velocity = np.vstack([world.states[others, 3:4] * np.column_stack([np.cos(world.states[others, 2]), np.sin(world.states[others, 2])])]
                          + [np.asarray(o.velocity, dtype=float)[None, :] for o in world.obstacles]).reshape(-1, 2)
     walker = np.r_[np.zeros(len(others), dtype=bool), [o.kind == "pedestrian" for o in world.obstacles]]
-    rows = []
-    speed = max(abs(state[3]), 1.0)
-    for c, h, length, width, vel, ped in zip(centres, headings, lengths, widths, velocity, walker):
-        s, off = task.project(c)
-        ahead = s - s0
-        if ahead <= 0.0 or ahead > params.look:
-            continue
-        direction = task.pose_at(s)[0, 2]
-        rel = h - direction
-        normal = np.array([-np.sin(direction), np.cos(direction)])
-        side = np.sign(normal @ (c - task.pose_at(s)[0, :2])) or 1.0
-        gap_across = off - _across_extent(length, width, rel) - half_width
-        along = float(vel @ np.array([np.cos(direction), np.sin(direction)]))
-        if ped:
-            toward = max(0.0, -side * float(vel @ normal))  # walking towards the path
-            arrive = ahead / speed
-            reach = toward * arrive + params.pedestrian_reach * min(arrive, abs(state[3]) / params.decel)
-            if gap_across - reach > params.pedestrian_margin:
-                continue
-            lead, keep, grow = 0.0, params.pedestrian_margin, params.pedestrian_reach / params.decel
-        else:
-            toward = max(0.0, -side * float(vel @ normal))  # cutting in
-            if gap_across - toward * params.cut_in > params.lateral_margin:
-                continue
-            lead, keep, grow = max(along, 0.0), 0.0, 0.0
-        s_stop = s - _along_extent(length, width, rel) - front - params.gap - keep - params.time_gap * lead
-        rows.append((s_stop, lead, grow))
-    return np.array(rows).reshape(-1, 3)
+    projected = np.array([task.project(c) for c in centres])  # (K, 2): arc length, distance
+    ahead = projected[:, 0] - s0
+    near = (ahead > 0.0) & (ahead <= params.look)
+    if not near.any():
+        return np.zeros((0, 3))
+    s, off, ahead = projected[near, 0], projected[near, 1], ahead[near]
+    c, vel, walker = centres[near], velocity[near], walker[near]
+    poses = task.pose_at(s)
+    direction = poses[:, 2]
+    rel = headings[near] - direction
+    tangent = np.column_stack([np.cos(direction), np.sin(direction)])
+    normal = np.column_stack([-tangent[:, 1], tangent[:, 0]])
+    side = np.where(np.einsum("ij,ij->i", normal, c - poses[:, :2]) < 0.0, -1.0, 1.0)
+    gap_across = off - _across_extent(lengths[near], widths[near], rel) - 0.5 * robot.width
+    toward = np.maximum(0.0, -side * np.einsum("ij,ij->i", vel, normal))  # walking towards the path, or cutting in
+    arrive = ahead / max(abs(state[3]), 1.0)
+    reach = np.where(walker, toward * arrive + params.pedestrian_reach * np.minimum(arrive, abs(state[3]) / params.decel),
+                     toward * params.cut_in)
+    counts = gap_across - reach <= np.where(walker, params.pedestrian_margin, params.lateral_margin)
+    lead = np.where(walker, 0.0, np.maximum(np.einsum("ij,ij->i", vel, tangent), 0.0))
+    keep = np.where(walker, params.pedestrian_margin, 0.0)
+    grow = np.where(walker, params.pedestrian_reach / params.decel, 0.0)
+    s_stop = s - _along_extent(lengths[near], widths[near], rel) - front - params.gap - keep - params.time_gap * lead
+    return np.column_stack([s_stop, lead, grow])[counts]
 
 
 def speed_cap(stops: np.ndarray, s, decel: float) -> np.ndarray:
