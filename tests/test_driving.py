@@ -10,13 +10,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from aac_sumo import config, network, runner
+from aac_sumo import config, runner
 from aac_sumo.coordination.anticipation import Anticipation, anticipated_reference, speed_cap, stop_points
 from aac_sumo.coordination.tracking import track
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
 from aac_sumo.references import PathReference, curve_speeds, smooth_path
 from aac_sumo.world import Obstacle, RobotSpec, WorldState
+from test_sumo import write_curved_net
 
 DT = 0.1
 CAR_LIMITS = VehicleLimits(a_min=-6.0, a_max=3.0, steer_max=0.5, v_min=0.0, v_max=20.0, a_lat_max=3.0, steer_rate_max=0.5, a_comfort=3.0)
@@ -166,15 +167,7 @@ def write_sidewalk_curve(folder: Path) -> tuple[Path, Path]:
     """A curved road (radius 150 m, about 340 m) with a 2 m sidewalk (lane 0) and three 3.2 m car
     lanes, built by netconvert; three cones close the rightmost car lane from 150 m to 170 m and
     two walkers walk along the sidewalk. Returns the network and the route file."""
-    folder.mkdir()
-    arc = [(150 * np.sin(t), 150 * (1 - np.cos(t))) for t in np.linspace(0, 2.3, 40)]
-    shape = " ".join(f"{x:.2f},{y:.2f}" for x, y in arc)
-    (folder / "road.nod.xml").write_text(
-        f'<nodes><node id="A" x="0" y="0"/><node id="B" x="{arc[-1][0]:.2f}" y="{arc[-1][1]:.2f}"/></nodes>')
-    (folder / "road.edg.xml").write_text(
-        f'<edges><edge id="R" from="A" to="B" numLanes="4" speed="13.9" width="3.2" shape="{shape}">'
-        '<lane index="0" allow="pedestrian" width="2.0"/></edge></edges>')
-    net = network.build(folder)[0]
+    net = write_curved_net(folder, 4, 3.2, '<lane index="0" allow="pedestrian" width="2.0"/>')
     routes = folder / "cones_walkers.rou.xml"
     routes.write_text(
         '<routes><vType id="cone" length="0.4" width="0.4" minGap="0"/>'

@@ -180,15 +180,16 @@ def test_net_build_reproduces_the_bundled_lanes(tmp_path):
     assert {lane.getID(): lane.getShape() for e in built.getEdges() for lane in e.getLanes()} == lanes
 
 
-def write_curved_net(folder: Path, lanes: int) -> Path:
-    """A curved road (arc of radius 150 m, ~340 m long) with ``lanes`` lanes, built by netconvert."""
+def write_curved_net(folder: Path, lanes: int, width: float = 3.5, lane_xml: str = "") -> Path:
+    """A curved road R (arc of radius 150 m, ~340 m long) with ``lanes`` lanes ``width`` [m]
+    wide (``lane_xml``: ``<lane>`` elements that set some lanes apart), built by netconvert."""
     folder.mkdir()
     arc = [(150 * np.sin(t), 150 * (1 - np.cos(t))) for t in np.linspace(0, 2.3, 40)]
     shape = " ".join(f"{x:.2f},{y:.2f}" for x, y in arc)
     (folder / "curve.nod.xml").write_text(
         f'<nodes><node id="A" x="0" y="0"/><node id="B" x="{arc[-1][0]:.2f}" y="{arc[-1][1]:.2f}"/></nodes>')
     (folder / "curve.edg.xml").write_text(
-        f'<edges><edge id="R" from="A" to="B" numLanes="{lanes}" speed="13.9" width="3.5" shape="{shape}"/></edges>')
+        f'<edges><edge id="R" from="A" to="B" numLanes="{lanes}" speed="13.9" width="{width}" shape="{shape}">{lane_xml}</edge></edges>')
     built = network.build(folder)
     assert built == [folder / f"{folder.name}.net.xml"]
     return built[0]
