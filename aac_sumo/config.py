@@ -279,8 +279,13 @@ SUMO_SECTION: dict[str, Key] = {
     "cone_types": Key(str, "cone", "comma-separated vType ids whose vehicles are cones (static obstacles)"),
     "gui": Key(bool, False, "show the run in sumo-gui (set by aac-sumo run --gui)"),
     "delay": Key(float, 0.0, "sumo-gui's pause per simulation step, to watch a run (set by aac-sumo run --delay) [ms]", **NN),
-    "fcd": Key(bool, False, "write SUMO's floating-car-data trajectories, fcd.xml, into sumo.output_dir"),
-    "output_dir": Key(str, "", "directory of SUMO's own output files (aac-sumo run sets it to --out; empty: out/<scenario name>)"),
+    "fcd": Key(bool, False, "write SUMO's floating-car-data trajectories, fcd.xml, into sumo.output_dir (as sumo.outputs = [\"fcd\"])"),
+    "outputs": Key(list, [], "SUMO's own output files to write into sumo.output_dir, any of fcd, tripinfo, collision, summary, "
+                   "lanechange (fcd.xml, tripinfo.xml, collision.xml, summary.xml, lanechange.xml)",
+                   check=lambda v: all(x in ("fcd", "tripinfo", "collision", "summary", "lanechange") for x in v),
+                   expect="a list of fcd, tripinfo, collision, summary, lanechange"),
+    "output_dir": Key(str, "", "directory of SUMO's own output files and of its message log sumo.log (aac-sumo run sets it to --out; "
+                      "empty: out/<scenario name> when outputs are asked for, else no files and SUMO's warnings off)"),
 }
 #: Sections beyond COMMON and the kind's own that a kind uses.
 KIND_EXTRA_SECTIONS: dict[str, dict[str, dict[str, Key]]] = {"lane_change": {"sumo": SUMO_SECTION}}

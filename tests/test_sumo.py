@@ -5,6 +5,7 @@ from __future__ import annotations
 import shutil
 import subprocess
 from pathlib import Path
+import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
@@ -77,6 +78,30 @@ def test_rear_end_overlap_is_counted_by_us_and_by_sumo():
     assert any(("car0", "car1") in r.overlaps for r in reports)
     assert sum(r.sim_collisions for r in reports) >= 1
     assert min(r.clearance.min() for r in reports) < 0
+
+
+def test_sim_collisions_equal_sumo_collision_output(tmp_path):
+    """Asked for SUMO's collision output, the run writes collision.xml beside ours, and the new
+    pairs we count as ``sim_collisions`` are the distinct pairs in it; SUMO's messages go to
+    sumo.log there. (A car at 10 m/s drives blindly into a stopped one, and into a cone.)"""
+    robots = cars("car0", "car1", "car2")
+    states = np.array([[20.0, LANE_Y[1], 0.0, 10.0], [26.0, LANE_Y[1], 0.0, 0.0], [181.0, LANE_Y[0], 0.0, 9.0]])
+    options = SumoOptions(BUNDLED_NET, [CONES], output_dir=tmp_path, outputs=("collision", "tripinfo"))
+    sim = SumoSimulator(robots, states, 0.1, ["E0", "E1"], options)
+    try:
+        counted = sum(sim.step(np.zeros((3, 2))).sim_collisions for _ in range(20))
+    finally:
+        sim.close()
+    written = ET.parse(tmp_path / "collision.xml").getroot().findall("collision")
+    pairs = {tuple(sorted((c.get("collider"), c.get("victim")))) for c in written}
+    assert counted == len(pairs) >= 2
+    assert (tmp_path / "tripinfo.xml").exists() and (tmp_path / "sumo.log").read_text().strip()
+
+
+def test_outputs_key_takes_only_sumos_outputs(tmp_path, capsys):
+    assert main(["run", "lane_change", "--set", "sumo.outputs=fcd,emissions", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "sumo.outputs" in err and "fcd, tripinfo, collision, summary, lanechange" in err
 
 
 def test_cones_are_static_obstacles_sumo_also_collides_with():

@@ -184,13 +184,13 @@ def build_lane_change(scenario: Scenario) -> Setup:
         point, heading = along(rd.lanes[start_lane[k]], s0[k])
         states[k] = [point[0, 0], point[0, 1], heading[0], lc["speed"]]
 
-    fcd = None
-    if su["fcd"]:
+    outputs = tuple(dict.fromkeys((["fcd"] if su["fcd"] else []) + list(su["outputs"])))
+    out = None
+    if su["output_dir"].strip() or outputs:
         out = Path(su["output_dir"]) if su["output_dir"].strip() else Path("out") / scenario["scenario.name"]
         out.mkdir(parents=True, exist_ok=True)
-        fcd = out / "fcd.xml"
     options = SumoOptions(net_path, routes, tuple(t.strip() for t in su["cone_types"].split(",") if t.strip()),
-                          su["gui"], fcd, scenario["scenario.seed"], su["delay"])
+                          su["gui"], scenario["scenario.seed"], su["delay"], out, outputs)
     sim = SumoSimulator(robots, states, scenario["scenario.dt"], rd.edges, options)
     try:
         world = sim.observe()

@@ -36,30 +36,45 @@ class SumoError(RuntimeError):
     """SUMO failed (start-up or mid-run); the message says what SUMO said and when."""
 
 
+#: SUMO's own output files on request (``sumo.outputs``): name -> (option, file name).
+OUTPUTS = {
+    "fcd": ("--fcd-output", "fcd.xml"),
+    "tripinfo": ("--tripinfo-output", "tripinfo.xml"),
+    "collision": ("--collision-output", "collision.xml"),
+    "summary": ("--summary-output", "summary.xml"),
+    "lanechange": ("--lanechange-output", "lanechange.xml"),
+}
+
+
 @dataclass
 class SumoOptions:
     """How to start SUMO: network, route files (cones, pedestrians, other traffic), the vTypes
-    that are cones, GUI, FCD output file (None for none), SUMO's random seed, and the GUI's delay.
+    that are cones, GUI, SUMO's random seed, the GUI's delay, the folder ``output_dir`` of
+    SUMO's own files (None: none), and which of ``OUTPUTS`` to write there. With a folder,
+    SUMO's messages (warnings included) go to ``sumo.log`` in it; without one they are off.
     The GUI starts running at once and stays open when the run ends, until its window is closed."""
 
     net: Path
     routes: list[Path] = field(default_factory=list)
     cone_types: tuple[str, ...] = ("cone",)
     gui: bool = False
-    fcd: Path | None = None
     seed: int = 0
     delay: float = 0.0  # sumo-gui's pause per simulation step [ms]
+    output_dir: Path | None = None
+    outputs: tuple[str, ...] = ()
 
     def command(self, dt: float) -> list[str]:
         cmd = [sumo_binary("sumo-gui" if self.gui else "sumo"), "-n", str(self.net),
                "--step-length", repr(dt), "--seed", str(self.seed),
                "--collision.action", "warn", "--collision.mingap-factor", "0", "--collision.check-junctions",
                "--intermodal-collision.action", "warn", "--time-to-teleport", "-1",
-               "--no-step-log", "--no-warnings"]
+               "--no-step-log", "--duration-log.disable"]
+        cmd += ["--log", str(self.output_dir / "sumo.log")] if self.output_dir is not None else ["--no-warnings"]
         if self.routes:
             cmd += ["-r", ",".join(str(p) for p in self.routes)]
-        if self.fcd is not None:
-            cmd += ["--fcd-output", str(self.fcd)]
+        for name in self.outputs:
+            option, filename = OUTPUTS[name]
+            cmd += [option, str(self.output_dir / filename)]
         if self.gui:
             cmd += ["--start", "--delay", repr(float(self.delay))]
         return cmd
