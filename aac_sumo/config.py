@@ -272,7 +272,10 @@ KIND_SECTIONS["lane_change"] = {
     "lane_tolerance": Key(float, 0.5, "lateral distance to the target lane's centre line that counts as arrived in it [m]", **P),
 }
 SUMO_SECTION: dict[str, Key] = {
-    "net": Key(str, "", "SUMO .net.xml (empty: the bundled sumo_networks/lane_change network)"),
+    "config": Key(str, "", "a SUMO configuration (.sumocfg): its net-file, route-files, additional files and options are used "
+                  "(the scenario's step length, seed and collision options still apply; empty: none)"),
+    "extra_args": Key(str, "", "more SUMO command-line options, passed through (e.g. \"--lateral-resolution 0.8\"); ours apply after them"),
+    "net": Key(str, "", "SUMO .net.xml (empty: the bundled sumo_networks/lane_change network, or sumo.config's net-file)"),
     "routes": Key(str, "", "comma-separated SUMO route files with cones, pedestrians, other traffic (empty: the bundled ones with the bundled net, none otherwise)"),
     "edges": Key(str, "", "edge ids of the road in driving order, separated by spaces or commas (empty: the longest chain "
                  "with the car lanes the scenario needs; aac-sumo net info NET lists them)"),

@@ -23,6 +23,8 @@ that cuts in instead of swerving back into the lane it left (where cones may sta
 
 from __future__ import annotations
 
+import shlex
+import sys
 from collections import Counter
 from pathlib import Path
 
@@ -34,6 +36,7 @@ from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_s
 from aac_sumo.references import LateralBand, PathReference, curve_speeds, smooth_path
 from aac_sumo.registry import register_experiment
 from aac_sumo.sim.sumo import SumoOptions, SumoSimulator
+from aac_sumo.sim.sumo_config import SumoConfig, read_config
 from aac_sumo.world import WorldState
 
 BUNDLED_NET_DIR = Path(__file__).resolve().parents[2] / "sumo_networks" / "lane_change"
@@ -146,10 +149,36 @@ def network_files(scenario: Scenario) -> tuple[Path, list[Path]]:
             raise ScenarioError(scenario.source, key, "an existing file", text)
         return path
 
-    if not su["net"].strip():
-        return BUNDLED_NET, BUNDLED_ROUTES if not su["routes"].strip() else [resolve(r, "sumo.routes") for r in su["routes"].split(",")]
     routes = [resolve(r, "sumo.routes") for r in su["routes"].split(",") if r.strip()]
+    if su["config"].strip():
+        cfg = sumo_config(scenario)
+        if su["net"].strip() and cfg.net is not None:
+            raise ScenarioError(scenario.source, "sumo.net", f"empty when sumo.config names the network ({cfg.path} has net-file {cfg.net})",
+                                su["net"])
+        if cfg.net is None and not su["net"].strip():
+            raise ScenarioError(scenario.source, "sumo.config", f"a net-file in {cfg.path} (or sumo.net)", su["config"])
+        missing = [p for p in [cfg.net, *cfg.routes] if p is not None and not p.is_file()]
+        if missing:
+            raise ScenarioError(scenario.source, "sumo.config", f"the files {cfg.path} names to exist", str(missing[0]))
+        return (cfg.net or resolve(su["net"], "sumo.net")), cfg.routes + routes
+    if not su["net"].strip():
+        return BUNDLED_NET, BUNDLED_ROUTES if not su["routes"].strip() else routes
     return resolve(su["net"], "sumo.net"), routes
+
+
+def sumo_config(scenario: Scenario) -> SumoConfig:
+    """The user's ``sumo.config`` (relative paths as for ``sumo.net``); exit-2 error when it is
+    missing or not a SUMO configuration."""
+    text = scenario["sumo.config"]
+    path = Path(text.strip()).expanduser()
+    if not path.is_absolute() and not path.exists():
+        path = Path(scenario.source).parent / path if (Path(scenario.source).parent / path).exists() else path
+    if not path.is_file():
+        raise ScenarioError(scenario.source, "sumo.config", "an existing .sumocfg file", text)
+    try:
+        return read_config(path)
+    except ValueError as exc:
+        raise ScenarioError(scenario.source, "sumo.config", str(exc), text) from None
 
 
 def scenario_road(scenario: Scenario, net_path: Path) -> network.Road:
@@ -189,8 +218,15 @@ def build_lane_change(scenario: Scenario) -> Setup:
     if su["output_dir"].strip() or outputs:
         out = Path(su["output_dir"]) if su["output_dir"].strip() else Path("out") / scenario["scenario.name"]
         out.mkdir(parents=True, exist_ok=True)
+    config = sumo_config(scenario) if su["config"].strip() else None
     options = SumoOptions(net_path, routes, tuple(t.strip() for t in su["cone_types"].split(",") if t.strip()),
-                          su["gui"], scenario["scenario.seed"], su["delay"], out, outputs)
+                          su["gui"], scenario["scenario.seed"], su["delay"], out, outputs, config.path if config else None,
+                          tuple(shlex.split(su["extra_args"])))
+    if config is not None:
+        overridden = config.overridden(options.our_options(scenario["scenario.dt"]))
+        if overridden:
+            print(f"aac-sumo: note: {config.path} sets {', '.join(overridden)}; the scenario's own apply "
+                  f"(step-length {scenario['scenario.dt']}, seed {scenario['scenario.seed']}, collisions warned)", file=sys.stderr)
     sim = SumoSimulator(robots, states, scenario["scenario.dt"], rd.edges, options)
     try:
         world = sim.observe()

@@ -51,7 +51,9 @@ class SumoOptions:
     """How to start SUMO: network, route files (cones, pedestrians, other traffic), the vTypes
     that are cones, GUI, SUMO's random seed, the GUI's delay, the folder ``output_dir`` of
     SUMO's own files (None: none), and which of ``OUTPUTS`` to write there. With a folder,
-    SUMO's messages (warnings included) go to ``sumo.log`` in it; without one they are off.
+    SUMO's messages (warnings included) go to ``sumo.log`` in it; without one they are off. A
+    user's ``config`` (.sumocfg) is loaded first and ``extra_args`` follow it; the options set
+    here come last and apply.
     The GUI starts running at once and stays open when the run ends, until its window is closed."""
 
     net: Path
@@ -62,13 +64,20 @@ class SumoOptions:
     delay: float = 0.0  # sumo-gui's pause per simulation step [ms]
     output_dir: Path | None = None
     outputs: tuple[str, ...] = ()
+    config: Path | None = None  # a user's .sumocfg, loaded first: ours override what it sets
+    extra_args: tuple[str, ...] = ()  # more SUMO options, before ours
+
+    def our_options(self, dt: float) -> dict[str, str]:
+        """The SUMO options the co-simulation sets itself, name -> value."""
+        return {"step-length": repr(dt), "seed": str(self.seed), "collision.action": "warn", "collision.mingap-factor": "0",
+                "collision.check-junctions": "true", "intermodal-collision.action": "warn", "time-to-teleport": "-1"}
 
     def command(self, dt: float) -> list[str]:
-        cmd = [sumo_binary("sumo-gui" if self.gui else "sumo"), "-n", str(self.net),
-               "--step-length", repr(dt), "--seed", str(self.seed),
-               "--collision.action", "warn", "--collision.mingap-factor", "0", "--collision.check-junctions",
-               "--intermodal-collision.action", "warn", "--time-to-teleport", "-1",
-               "--no-step-log", "--duration-log.disable"]
+        cmd = [sumo_binary("sumo-gui" if self.gui else "sumo")] + (["-c", str(self.config)] if self.config else [])
+        cmd += list(self.extra_args) + ["-n", str(self.net)]
+        for name, value in self.our_options(dt).items():
+            cmd += [f"--{name}", value]
+        cmd += ["--no-step-log", "--duration-log.disable"]
         cmd += ["--log", str(self.output_dir / "sumo.log")] if self.output_dir is not None else ["--no-warnings"]
         if self.routes:
             cmd += ["-r", ",".join(str(p) for p in self.routes)]

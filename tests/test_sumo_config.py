@@ -1,0 +1,65 @@
+"""A user's .sumocfg in, the bundled .sumocfg out, and options passed through to SUMO (real
+SUMO binaries and libsumo, no mocks)."""
+
+from __future__ import annotations
+
+import subprocess
+from pathlib import Path
+
+from aac_sumo import config, network, runner
+from aac_sumo.cli import main
+from aac_sumo.experiments.lane_change import BUNDLED_NET_DIR
+from aac_sumo.sim.sumo import SumoOptions
+
+BUNDLED_CFG = BUNDLED_NET_DIR / "lane_change.sumocfg"
+SHORT = ["controller.coordinator=independent", "controller.horizon=5", "lane_change.vehicles=3", "scenario.duration=1.0"]
+
+
+def write_config(path: Path, net: str | None = str(BUNDLED_NET_DIR / "lane_change.net.xml"), step: str = "0.1") -> Path:
+    net_line = f'<net-file value="{net}"/>' if net else ""
+    path.write_text(f'<configuration><input>{net_line}<route-files value="{BUNDLED_NET_DIR / "cones.rou.xml"},'
+                    f'{BUNDLED_NET_DIR / "pedestrians.rou.xml"}"/></input><time><step-length value="{step}"/></time></configuration>')
+    return path
+
+
+def test_the_bundled_network_ships_a_config_that_sumo_opens():
+    done = subprocess.run([network.sumo_binary("sumo"), "-c", str(BUNDLED_CFG), "--end", "1", "--no-step-log"],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+
+
+def test_a_run_on_the_bundled_config_is_the_bundled_run():
+    """The config names the bundled net and route files: the run is the same, pose for pose."""
+    plain = runner.run(config.load("lane_change", SHORT)).trajectories
+    configured = runner.run(config.load("lane_change", SHORT + [f"sumo.config={BUNDLED_CFG}"])).trajectories
+    assert plain[["x", "y", "heading"]].equals(configured[["x", "y", "heading"]])
+
+
+def test_the_scenario_overrides_a_config_step_length_and_says_so_in_one_line(tmp_path, capsys):
+    cfg = write_config(tmp_path / "my.sumocfg", step="1.0")
+    result = runner.run(config.load("lane_change", SHORT + [f"sumo.config={cfg}"]))
+    assert len(result.periods) == 10  # 1 s at the scenario's 0.1 s, not SUMO's 1 s
+    notes = [line for line in capsys.readouterr().err.splitlines() if "note" in line]
+    assert len(notes) == 1 and "step-length=1.0" in notes[0] and str(cfg) in notes[0]
+
+
+def test_a_config_without_a_network_or_beside_sumo_net_is_one_line(tmp_path, capsys):
+    no_net = write_config(tmp_path / "no_net.sumocfg", net=None)
+    assert main(["run", "lane_change", "--set", f"sumo.config={no_net}", "--out", str(tmp_path / "a")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "sumo.config" in err and "net-file" in err
+    both = write_config(tmp_path / "both.sumocfg")
+    assert main(["run", "lane_change", "--set", f"sumo.config={both}", "--set", "sumo.net=other.net.xml",
+                 "--out", str(tmp_path / "b")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "sumo.net" in err
+    bad = tmp_path / "bad.sumocfg"
+    bad.write_text("<routes/>")
+    assert main(["run", "lane_change", "--set", f"sumo.config={bad}", "--out", str(tmp_path / "c")]) == 2
+    assert "SUMO configuration" in capsys.readouterr().err
+
+
+def test_extra_arguments_go_through_and_ours_come_after_them():
+    cmd = SumoOptions(Path("road.net.xml"), config=Path("my.sumocfg"), extra_args=("--lateral-resolution", "0.8")).command(0.1)
+    assert cmd[1:3] == ["-c", "my.sumocfg"]
+    assert cmd.index("--lateral-resolution") < cmd.index("--step-length")
