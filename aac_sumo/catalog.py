@@ -6,7 +6,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from aac_sumo.config import BUNDLED_DIR, COMMON, KIND_EXTRA_SECTIONS, KIND_SECTIONS, Key, Scenario, _toml_value
+from aac_sumo.config import BUNDLED_DIR, COMMON, KIND_EXTRA_SECTIONS, KIND_SECTIONS, Key, Scenario, toml_value
 
 _UNIT = re.compile(r"\s*\[([^\[\]]+)\]$")
 #: Longer defaults (lists of rows) are cut to this many characters in the listing.
@@ -49,7 +49,7 @@ def key_rows(scenario: Scenario | None = None) -> list[tuple[str, str, str, str]
     for section, keys in sections.items():
         for name, key in keys.items():
             meaning, unit = split_unit(key.doc)
-            default = _toml_value(values[section][name])
+            default = toml_value(values[section][name])
             default = default if len(default) <= DEFAULT_WIDTH else default[:DEFAULT_WIDTH - 3] + "..."
             rows.append((f"{section}.{name}", default, unit, _expected(key, meaning)))
     return rows

@@ -13,6 +13,8 @@ import copy
 import difflib
 import math
 import tomllib
+
+import tomli_w
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
@@ -346,13 +348,8 @@ class Scenario:
         return cls(data, source)
 
     def to_toml(self) -> str:
-        """The full scenario as TOML text (every key, defaults included)."""
-        lines = []
-        for section, keys in self.data.items():
-            lines.append(f"[{section}]")
-            lines += [f"{k} = {_toml_value(v)}" for k, v in keys.items()]
-            lines.append("")
-        return "\n".join(lines)
+        """The full scenario as TOML text (every key, defaults included), written by tomli-w."""
+        return tomli_w.dumps(self.data)
 
 
 def schema_for(kind: str) -> dict[str, dict[str, Key]]:
@@ -427,9 +424,6 @@ def _check(schema, section: str, key: str, value: Any, source) -> Any:
         raise ScenarioError(source, f"{section}.{key}", str(exc), value) from None
 
 
-def _toml_value(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, str):
-        return f'"{value}"'
-    return repr(value)
+def toml_value(value: Any) -> str:
+    """``value`` as a TOML value (tomli-w), as the saved scenario writes it."""
+    return tomli_w.dumps({"v": value}).split("=", 1)[1].strip()

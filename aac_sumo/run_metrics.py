@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from aac_sumo.config import Scenario
+from aac_sumo.provenance import provenance
 from aac_sumo.metrics import compute_metrics, jain
 
 
@@ -82,4 +83,4 @@ def assemble_metrics(scenario: Scenario, rec: Recording, steps: pd.DataFrame, pe
         reasons.append(f"time limit {duration} s reached")
     if reasons:
         metrics["incomplete_reason"] = "; ".join(reasons)
-    return metrics
+    return metrics | provenance(scenario.to_toml())

@@ -47,11 +47,11 @@ def run(scenario: Scenario) -> RunResult:
     steps = with_vehicle_columns(pd.DataFrame(rec.steps, columns=STEP_COLUMNS[:-2]), {r.name: r.model.wheelbase for r in first.robots},
                                  scenario["scenario.dt"])
     periods = pd.DataFrame(rec.periods) if rec.periods else pd.DataFrame(columns=["t", "compute_ms"])
-    metrics = assemble_metrics(scenario, rec, steps, periods, robots=first.robots, free_flow_s=setup.free_flow_s,
+    metrics = assemble_metrics(setup.scenario, rec, steps, periods, robots=first.robots, free_flow_s=setup.free_flow_s,
                                wall_s=time.perf_counter() - wall_start, setup_s=setup_s)
     goals = np.array([task.points[-1] for task in setup.tasks])
     delays = None if setup.free_flow_s is None else rec.arrival - setup.free_flow_s
-    return RunResult(metrics, steps, periods, pd.DataFrame(rec.traj), scenario, goals, delays)
+    return RunResult(metrics, steps, periods, pd.DataFrame(rec.traj), setup.scenario, goals, delays)
 
 
 def loop(setup: Setup, rec: Recording) -> None:

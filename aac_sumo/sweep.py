@@ -32,6 +32,7 @@ from typing import Any, Callable, Iterable
 from aac_sumo import config
 from aac_sumo.executor import Executor, SweepError, one_line
 from aac_sumo.metrics import METRIC_KEYS
+from aac_sumo.provenance import PROVENANCE_KEYS
 
 #: Metrics shown in ``summary.md`` (those that are null in every run are left out).
 SUMMARY_METRICS = (
@@ -94,8 +95,9 @@ def plan_tasks(scenario: str, sets: list[str], grid: list[tuple[str, list[str]]]
 
 def columns(grid_keys: list[str]) -> list[str]:
     """``results.csv`` columns: grid keys, seed, every other metric in METRIC_KEYS order, why an
-    unfinished run stopped, status, error."""
-    return list(grid_keys) + ["seed"] + [k for k in METRIC_KEYS if k != "seed"] + ["incomplete_reason", "status", "error"]
+    unfinished run stopped, status, error, and the run's provenance (PROVENANCE_KEYS)."""
+    return (list(grid_keys) + ["seed"] + [k for k in METRIC_KEYS if k != "seed"] + ["incomplete_reason", "status", "error"]
+            + list(PROVENANCE_KEYS))
 
 
 #: One simulation at a time per process (libsumo), also on a Dask worker with several threads.
@@ -114,7 +116,7 @@ def run_task(task: Task) -> dict:
         except Exception as exc:  # the sweep goes on
             return row | {"status": "error", "error": one_line(exc)}
     metrics = result.metrics
-    row |= {k: metrics.get(k) for k in METRIC_KEYS if k != "seed"}
+    row |= {k: metrics.get(k) for k in METRIC_KEYS + PROVENANCE_KEYS if k != "seed"}
     row["seed"] = task.seed
     row["incomplete_reason"] = metrics.get("incomplete_reason", "")
     error = metrics.get("error")

@@ -3,7 +3,9 @@ SUMO binaries and libsumo, no mocks)."""
 
 from __future__ import annotations
 
+import shutil
 import subprocess
+import tomllib
 from pathlib import Path
 
 from aac_sumo import config, network, runner
@@ -63,3 +65,34 @@ def test_extra_arguments_go_through_and_ours_come_after_them():
     cmd = SumoOptions(Path("road.net.xml"), config=Path("my.sumocfg"), extra_args=("--lateral-resolution", "0.8")).command(0.1)
     assert cmd[1:3] == ["-c", "my.sumocfg"]
     assert cmd.index("--lateral-resolution") < cmd.index("--step-length")
+
+
+def test_the_saved_scenario_reruns_the_same_run_from_another_folder(tmp_path, monkeypatch):
+    """Network and route files named relative to the current folder are saved by their resolved
+    paths: the saved scenario.toml, run from elsewhere, gives the same run and the same hash."""
+    work, elsewhere = tmp_path / "work", tmp_path / "elsewhere"
+    work.mkdir()
+    elsewhere.mkdir()
+    shutil.copy(BUNDLED_NET_DIR / "lane_change.net.xml", work / "my.net.xml")
+    shutil.copy(BUNDLED_NET_DIR / "cones.rou.xml", work / "my_cones.rou.xml")
+    monkeypatch.chdir(work)
+    first = runner.run(config.load("lane_change", SHORT + ["sumo.net=my.net.xml", "sumo.routes=my_cones.rou.xml"]))
+    runner.write_outputs(first, work / "out", plot=False)
+    monkeypatch.chdir(elsewhere)
+    again = runner.run(config.load(str(work / "out" / "scenario.toml")))
+    assert first.trajectories[["x", "y", "heading"]].equals(again.trajectories[["x", "y", "heading"]])
+    assert again.metrics["scenario_hash"] == first.metrics["scenario_hash"]
+    assert again.scenario["sumo.net"] == str((work / "my.net.xml").resolve())
+
+
+def test_metrics_carry_their_provenance():
+    m = runner.run(config.load("lane_change", SHORT)).metrics
+    assert m["aac_sumo_version"] and m["sumo_version"].startswith("1.") and m["casadi_version"] and m["python_version"]
+    assert len(m["scenario_hash"]) == 16
+    assert m["git_commit"] is None or len(m["git_commit"].split("-")[0]) == 40
+
+
+def test_a_saved_scenario_with_quotes_and_backslashes_in_paths_is_valid_toml(tmp_path):
+    scenario = config.load("lane_change", ['sumo.output_dir=C:\\\\a"b'])
+    again = tomllib.loads(scenario.to_toml())
+    assert again["sumo"]["output_dir"] == 'C:\\\\a"b'

@@ -13,6 +13,7 @@ import pytest
 from aac_sumo import config, executor, sweep, table_braking
 from aac_sumo.cli import main
 from aac_sumo.metrics import METRIC_KEYS
+from aac_sumo.provenance import PROVENANCE_KEYS
 from aac_sumo.prediction import PREDICTIONS
 
 SHORT = ["--set", "controller.horizon=5", "--set", "scenario.duration=3", "--no-progress"]
@@ -28,7 +29,8 @@ def test_grid_sweep_two_workers(capsys, tmp_path):
     rc = main(["sweep", "braking", "--grid", "braking.speed=5,6", "--workers", "2", "--out", str(tmp_path), *SHORT])
     assert rc == 0, capsys.readouterr().err
     cols, rows = read_rows(tmp_path / "results.csv")
-    assert cols == ["braking.speed", "seed"] + [k for k in METRIC_KEYS if k != "seed"] + ["incomplete_reason", "status", "error"]
+    assert cols == (["braking.speed", "seed"] + [k for k in METRIC_KEYS if k != "seed"] + ["incomplete_reason", "status", "error"]
+                    + list(PROVENANCE_KEYS))
     assert [(float(r["braking.speed"]), r["seed"], r["status"], r["error"]) for r in rows] == [
         (5.0, "0", "ok", ""), (6.0, "0", "ok", "")]
     assert all(r["horizon"] == "5" and r["scenario"] == "braking" for r in rows)

@@ -23,6 +23,7 @@ that cuts in instead of swerving back into the lane it left (where cones may sta
 
 from __future__ import annotations
 
+import copy
 import shlex
 import sys
 from collections import Counter
@@ -166,6 +167,23 @@ def network_files(scenario: Scenario) -> tuple[Path, list[Path]]:
     return resolve(su["net"], "sumo.net"), routes
 
 
+def with_resolved_paths(scenario: Scenario) -> Scenario:
+    """``scenario`` with ``sumo.net``, ``sumo.routes`` and ``sumo.config`` as absolute paths,
+    resolved as :func:`network_files` resolves them, so that its saved copy (``scenario.toml``)
+    reruns the same run from any folder; empty keys stay empty (the bundled files)."""
+    su = scenario.data["sumo"]
+    data = copy.deepcopy(scenario.data)
+    if su["config"].strip():
+        data["sumo"]["config"] = str(sumo_config(scenario).path.resolve())
+    net, routes = network_files(scenario)
+    if su["net"].strip():
+        data["sumo"]["net"] = str(net.resolve())
+    if su["routes"].strip():
+        config_routes = len(sumo_config(scenario).routes) if su["config"].strip() else 0
+        data["sumo"]["routes"] = ",".join(str(p.resolve()) for p in routes[config_routes:])
+    return Scenario(data, scenario.source)
+
+
 def sumo_config(scenario: Scenario) -> SumoConfig:
     """The user's ``sumo.config`` (relative paths as for ``sumo.net``); exit-2 error when it is
     missing or not a SUMO configuration."""
@@ -192,6 +210,7 @@ def build_lane_change(scenario: Scenario) -> Setup:
     lc, su = scenario.data["lane_change"], scenario.data["sumo"]
     src = scenario.source
     net_path, routes = network_files(scenario)
+    scenario = with_resolved_paths(scenario)
     rd = scenario_road(scenario, net_path)
     n, lanes = lc["vehicles"], rd.n_lanes
     robots = [robot_spec(scenario, f"veh{k}") for k in range(n)]
