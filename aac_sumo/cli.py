@@ -13,6 +13,7 @@ import difflib
 import json
 import math
 import re
+import signal
 import sys
 from pathlib import Path
 
@@ -247,7 +248,17 @@ def cmd_run(args) -> int:
     _check_out(out)
     if "output_dir" in scenario.schema().get("sumo", {}):  # SUMO's own files (fcd.xml) go beside ours
         scenario = scenario.with_overrides([f"sumo.output_dir={json.dumps(str(out))}"])
-    result = runner.run(scenario)
+    runner.STOP.clear()
+    previous = {sig: signal.signal(sig, lambda signum, frame: runner.STOP.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:  # SIGINT or SIGTERM stops the run between two periods; what it recorded is written
+        result = runner.run(scenario)
+    except runner.RunInterrupted as stop:
+        runner.write_outputs(stop.result, out)
+        print(f"{PROG}: {stop.result.metrics['error']}; everything recorded until then is in {out}", file=sys.stderr)
+        return 130
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
     runner.write_outputs(result, out)
     print(f"{scenario['scenario.name']} ({scenario.source})")
     print(metrics_table(result.metrics))

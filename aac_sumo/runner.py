@@ -7,6 +7,7 @@ import copy
 import json
 from collections import deque
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -37,11 +38,14 @@ def run(scenario: Scenario) -> RunResult:
     warm_up(setup, first)
     setup_s = time.perf_counter() - wall_start
     rec = Recording(arrival=np.full(len(setup.tasks), np.nan))
+    interrupted = False
     try:
         loop(setup, rec)
     except Exception as exc:  # keep what was recorded; report the failure in metrics
         rec.error = f"{type(exc).__name__}: {exc}".splitlines()[0]
         print(f"aac-sumo: run stopped at t={len(rec.periods) * scenario['scenario.dt']:.2f} s: {rec.error}", file=sys.stderr)
+    except KeyboardInterrupt:  # SIGINT, or STOP set: keep what was recorded, then stop
+        rec.error, interrupted = f"interrupted at t={len(rec.periods) * scenario['scenario.dt']:.2f} s", True
     finally:
         setup.sim.close()
     steps = with_vehicle_columns(pd.DataFrame(rec.steps, columns=STEP_COLUMNS[:-2]), {r.name: r.model.wheelbase for r in first.robots},
@@ -51,7 +55,23 @@ def run(scenario: Scenario) -> RunResult:
                                wall_s=time.perf_counter() - wall_start, setup_s=setup_s)
     goals = np.array([task.points[-1] for task in setup.tasks])
     delays = None if setup.free_flow_s is None else rec.arrival - setup.free_flow_s
-    return RunResult(metrics, steps, periods, pd.DataFrame(rec.traj), setup.scenario, goals, delays)
+    result = RunResult(metrics, steps, periods, pd.DataFrame(rec.traj), setup.scenario, goals, delays)
+    if interrupted:
+        raise RunInterrupted(result)
+    return result
+
+
+#: Set to stop the running loop at the start of its next period (a signal handler sets it).
+STOP = threading.Event()
+
+
+class RunInterrupted(KeyboardInterrupt):
+    """A run stopped by SIGINT or SIGTERM; ``result`` holds everything recorded up to then (its
+    metrics say ``error``). Being a KeyboardInterrupt, it stops sweeps as before."""
+
+    def __init__(self, result: RunResult):
+        super().__init__(result.metrics.get("error", "interrupted"))
+        self.result = result
 
 
 def loop(setup: Setup, rec: Recording) -> None:
@@ -64,6 +84,8 @@ def loop(setup: Setup, rec: Recording) -> None:
     history: deque[np.ndarray] = deque(maxlen=window + 1)  # rear-axle positions, for the deadlock rule
     active_overlaps: set = set()
     for k in range(int(round(duration / dt)) + 1):
+        if STOP.is_set():  # asked to stop (aac-sumo run's SIGINT/SIGTERM handler), between two periods
+            raise KeyboardInterrupt
         world = sim.observe()
         rec.traj += [dict(t=round(world.t, 9), **a) for a in sim.agents()]
         done = np.asarray(setup.finished(world), dtype=bool)

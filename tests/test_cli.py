@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -211,3 +213,22 @@ def test_bench_aac_pools_repeated_runs(tmp_path):
     assert aac.failures == singles[0].failures
     assert aac.ratio == pytest.approx(lfc.median_ms / aac.median_ms)
     assert "| aac/braking | 5 | 2 |" in bench.markdown_aac(report)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_an_interrupted_run_keeps_what_it_recorded_and_exits_non_zero(tmp_path, sig):
+    """SIGINT or SIGTERM in the middle of ``aac-sumo run``: the outputs up to that moment are
+    written, metrics.json says the run was interrupted, and the command exits with 130."""
+    out = tmp_path / "out"
+    cmd = [str(Path(sys.executable).parent / "aac-sumo"), "run", "random_crossing", "--set", "random_crossing.n_robots=100",
+           "--out", str(out)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(10.0)  # past start-up and warm-up, long before the 100-robot crossing ends (120 s, about a minute here)
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["error"].startswith("interrupted at t=") and metrics["completed"] is False
+    steps = (out / "steps.csv").read_text().splitlines()
+    assert len(steps) > 1 + 100  # a header and at least one period of 100 robots
+    assert "everything recorded until then" in err
