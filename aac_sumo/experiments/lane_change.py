@@ -136,21 +136,23 @@ def lane_change_band(rd: network.Road, start: int, target: int, change_end: floa
     return LateralBand(right, left, margin)
 
 
+def scenario_file(scenario: Scenario, text: str, key: str) -> Path:
+    """The file ``text`` names in ``key``: against the current directory, then the scenario
+    file's directory; exit-2 error naming ``key`` when it does not exist."""
+    path = Path(text.strip()).expanduser()
+    if not path.is_absolute() and not path.exists():
+        beside = Path(scenario.source).parent / path
+        path = beside if beside.exists() else path
+    if not path.is_file():
+        raise ScenarioError(scenario.source, key, "an existing file", text)
+    return path
+
+
 def network_files(scenario: Scenario) -> tuple[Path, list[Path]]:
-    """The network and route files of ``[sumo]``; relative paths against the current directory,
-    then the scenario file's directory."""
+    """The network and route files of ``[sumo]`` (:func:`scenario_file`), those of ``sumo.config``
+    included."""
     su = scenario.data["sumo"]
-
-    def resolve(text: str, key: str) -> Path:
-        path = Path(text.strip()).expanduser()
-        if not path.is_absolute() and not path.exists():
-            beside = Path(scenario.source).parent / path
-            path = beside if beside.exists() else path
-        if not path.is_file():
-            raise ScenarioError(scenario.source, key, "an existing file", text)
-        return path
-
-    routes = [resolve(r, "sumo.routes") for r in su["routes"].split(",") if r.strip()]
+    routes = [scenario_file(scenario, r, "sumo.routes") for r in su["routes"].split(",") if r.strip()]
     if su["config"].strip():
         cfg = sumo_config(scenario)
         if su["net"].strip() and cfg.net is not None:
@@ -161,26 +163,21 @@ def network_files(scenario: Scenario) -> tuple[Path, list[Path]]:
         missing = [p for p in [cfg.net, *cfg.routes] if p is not None and not p.is_file()]
         if missing:
             raise ScenarioError(scenario.source, "sumo.config", f"the files {cfg.path} names to exist", str(missing[0]))
-        return (cfg.net or resolve(su["net"], "sumo.net")), cfg.routes + routes
+        return (cfg.net or scenario_file(scenario, su["net"], "sumo.net")), cfg.routes + routes
     if not su["net"].strip():
         return BUNDLED_NET, BUNDLED_ROUTES if not su["routes"].strip() else routes
-    return resolve(su["net"], "sumo.net"), routes
+    return scenario_file(scenario, su["net"], "sumo.net"), routes
 
 
 def with_resolved_paths(scenario: Scenario) -> Scenario:
-    """``scenario`` with ``sumo.net``, ``sumo.routes`` and ``sumo.config`` as absolute paths,
-    resolved as :func:`network_files` resolves them, so that its saved copy (``scenario.toml``)
-    reruns the same run from any folder; empty keys stay empty (the bundled files)."""
-    su = scenario.data["sumo"]
+    """``scenario`` with ``sumo.net``, ``sumo.routes`` and ``sumo.config`` as absolute paths
+    (:func:`scenario_file`), so that its saved copy (``scenario.toml``) reruns the same run from
+    any folder; empty keys stay empty (the bundled files)."""
     data = copy.deepcopy(scenario.data)
-    if su["config"].strip():
-        data["sumo"]["config"] = str(sumo_config(scenario).path.resolve())
-    net, routes = network_files(scenario)
-    if su["net"].strip():
-        data["sumo"]["net"] = str(net.resolve())
-    if su["routes"].strip():
-        config_routes = len(sumo_config(scenario).routes) if su["config"].strip() else 0
-        data["sumo"]["routes"] = ",".join(str(p.resolve()) for p in routes[config_routes:])
+    for key in ("net", "routes", "config"):
+        text = data["sumo"][key]
+        names = [t for t in (text.split(",") if key == "routes" else [text]) if t.strip()]
+        data["sumo"][key] = ",".join(str(scenario_file(scenario, t, f"sumo.{key}").resolve()) for t in names)
     return Scenario(data, scenario.source)
 
 
@@ -188,13 +185,8 @@ def sumo_config(scenario: Scenario) -> SumoConfig:
     """The user's ``sumo.config`` (relative paths as for ``sumo.net``); exit-2 error when it is
     missing or not a SUMO configuration."""
     text = scenario["sumo.config"]
-    path = Path(text.strip()).expanduser()
-    if not path.is_absolute() and not path.exists():
-        path = Path(scenario.source).parent / path if (Path(scenario.source).parent / path).exists() else path
-    if not path.is_file():
-        raise ScenarioError(scenario.source, "sumo.config", "an existing .sumocfg file", text)
     try:
-        return read_config(path)
+        return read_config(scenario_file(scenario, text, "sumo.config"))
     except ValueError as exc:
         raise ScenarioError(scenario.source, "sumo.config", str(exc), text) from None
 

@@ -11,12 +11,6 @@ import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
 
-#: SUMO options the co-simulation sets itself (``SumoOptions.command``): a configuration that
-#: sets them differently is overridden, and told so.
-OURS = ("step-length", "seed", "collision.action", "collision.mingap-factor", "collision.check-junctions",
-        "intermodal-collision.action", "time-to-teleport")
-
-
 @dataclass
 class SumoConfig:
     """The file ``path``, its ``net-file`` (None when it names none), its ``route-files``, and
@@ -28,10 +22,11 @@ class SumoConfig:
     options: dict[str, str] = field(default_factory=dict)
 
     def overridden(self, ours: dict[str, str]) -> list[str]:
-        """``name=value`` of each of its options that ``ours`` (name -> value) sets differently
-        (numbers compared as numbers)."""
-        return [f"{name}={self.options[name]}" for name in OURS if name in self.options and name in ours
-                and not _same(self.options[name], ours[name])]
+        """``name=value`` of each of its options that ``ours`` (name -> value: the options the
+        co-simulation sets itself, ``SumoOptions.our_options``) sets differently (numbers
+        compared as numbers)."""
+        return [f"{name}={self.options[name]}" for name, value in ours.items() if name in self.options
+                and not _same(self.options[name], value)]
 
 
 def _same(a: str, b: str) -> bool:
