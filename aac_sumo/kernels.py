@@ -379,7 +379,8 @@ def polyline_offsets(points, polyline):
         for i in range(last + 1):
             ax, ay = polyline[i, 0], polyline[i, 1]
             dx, dy = polyline[i + 1, 0] - ax, polyline[i + 1, 1] - ay
-            t = ((px - ax) * dx + (py - ay) * dy) / max(dx * dx + dy * dy, 1e-18)
+            length2 = dx * dx + dy * dy
+            t = ((px - ax) * dx + (py - ay) * dy) / length2 if length2 >= 1e-18 else 0.0  # under 1 nm: a point, not carried on
             if i > 0:
                 t = max(t, 0.0)
             if i < last:
