@@ -272,6 +272,12 @@ KIND_SECTIONS["lane_change"] = {
     "curve_lat_accel": Key(float, 2.0, "the references slow down on curves to keep their lateral acceleration within this (and within robot.a_lat_max) [m/s^2]", **P),
     "finish_margin": Key(float, 20.0, "a vehicle has passed the cone zone when its rear axle is this far beyond the last cone [m]", **NN),
     "lane_tolerance": Key(float, 0.5, "lateral distance to the target lane's centre line that counts as arrived in it [m]", **P),
+    "closure_lead": Key(float, 30.0, "cars from SUMO's routes (sumo.controlled_types) leave a lane that cones close ahead this far "
+                        "before its first cone [m]", **NN),
+    "exit_lanes": Key(list, [], "cars from SUMO's routes: beyond the last cones each changes to one of these road lanes (0 = rightmost "
+                      "car lane), drawn by the seed per car; empty: it keeps its lane",
+                      check=lambda v: all(isinstance(x, int) and not isinstance(x, bool) and 0 <= x < 16 for x in v),
+                      expect="a list of lane indices 0..15"),
 }
 SUMO_SECTION: dict[str, Key] = {
     "config": Key(str, "", "a SUMO configuration (.sumocfg): its net-file, route-files, additional files and options are used "
@@ -282,6 +288,11 @@ SUMO_SECTION: dict[str, Key] = {
     "edges": Key(str, "", "edge ids of the road in driving order, separated by spaces or commas (empty: the longest chain "
                  "with the car lanes the scenario needs; aac-sumo net info NET lists them)"),
     "cone_types": Key(str, "cone", "comma-separated vType ids whose vehicles are cones (static obstacles)"),
+    "controlled_types": Key(list, [], "vType ids of SUMO's own vehicles (route files, sumo.config) that we control from their "
+                            "departure on, on their own routes; instead of lane_change.vehicles (empty: none)",
+                            check=lambda v: all(isinstance(x, str) and x.strip() for x in v), expect="a list of vType ids"),
+    "controlled_ids": Key(list, [], "as controlled_types, for SUMO's vehicles whose id matches one of these globs (e.g. \"aac.*\")",
+                          check=lambda v: all(isinstance(x, str) and x.strip() for x in v), expect="a list of id globs"),
     "gui": Key(bool, False, "show the run in sumo-gui (set by aac-sumo run --gui)"),
     "delay": Key(float, 0.0, "sumo-gui's pause per simulation step, to watch a run (set by aac-sumo run --delay) [ms]", **NN),
     "fcd": Key(bool, False, "write SUMO's floating-car-data trajectories, fcd.xml, into sumo.output_dir (as sumo.outputs = [\"fcd\"])"),

@@ -220,6 +220,12 @@ def road(net, edges: str, lanes: int, source: str) -> Road:
             raise ScenarioError(source, "sumo.net", f"a network with a road of {need} (none has them; {hint}; "
                                 "aac-sumo net info NET lists the roads)")
         chain = found[0]
+    return chain_road(chain)
+
+
+def chain_road(chain: Chain) -> Road:
+    """The :class:`Road` of ``chain``: each lane's centre line through its edges, and its
+    narrowest width."""
     parts = [chain.lanes(j) for j in range(chain.n_lanes)]
     return Road(chain.ids, [np.vstack([np.asarray(lane.getShape(), dtype=float) for lane in part]) for part in parts],
                 [min(lane.getWidth() for lane in part) for part in parts])

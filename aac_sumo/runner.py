@@ -34,7 +34,7 @@ def run(scenario: Scenario) -> RunResult:
     wall_start = time.perf_counter()
     get_problem.cache_clear()  # solvers keep state between solves: every run starts from fresh ones
     setup = experiments.build(scenario)
-    first = setup.sim.observe()
+    first = setup.sim.observe() if setup.prepare is None else setup.prepare(setup.sim.observe())
     warm_up(setup, first)
     setup_s = time.perf_counter() - wall_start
     rec = Recording(arrival=np.full(len(setup.tasks), np.nan))
@@ -86,9 +86,10 @@ def loop(setup: Setup, rec: Recording) -> None:
     for k in range(int(round(duration / dt)) + 1):
         if STOP.is_set():  # asked to stop (aac-sumo run's SIGINT/SIGTERM handler), between two periods
             raise KeyboardInterrupt
-        world = sim.observe()
+        world = sim.observe() if setup.prepare is None else setup.prepare(sim.observe())
         rec.traj += [dict(t=round(world.t, 9), **a) for a in sim.agents()]
         done = np.asarray(setup.finished(world), dtype=bool)
+        here = world.on_road
         rec.arrival[done & np.isnan(rec.arrival)] = world.t
         if done.all():
             rec.completed, rec.task_duration = True, world.t
@@ -97,7 +98,7 @@ def loop(setup: Setup, rec: Recording) -> None:
             return
         history.append(world.states[:, :2].copy())
         if len(history) > window:
-            moved = np.hypot(*(history[-1] - history[0]).T)[~done]
+            moved = np.hypot(*(history[-1] - history[0]).T)[~done & here]
             if moved.size and moved.max() <= stop * patience:
                 rec.deadlock = True
                 return
@@ -114,6 +115,8 @@ def loop(setup: Setup, rec: Recording) -> None:
             rec.sim_collisions = (rec.sim_collisions or 0) + contacts.sim_collisions
         rec.periods.append(dict(t=world.t, compute_ms=decision.compute_ms, **decision.notes))
         for i, (robot, r) in enumerate(zip(world.robots, decision.robots)):
+            if not here[i]:
+                continue
             x = world.states[i]
             ref = reference_point(setup, i, x)
             rec.steps.append(dict(

@@ -13,6 +13,15 @@ import numpy as np
 from aac_sumo.dynamics import BicycleModel
 
 OBSTACLE_KINDS = ("robot", "scripted", "pedestrian", "cone", "static")
+#: Where robots that are not on the road stand [m]: far from any network, 1 km apart.
+PARKING = np.array([-1.0e6, -1.0e6])
+PARKING_STEP = 1.0e3
+
+
+def parking_spot(i: int) -> np.ndarray:
+    """The state ``[x, y, heading, v]`` of robot ``i`` while it is not on the road: standing at
+    its own spot far from everything else."""
+    return np.array([PARKING[0] - PARKING_STEP * i, PARKING[1], 0.0, 0.0])
 
 
 @dataclass(frozen=True)
@@ -58,12 +67,23 @@ class Obstacle:
 
 @dataclass
 class WorldState:
-    """Controlled robots (states (n, 4), specs) and uncontrolled obstacles at time ``t`` [s]."""
+    """Controlled robots (states (n, 4), specs) and uncontrolled obstacles at time ``t`` [s].
+
+    ``present`` (n,) says which robots are on the road now (None: all). A robot that is not,
+    a SUMO vehicle before its departure or after it left, stands still far away from
+    everything (:func:`parking_spot`), so that no geometry sees it; coordinators give it no
+    turn and the runner records nothing of it."""
 
     t: float
     states: np.ndarray
     robots: list[RobotSpec]
     obstacles: list[Obstacle] = field(default_factory=list)
+    present: np.ndarray | None = None
+
+    @property
+    def on_road(self) -> np.ndarray:
+        """``present``, as a bool array (n,) also when it is None."""
+        return np.ones(len(self.robots), dtype=bool) if self.present is None else np.asarray(self.present, dtype=bool)
 
     def robot_centres(self) -> np.ndarray:
         """Footprint centres (n, 2) of the controlled robots."""

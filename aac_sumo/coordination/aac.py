@@ -132,12 +132,20 @@ class AacCoordinator(Coordinator):
         self._crowded: tuple[float | None, np.ndarray] = (None, np.zeros(len(tasks), dtype=bool))  # (t, crowded_ahead)
         self.last_reason: dict[int, str] = {}  # per group (its first member), why its last authority held it
 
+    def admit(self, world: WorldState, i: int) -> None:
+        """Robot ``i`` has just come onto the road: it has waited longest for a turn, and its
+        commitment becomes its stopping tail from where it is (the one safe course known)."""
+        super().admit(world, i)
+        self.used[i], self.last_turn[i], self.next_extension[i], self.extra_shift[i] = 0, -1, 0, 0.0
+        if self.book is not None:
+            self.book.replace(i, self.commitment(world, i, self.period, np.zeros((0, 2))), self.period)
+
     def _decide(self, world: WorldState) -> Decision:
         if self.params.commit:
             return self._decide_committed(world)
         n, cfg = len(world.robots), self.planner.config
-        done = np.asarray(self.finished(world), dtype=bool)
-        parked = done & np.array([task.stop_at_end for task in self.tasks])
+        done = self.finished(world)
+        parked = self.parked(world, done)
         active = np.flatnonzero(~parked)  # finished robots that drive on (cars past the cones) still take turns
         records = [RobotDecision(False) for _ in range(n)]
         inputs = np.zeros((n, 2))
@@ -153,7 +161,7 @@ class AacCoordinator(Coordinator):
         others = np.array([j for j in range(n) if j != authority], dtype=int)
         horizon_inputs = np.zeros((len(others), cfg.horizon + 2, 2))
         for row, j in enumerate(others):
-            horizon_inputs[row], records[j].mode = self.intended_inputs(world, j, done[j], cfg.horizon + 2)
+            horizon_inputs[row], records[j].mode = self.intended_inputs(world, j, parked[j], cfg.horizon + 2)
 
         inputs[others] = horizon_inputs[:, 0]
         safety = self.safety_check(world) if self.params.safety_stop else None
@@ -216,13 +224,13 @@ class AacCoordinator(Coordinator):
             records[i].score, records[i].progress = float(result.scores[row]), float(result.progress[row])
         return int(candidates[result.winner]), "proximity"
 
-    def intended_inputs(self, world: WorldState, j: int, finished: bool, steps: int) -> tuple[np.ndarray, str]:
+    def intended_inputs(self, world: WorldState, j: int, parked: bool, steps: int) -> tuple[np.ndarray, str]:
         """Robot ``j``'s inputs (steps, 2) as far as they are known: the rest of its stored
         plan, then zero (constant velocity); the tracking law now when the plan is used up;
-        braking when it has finished a task that stops at its end."""
+        braking when it is ``parked`` (:meth:`~aac_sumo.coordination.base.Coordinator.parked`)."""
         out = np.zeros((steps, 2))
         task = self.tasks[j]
-        if finished and task.stop_at_end:
+        if parked:
             return self.hold_inputs(world, j, steps), "hold"
         plan = self.plans[j]
         if plan is not None and self.used[j] < len(plan.inputs):
@@ -298,8 +306,8 @@ class AacCoordinator(Coordinator):
         if self.book is None:
             self.book = CommitmentBook(fleet, [self.commitment(world, i, period, np.zeros((0, 2))) for i in range(n)],
                                        self.params.commit_margin)
-        done = np.asarray(self.finished(world), dtype=bool)
-        parked = done & np.array([task.stop_at_end for task in self.tasks])
+        done = self.finished(world)
+        parked = self.parked(world, done)
         records = [RobotDecision(False, mode=c.stage(period)) for c in self.book.items]
         if self.params.make_room:
             if self.room is None:

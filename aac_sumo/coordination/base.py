@@ -87,7 +87,8 @@ class Decision:
 class Coordinator(ABC):
     """Holds the planner, each robot's task (reference path), optional position box
     (``[x_min, x_max, y_min, y_max]``, see :meth:`MpcPlanner.plan`), last plan and last input.
-    ``finished(world)`` tells which robots have finished their task (none, without it). With the
+    ``finished(world)`` tells which robots have finished their task (none, without it); a robot
+    not on the road (:attr:`WorldState.present`) counts as finished and parked. With the
     planner's ``constant_acceleration`` prediction it keeps every moving obstacle's observed
     speeds and hands the obstacles on with their estimated acceleration."""
 
@@ -100,7 +101,7 @@ class Coordinator(ABC):
         self.planner = planner
         self.tasks = tasks
         self.corridors = corridors or [None] * len(tasks)
-        self.finished = finished or (lambda world: np.zeros(len(world.robots), dtype=bool))
+        self.task_finished = finished or (lambda world: np.zeros(len(world.robots), dtype=bool))
         self.plans: list[Plan | None] = [None] * len(tasks)
         self.last_inputs = np.zeros((len(tasks), 2))
         self.fleet: Fleet | None = None
@@ -121,6 +122,20 @@ class Coordinator(ABC):
 
     @abstractmethod
     def _decide(self, world: WorldState) -> Decision: ...
+
+    def finished(self, world: WorldState) -> np.ndarray:
+        """Which robots (n,) have finished their task or are not on the road."""
+        return np.asarray(self.task_finished(world), dtype=bool) | ~world.on_road
+
+    def parked(self, world: WorldState, done: np.ndarray) -> np.ndarray:
+        """Which robots (n,) take no turn and only hold still: those ``done`` whose task stops
+        at its end, and those not on the road."""
+        return (done & np.array([task.stop_at_end for task in self.tasks])) | ~world.on_road
+
+    def admit(self, world: WorldState, i: int) -> None:
+        """Robot ``i`` has just come onto the road (its task is set): forget what it did before."""
+        self.plans[i] = None
+        self.last_inputs[i] = 0.0
 
     def reference(self, world: WorldState, i: int) -> np.ndarray:
         """Robot ``i``'s reference over the horizon (N+1, 4): its task's, with speeds that

@@ -57,13 +57,13 @@ class LfcCoordinator(Coordinator):
 
     def _decide(self, world: WorldState) -> Decision:
         n, cfg = len(world.robots), self.planner.config
-        done = np.asarray(self.finished(world), dtype=bool)
+        parked = self.parked(world, self.finished(world))
         inputs = np.zeros((n, 2))
         records: list[RobotDecision] = [RobotDecision(False) for _ in range(n)]
         # Everyone's known motion this period: constant velocity until a robot has planned.
         motion = self.fleet.rollout(np.arange(n), world.states, np.zeros((n, cfg.horizon + 1, 2)), cfg.dt)
         for i in range(n):
-            if done[i] and self.tasks[i].stop_at_end:
+            if parked[i]:
                 hold = self.hold_inputs(world, i, cfg.horizon + 1)
                 inputs[i], records[i].mode = hold[0], "hold"
                 motion[i] = self.fleet.rollout(np.array([i]), world.states[[i]], hold[None], cfg.dt)[0]

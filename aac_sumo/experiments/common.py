@@ -30,7 +30,10 @@ from aac_sumo.world import RobotSpec, WorldState
 class Setup:
     """A ready-to-run experiment. ``finished(world)`` tells, per controlled robot, whether it
     has finished its task; the run completes when all have. ``free_flow_s`` is each robot's
-    task time without interaction [s] (path length at cruise speed), for the delay metrics."""
+    arrival time without interaction [s] (its start time plus its path length at cruise
+    speed), for the delay metrics. ``prepare(world)``, when given, runs on every observed world
+    before anything else and returns the world to use: an experiment whose robots enter and
+    leave during the run (:attr:`WorldState.present`) gives the newcomers their tasks there."""
 
     scenario: Scenario
     sim: Simulator
@@ -38,16 +41,19 @@ class Setup:
     tasks: list[PathReference]
     finished: Callable[[WorldState], np.ndarray]
     free_flow_s: np.ndarray | None = None
+    prepare: Callable[[WorldState], WorldState] | None = None
 
 
-def robot_spec(scenario: Scenario, name: str) -> RobotSpec:
-    """A controlled robot with the scenario's ``[robot]`` footprint and limits."""
+def robot_spec(scenario: Scenario, name: str, length: float | None = None, width: float | None = None) -> RobotSpec:
+    """A controlled robot with the scenario's ``[robot]`` limits and footprint (``length`` and
+    ``width`` [m] instead, when given: a SUMO vType's)."""
     r = scenario.data["robot"]
-    if r["wheelbase"] > r["length"]:
-        raise ScenarioError(scenario.source, "robot.wheelbase", f"at most robot.length ({r['length']})", r["wheelbase"])
+    length = r["length"] if length is None else length
+    if r["wheelbase"] > length:
+        raise ScenarioError(scenario.source, "robot.wheelbase", f"at most robot.length ({length})", r["wheelbase"])
     limits = VehicleLimits(r["a_min"], r["a_max"], r["steer_max"], -r["v_max"] if r["allow_reverse"] else 0.0, r["v_max"],
                            r["a_lat_max"], r["steer_rate_max"], r["a_comfort"])
-    return RobotSpec(name, r["length"], r["width"], BicycleModel(r["wheelbase"], limits))
+    return RobotSpec(name, length, r["width"] if width is None else width, BicycleModel(r["wheelbase"], limits))
 
 
 def mpc_config(scenario: Scenario) -> MpcConfig:
@@ -115,10 +121,12 @@ def independent_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corr
     return IndependentCoordinator(planner, tasks, corridors, finished)
 
 
-def coordinator(scenario: Scenario, tasks: list[PathReference], corridors=None, finished: Finished | None = None) -> Coordinator:
+def coordinator(scenario: Scenario, tasks: list[PathReference], corridors=None, finished: Finished | None = None,
+                band: bool | None = None) -> Coordinator:
     """The registered ``controller.coordinator`` with its own MPC planner; ``finished`` tells it
-    which robots have finished their task (they no longer take authority)."""
-    band = any(isinstance(c, LateralBand) for c in corridors or [])
+    which robots have finished their task (they no longer take authority). Its planner keeps
+    robots within lateral bands when ``band`` is true (None: when ``corridors`` holds one)."""
+    band = any(isinstance(c, LateralBand) for c in corridors or []) if band is None else band
     planner = MpcPlanner(dataclasses.replace(mpc_config(scenario), band=band))
     coord = COORDINATORS[scenario["controller.coordinator"]](scenario, planner, tasks, corridors, finished)
     coord.anticipation = anticipation(scenario)

@@ -34,7 +34,11 @@ import numpy as np
 from aac_sumo import network
 from aac_sumo.config import Scenario, ScenarioError
 from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_spec
-from aac_sumo.references import LateralBand, PathReference, curve_speeds, smooth_path
+from aac_sumo.experiments.routed_cars import build_routed
+from aac_sumo.experiments.lane_geometry import (
+    BAND_SETTLE, MIN_LANES, ROAD_MARGIN, along, blend, lane_edges, smooth_reference,
+)
+from aac_sumo.references import LateralBand, PathReference
 from aac_sumo.registry import register_experiment
 from aac_sumo.sim.sumo import SumoOptions, SumoSimulator
 from aac_sumo.sim.sumo_config import SumoConfig, read_config
@@ -43,12 +47,6 @@ from aac_sumo.world import WorldState
 BUNDLED_NET_DIR = Path(__file__).resolve().parents[2] / "sumo_networks" / "lane_change"
 BUNDLED_NET = BUNDLED_NET_DIR / "lane_change.net.xml"
 BUNDLED_ROUTES = [BUNDLED_NET_DIR / "cones.rou.xml", BUNDLED_NET_DIR / "pedestrians.rou.xml"]
-SAMPLE_STEP = 1.0  # reference path resolution along the road [m]
-SMOOTH_SPACING = 1.0  # point spacing of the smoothed reference paths [m]
-CURVE_DECEL = 1.5  # a reference slows down for a curve at most this hard [m/s^2]
-ROAD_MARGIN = 0.1  # the rear axle keeps half a car width plus this from the road edges [m]
-MIN_LANES = 2  # a lane change needs a second lane [lanes]
-BAND_SETTLE = 10.0  # beyond the end of its lane change a vehicle's band narrows to its target lane over this [m]
 
 
 def target_lane(lane: int, cone_lane: int, lanes: int) -> int:
@@ -62,66 +60,10 @@ def target_lane(lane: int, cone_lane: int, lanes: int) -> int:
     return lane if back == cone_lane else back
 
 
-def smoothstep(x) -> np.ndarray:
-    """Quintic 0 -> 1 on [0, 1] with zero first and second derivatives at both ends."""
-    x = np.clip(x, 0.0, 1.0)
-    return x**3 * (10.0 - 15.0 * x + 6.0 * x**2)
-
-
-def along(polyline: np.ndarray, s) -> tuple[np.ndarray, np.ndarray]:
-    """Points (K, 2) and headings (K,) [rad] at arc lengths ``s`` [m] of ``polyline`` (clamped)."""
-    seg = np.diff(polyline, axis=0)
-    seg_len = np.hypot(*seg.T)
-    keep = seg_len > 1e-9
-    seg, seg_len, start = seg[keep], seg_len[keep], polyline[:-1][keep]
-    cum = np.r_[0.0, np.cumsum(seg_len)]
-    s = np.clip(np.atleast_1d(np.asarray(s, dtype=float)), 0.0, cum[-1])
-    i = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(seg_len) - 1)
-    t = (s - cum[i]) / seg_len[i]
-    return start[i] + t[:, None] * seg[i], np.arctan2(seg[i, 1], seg[i, 0])
-
-
-def blend(line_a: np.ndarray, line_b: np.ndarray, s_from: float, s_begin: float, length: float) -> np.ndarray:
-    """Points (M, 2) [m] from arc length ``s_from`` of polyline ``line_a`` to its end, moving onto
-    ``line_b`` (at the same fraction of its length) between arc lengths ``s_begin`` and
-    ``s_begin + length`` of ``line_a`` with a quintic smoothstep."""
-    la, lb = (float(np.hypot(*np.diff(line, axis=0).T).sum()) for line in (line_a, line_b))
-    sa = np.r_[np.arange(s_from, la, SAMPLE_STEP), la]
-    pa, _ = along(line_a, sa)
-    pb, _ = along(line_b, sa * lb / la)
-    w = smoothstep((sa - s_begin) / length)[:, None]
-    return (1.0 - w) * pa + w * pb
-
-
 def lane_change_path(rd: network.Road, start: int, target: int, s0: float, change_start: float, change_length: float) -> np.ndarray:
     """Waypoints (M, 2) [m] of the rear axle from arc length ``s0`` of lane ``start`` to the road's
     end, blending into lane ``target`` between ``s0 + change_start`` and ``+ change_length``."""
     return blend(rd.lanes[start], rd.lanes[target], s0, s0 + change_start, change_length)
-
-
-def smooth_reference(waypoints: np.ndarray, speed: float, a_lat: float) -> PathReference:
-    """The reference along a curvature-continuous version of ``waypoints`` (M, 2) [m]
-    (:func:`~aac_sumo.references.smooth_path`) at ``speed`` [m/s], slower where its curvature
-    would need more than ``a_lat`` [m/s^2] of lateral acceleration."""
-    points, curvature = smooth_path(waypoints, SMOOTH_SPACING)
-    return PathReference(points, speed, stop_at_end=False, limits=curve_speeds(curvature, SMOOTH_SPACING, speed, a_lat, CURVE_DECEL))
-
-
-def offset_polyline(line: np.ndarray, offset: float) -> np.ndarray:
-    """``line`` (M, 2) shifted ``offset`` [m] to its left (negative: right), vertex by vertex
-    along the mean of the adjacent segments' normals."""
-    seg = np.diff(line, axis=0)
-    seg = seg / np.maximum(np.hypot(*seg.T), 1e-12)[:, None]
-    normal = np.column_stack([-seg[:, 1], seg[:, 0]])
-    vertex = np.vstack([normal[:1], normal[:-1] + normal[1:], normal[-1:]])
-    vertex /= np.maximum(np.hypot(*vertex.T), 1e-12)[:, None]
-    return line + offset * vertex
-
-
-def lane_edges(rd: network.Road, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:
-    """The right edge of lane ``lo`` and the left edge of lane ``hi`` (polylines [m]): their
-    centre lines shifted out by half their width (SUMO numbers lanes from the right)."""
-    return offset_polyline(rd.lanes[lo], -0.5 * rd.widths[lo]), offset_polyline(rd.lanes[hi], 0.5 * rd.widths[hi])
 
 
 def lane_change_band(rd: network.Road, start: int, target: int, change_end: float, margin: float) -> LateralBand:
@@ -197,12 +139,35 @@ def scenario_road(scenario: Scenario, net_path: Path) -> network.Road:
     return network.road(net, scenario["sumo.edges"], MIN_LANES, scenario.source)
 
 
+def sumo_options(scenario: Scenario, net_path: Path, routes: list[Path]) -> SumoOptions:
+    """How to start SUMO for ``scenario`` (``[sumo]``); a user's ``sumo.config`` that sets one
+    of the options the co-simulation sets itself gets a one-line note."""
+    su = scenario.data["sumo"]
+    outputs = tuple(dict.fromkeys((["fcd"] if su["fcd"] else []) + list(su["outputs"])))
+    out = None
+    if su["output_dir"].strip() or outputs:
+        out = Path(su["output_dir"]) if su["output_dir"].strip() else Path("out") / scenario["scenario.name"]
+        out.mkdir(parents=True, exist_ok=True)
+    config = sumo_config(scenario) if su["config"].strip() else None
+    options = SumoOptions(net_path, routes, tuple(t.strip() for t in su["cone_types"].split(",") if t.strip()),
+                          su["gui"], scenario["scenario.seed"], su["delay"], out, outputs, config.path if config else None,
+                          tuple(shlex.split(su["extra_args"])))
+    if config is not None:
+        overridden = config.overridden(options.our_options(scenario["scenario.dt"]))
+        if overridden:
+            print(f"aac-sumo: note: {config.path} sets {', '.join(overridden)}; the scenario's own apply "
+                  f"(step-length {scenario['scenario.dt']}, seed {scenario['scenario.seed']}, collisions warned)", file=sys.stderr)
+    return options
+
+
 @register_experiment("lane_change")
 def build_lane_change(scenario: Scenario) -> Setup:
     lc, su = scenario.data["lane_change"], scenario.data["sumo"]
     src = scenario.source
     net_path, routes = network_files(scenario)
     scenario = with_resolved_paths(scenario)
+    if su["controlled_types"] or su["controlled_ids"]:
+        return build_routed(scenario, net_path, routes, sumo_options(scenario, net_path, routes))
     rd = scenario_road(scenario, net_path)
     n, lanes = lc["vehicles"], rd.n_lanes
     robots = [robot_spec(scenario, f"veh{k}") for k in range(n)]
@@ -224,21 +189,7 @@ def build_lane_change(scenario: Scenario) -> Setup:
         point, heading = along(rd.lanes[start_lane[k]], s0[k])
         states[k] = [point[0, 0], point[0, 1], heading[0], lc["speed"]]
 
-    outputs = tuple(dict.fromkeys((["fcd"] if su["fcd"] else []) + list(su["outputs"])))
-    out = None
-    if su["output_dir"].strip() or outputs:
-        out = Path(su["output_dir"]) if su["output_dir"].strip() else Path("out") / scenario["scenario.name"]
-        out.mkdir(parents=True, exist_ok=True)
-    config = sumo_config(scenario) if su["config"].strip() else None
-    options = SumoOptions(net_path, routes, tuple(t.strip() for t in su["cone_types"].split(",") if t.strip()),
-                          su["gui"], scenario["scenario.seed"], su["delay"], out, outputs, config.path if config else None,
-                          tuple(shlex.split(su["extra_args"])))
-    if config is not None:
-        overridden = config.overridden(options.our_options(scenario["scenario.dt"]))
-        if overridden:
-            print(f"aac-sumo: note: {config.path} sets {', '.join(overridden)}; the scenario's own apply "
-                  f"(step-length {scenario['scenario.dt']}, seed {scenario['scenario.seed']}, collisions warned)", file=sys.stderr)
-    sim = SumoSimulator(robots, states, scenario["scenario.dt"], rd.edges, options)
+    sim = SumoSimulator(robots, states, scenario["scenario.dt"], rd.edges, sumo_options(scenario, net_path, routes))
     try:
         world = sim.observe()
         check_start(scenario, world, "lane_change.spacing")

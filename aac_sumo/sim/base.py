@@ -44,11 +44,11 @@ def footprint_contacts(world: WorldState) -> ContactReport:
 
 
 def agent_rows(world: WorldState) -> list[dict]:
-    """``trajectories.csv`` rows of every agent in ``world``: controlled robots (kind
+    """``trajectories.csv`` rows of every agent in ``world``: controlled robots on the road (kind
     ``controlled``) then obstacles (their own kind), footprint centre, heading, speed, size."""
     rows = [
         dict(name=r.name, kind="controlled", x=fp[0], y=fp[1], heading=fp[4], v=s[3], length=r.length, width=r.width)
-        for r, fp, s in zip(world.robots, world.robot_footprints(), world.states)
+        for r, fp, s, here in zip(world.robots, world.robot_footprints(), world.states, world.on_road) if here
     ]
     rows += [
         dict(name=o.name, kind=o.kind, x=o.centre[0], y=o.centre[1], heading=o.heading,

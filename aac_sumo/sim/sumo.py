@@ -27,7 +27,7 @@ from aac_sumo.dynamics import FleetModel
 from aac_sumo.network import sumo_binary
 from aac_sumo.sim.base import ContactReport, Simulator, agent_rows, footprint_contacts
 from aac_sumo.sim.sumo_frames import state_from_sumo, sumo_from_state
-from aac_sumo.world import Obstacle, RobotSpec, WorldState
+from aac_sumo.world import Obstacle, RobotSpec, WorldState, parking_spot
 
 ROUTE_ID = "aac_road"
 
@@ -107,14 +107,26 @@ def _api(gui: bool):
 class SumoSimulator(Simulator):
     """The :class:`Simulator` interface over a running SUMO: starts it, inserts ``robots`` at
     rear-axle ``states`` (n, 4) on the route ``edges``, and steps one period ``dt`` [s] at a time.
-    World time 0 is the first SUMO step after insertion."""
+    World time 0 is the first SUMO step after insertion.
 
-    def __init__(self, robots: list[RobotSpec], states: np.ndarray, dt: float, edges: list[str], options: SumoOptions):
+    The robots named in ``routed`` are vehicles of SUMO's own route files instead: they are not
+    on the road (:attr:`WorldState.present`) until SUMO departs them, from then on ours (speed
+    and lane-change mode 0, moved by our model), and off the road again once SUMO removes them
+    (their route ended) or :meth:`retire` takes them out. :meth:`take_entered` tells who came."""
+
+    def __init__(self, robots: list[RobotSpec], states: np.ndarray, dt: float, edges: list[str], options: SumoOptions,
+                 routed: frozenset[str] = frozenset()):
         self.robots = list(robots)
         self.states = np.array(states, dtype=float)
         self.dt = dt
         self.options = options
         self.api = _api(options.gui)
+        self.routed = frozenset(routed)
+        self.present = np.array([r.name not in self.routed for r in self.robots], dtype=bool)
+        self.index = {r.name: i for i, r in enumerate(self.robots)}
+        self.entered: list[int] = []
+        for i in np.flatnonzero(~self.present):
+            self.states[i] = parking_spot(int(i))
         self.removed: set[str] = set()
         self.wrecked: set[str] = set()
         self.events: list[str] = []
@@ -132,7 +144,8 @@ class SumoSimulator(Simulator):
                 self._insert(edges)
                 self.api.simulationStep()
                 self.t0 = self.api.simulation.getTime()
-                missing = [r.name for r in self.robots if r.name not in set(self.api.vehicle.getIDList())]
+                self._take_departed()
+                missing = [r.name for r in self.robots if r.name not in self.routed and r.name not in set(self.api.vehicle.getIDList())]
                 if missing:
                     raise SumoError(f"SUMO did not insert {', '.join(missing)} at its start pose")
                 self._read_robots()
@@ -143,8 +156,10 @@ class SumoSimulator(Simulator):
 
     def _insert(self, edges: list[str]) -> None:
         v = self.api.vehicle
-        self.api.route.add(ROUTE_ID, edges)
-        for i, robot in enumerate(self.robots):
+        placed = [(i, robot) for i, robot in enumerate(self.robots) if robot.name not in self.routed]
+        if placed:
+            self.api.route.add(ROUTE_ID, edges)
+        for i, robot in placed:
             vtype = f"aac_{robot.length:g}x{robot.width:g}"
             if vtype not in self.api.vehicletype.getIDList():
                 self.api.vehicletype.copy("DEFAULT_VEHTYPE", vtype)
@@ -161,21 +176,61 @@ class SumoSimulator(Simulator):
     # -- reading -----------------------------------------------------------------------------
 
     def _note_removed(self) -> None:
-        """Note every controlled vehicle SUMO no longer has, and report it once."""
+        """Note every controlled vehicle SUMO no longer has: a routed one leaves the road, a
+        placed one is reported once (it drives on in our model)."""
         present = set(self.api.vehicle.getIDList())
-        for robot in self.robots:
-            if robot.name not in self.removed and robot.name not in present:
-                self.removed.add(robot.name)
-                event = f"t={self.t:.2f} s: SUMO removed controlled vehicle {robot.name}; it drives on off SUMO's road, counted finished"
-                self.events.append(event)
-                print(f"aac-sumo: warning: {event}", file=sys.stderr)
+        for i, robot in enumerate(self.robots):
+            if robot.name in self.removed or robot.name in present or not self.present[i]:
+                continue
+            self.removed.add(robot.name)
+            if robot.name in self.routed:
+                self._park(i)
+                continue
+            event = f"t={self.t:.2f} s: SUMO removed controlled vehicle {robot.name}; it drives on off SUMO's road, counted finished"
+            self.events.append(event)
+            print(f"aac-sumo: warning: {event}", file=sys.stderr)
+
+    def _park(self, i: int) -> None:
+        self.present[i] = False
+        self.states[i] = parking_spot(i)
+
+    def _take_departed(self) -> None:
+        """Make the routed vehicles SUMO departed in its last step ours, at the pose and speed
+        SUMO gave them."""
+        v = self.api.vehicle
+        for vid in self.api.simulation.getDepartedIDList():
+            i = self.index.get(vid)
+            if i is None or vid not in self.routed or self.present[i] or vid in self.removed:
+                continue
+            v.setSpeedMode(vid, 0)
+            v.setLaneChangeMode(vid, 0)
+            robot = self.robots[i]
+            x, y = v.getPosition(vid)
+            self.states[i] = state_from_sumo(x, y, v.getAngle(vid), v.getSpeed(vid), robot.length, robot.model.wheelbase)
+            self.present[i] = True
+            self.entered.append(i)
+
+    def take_entered(self) -> list[int]:
+        """The robots that came onto the road since the last call (indices, in order)."""
+        out, self.entered = self.entered, []
+        return out
+
+    def retire(self, i: int) -> None:
+        """Take routed robot ``i`` off the road: SUMO removes it, and it stands parked."""
+        name = self.robots[i].name
+        if name in self.removed or not self.present[i]:
+            return
+        with self._sumo_errors(f"removing {name}"):
+            self.api.vehicle.remove(name)
+        self.removed.add(name)
+        self._park(i)
 
     def _read_robots(self) -> None:
         """Poses of the controlled vehicles after the last SUMO step; notice removed ones."""
         v = self.api.vehicle
         self._note_removed()
         for i, robot in enumerate(self.robots):
-            if robot.name in self.removed:
+            if robot.name in self.removed or not self.present[i]:
                 continue
             x, y = v.getPosition(robot.name)
             angle = v.getAngle(robot.name)
@@ -208,21 +263,22 @@ class SumoSimulator(Simulator):
     # -- the Simulator interface -------------------------------------------------------------
 
     def observe(self) -> WorldState:
-        return WorldState(self.t, self.states.copy(), self.robots, list(self._obstacles))
+        return WorldState(self.t, self.states.copy(), self.robots, list(self._obstacles), self.present.copy())
 
     def step(self, inputs: np.ndarray) -> ContactReport:
         inputs = np.asarray(inputs, dtype=float)
         with self._sumo_errors("stepping"):
             self._note_removed()  # removed since the last step (by another TraCI client, say)
-            moving = np.array([r.name not in self.wrecked for r in self.robots], dtype=bool)
+            moving = np.array([r.name not in self.wrecked for r in self.robots], dtype=bool) & self.present
             self.states[moving] = self.model.step(self.states, inputs, self.dt)[moving]
             for i, robot in enumerate(self.robots):
-                if robot.name in self.removed:
+                if robot.name in self.removed or not self.present[i]:
                     continue
                 x, y, angle = sumo_from_state(self.states[i], robot.length, robot.model.wheelbase)
                 self.api.vehicle.moveToXY(robot.name, "", -1, x, y, angle, keepRoute=2)
             self.api.simulationStep()
             self.t = self.api.simulation.getTime() - self.t0
+            self._take_departed()
             self._read_robots()
             self._obstacles = self._read_obstacles()
             sim_pairs = self._sim_collision_pairs()
@@ -243,7 +299,7 @@ class SumoSimulator(Simulator):
 
     def _contacts(self) -> ContactReport:
         """Our footprint check, leaving out removed vehicles (their clearance is inf)."""
-        keep = [i for i, r in enumerate(self.robots) if r.name not in self.removed]
+        keep = [i for i, r in enumerate(self.robots) if r.name not in self.removed and self.present[i]]
         world = WorldState(self.t, self.states[keep], [self.robots[i] for i in keep], self._obstacles)
         partial = footprint_contacts(world)
         clearance = np.full(len(self.robots), np.inf)
@@ -260,7 +316,7 @@ class SumoSimulator(Simulator):
         shown = getattr(self, "_shown", {})
         for robot in self.robots:
             colour = SAFETY_STOP if robot.name in stopped else AUTHORITY if robot.name in authority else PLAIN
-            if shown.get(robot.name, PLAIN) != colour and robot.name not in self.removed:
+            if shown.get(robot.name, PLAIN) != colour and robot.name not in self.removed and self.present[self.index[robot.name]]:
                 self.api.vehicle.setColor(robot.name, colour)
                 shown[robot.name] = colour
         self._shown = shown

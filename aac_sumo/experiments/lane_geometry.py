@@ -1,0 +1,74 @@
+"""Lane geometry of SUMO roads for car references: points along lane centre lines, smooth
+blends from one lane onto another, lane edges, and curvature-continuous references.
+
+Frames and units: SUMO's network frame [m]; arc lengths along a polyline [m]."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from aac_sumo import network
+from aac_sumo.references import PathReference, curve_speeds, smooth_path
+
+SAMPLE_STEP = 1.0  # reference path resolution along the road [m]
+SMOOTH_SPACING = 1.0  # point spacing of the smoothed reference paths [m]
+CURVE_DECEL = 1.5  # a reference slows down for a curve at most this hard [m/s^2]
+ROAD_MARGIN = 0.1  # the rear axle keeps half a car width plus this from the road edges [m]
+MIN_LANES = 2  # a lane change needs a second lane [lanes]
+BAND_SETTLE = 10.0  # beyond the end of its lane change a vehicle's band narrows to its target lane over this [m]
+
+
+def smoothstep(x) -> np.ndarray:
+    """Quintic 0 -> 1 on [0, 1] with zero first and second derivatives at both ends."""
+    x = np.clip(x, 0.0, 1.0)
+    return x**3 * (10.0 - 15.0 * x + 6.0 * x**2)
+
+
+def along(polyline: np.ndarray, s) -> tuple[np.ndarray, np.ndarray]:
+    """Points (K, 2) and headings (K,) [rad] at arc lengths ``s`` [m] of ``polyline`` (clamped)."""
+    seg = np.diff(polyline, axis=0)
+    seg_len = np.hypot(*seg.T)
+    keep = seg_len > 1e-9
+    seg, seg_len, start = seg[keep], seg_len[keep], polyline[:-1][keep]
+    cum = np.r_[0.0, np.cumsum(seg_len)]
+    s = np.clip(np.atleast_1d(np.asarray(s, dtype=float)), 0.0, cum[-1])
+    i = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(seg_len) - 1)
+    t = (s - cum[i]) / seg_len[i]
+    return start[i] + t[:, None] * seg[i], np.arctan2(seg[i, 1], seg[i, 0])
+
+
+def blend(line_a: np.ndarray, line_b: np.ndarray, s_from: float, s_begin: float, length: float) -> np.ndarray:
+    """Points (M, 2) [m] from arc length ``s_from`` of polyline ``line_a`` to its end, moving onto
+    ``line_b`` (at the same fraction of its length) between arc lengths ``s_begin`` and
+    ``s_begin + length`` of ``line_a`` with a quintic smoothstep."""
+    la, lb = (float(np.hypot(*np.diff(line, axis=0).T).sum()) for line in (line_a, line_b))
+    sa = np.r_[np.arange(s_from, la, SAMPLE_STEP), la]
+    pa, _ = along(line_a, sa)
+    pb, _ = along(line_b, sa * lb / la)
+    w = smoothstep((sa - s_begin) / length)[:, None]
+    return (1.0 - w) * pa + w * pb
+
+
+def smooth_reference(waypoints: np.ndarray, speed: float, a_lat: float) -> PathReference:
+    """The reference along a curvature-continuous version of ``waypoints`` (M, 2) [m]
+    (:func:`~aac_sumo.references.smooth_path`) at ``speed`` [m/s], slower where its curvature
+    would need more than ``a_lat`` [m/s^2] of lateral acceleration."""
+    points, curvature = smooth_path(waypoints, SMOOTH_SPACING)
+    return PathReference(points, speed, stop_at_end=False, limits=curve_speeds(curvature, SMOOTH_SPACING, speed, a_lat, CURVE_DECEL))
+
+
+def offset_polyline(line: np.ndarray, offset: float) -> np.ndarray:
+    """``line`` (M, 2) shifted ``offset`` [m] to its left (negative: right), vertex by vertex
+    along the mean of the adjacent segments' normals."""
+    seg = np.diff(line, axis=0)
+    seg = seg / np.maximum(np.hypot(*seg.T), 1e-12)[:, None]
+    normal = np.column_stack([-seg[:, 1], seg[:, 0]])
+    vertex = np.vstack([normal[:1], normal[:-1] + normal[1:], normal[-1:]])
+    vertex /= np.maximum(np.hypot(*vertex.T), 1e-12)[:, None]
+    return line + offset * vertex
+
+
+def lane_edges(rd: network.Road, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:
+    """The right edge of lane ``lo`` and the left edge of lane ``hi`` (polylines [m]): their
+    centre lines shifted out by half their width (SUMO numbers lanes from the right)."""
+    return offset_polyline(rd.lanes[lo], -0.5 * rd.widths[lo]), offset_polyline(rd.lanes[hi], 0.5 * rd.widths[hi])
