@@ -351,12 +351,13 @@ def gentlest_stops(check, inputs, steer, states, headings, wheelbase, a_min, a_m
 
 
 @numba.njit(cache=True)
-def closest_on_polyline(points, seg_len, t_max, px, py):
-    """The segment ``i`` of polyline ``points`` (M, 2) [m] (segment lengths ``seg_len`` (M-1,))
-    closest to the point ``(px, py)`` (the first on ties), the fraction ``t`` of it, clipped
-    into ``[0, t_max[i]]``, at which the closest point lies, and the distance [m] to it."""
+def closest_on_polyline(points, seg_len, t_max, px, py, segments):
+    """Of the segments ``segments`` (ascending indices) of polyline ``points`` (M, 2) [m]
+    (segment lengths ``seg_len`` (M-1,)), the segment ``i`` closest to the point ``(px, py)``
+    (the first on ties), the fraction ``t`` of it, clipped into ``[0, t_max[i]]``, at which the
+    closest point lies, and the distance [m] to it."""
     best_i, best_t, best_d = 0, 0.0, np.inf
-    for i in range(seg_len.shape[0]):
+    for i in segments:
         ax, ay = points[i, 0], points[i, 1]
         dx, dy = points[i + 1, 0] - ax, points[i + 1, 1] - ay
         t = min(max(((px - ax) * dx + (py - ay) * dy) / seg_len[i] ** 2, 0.0), t_max[i])

@@ -6,9 +6,13 @@ Positions in the world frame [m]; the reference is for the rear-axle point.
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from aac_sumo.geometry import polyline_offset, wrap_angle
 from aac_sumo.kernels import closest_on_polyline
+
+#: Paths with more waypoints than this project through a KD-tree of them (:meth:`PathReference.project`).
+KD_TREE_POINTS = 32
 
 
 #: A robot backing off from a goal inside its turning circle goes on until the goal lies this
@@ -83,13 +87,30 @@ class PathReference:
         self.arrive = float(arrive)
         # upper bound of the fraction of each segment a projection may reach: past the end of a path that does not stop
         self._t_max = np.r_[np.ones(len(self.seg_len) - 1), 1.0 if stop_at_end else np.inf]
+        self._all = np.arange(len(self.seg_len))
+        self._tree = cKDTree(self.points) if len(self.points) > KD_TREE_POINTS else None
+        self._half_seg = 0.5 * float(self.seg_len.max())
 
     def project(self, point) -> tuple[float, float]:
         """Arc length [m] of the closest path point to ``point`` and the distance [m] to it. A
         path that does not stop goes on straight beyond its end, so a point past the end projects
         onto that extension (arc length above ``length``)."""
-        i, t, dist = closest_on_polyline(self.points, self.seg_len, self._t_max, float(point[0]), float(point[1]))
+        i, t, dist = self._closest(point)
         return float(self.s[i] + t * self.seg_len[i]), float(dist)
+
+    def _closest(self, point) -> tuple[int, float, float]:
+        """:func:`~aac_sumo.kernels.closest_on_polyline` of ``point`` over every segment. A long
+        path scans only the segments that can hold a point closer than its nearest vertex (an
+        end within that distance plus half the longest segment, from its KD-tree), and its last
+        segment (which may carry on past the end): the same answer, much faster."""
+        px, py = float(point[0]), float(point[1])
+        if self._tree is None:
+            return closest_on_polyline(self.points, self.seg_len, self._t_max, px, py, self._all)
+        d, _ = self._tree.query((px, py))
+        near = np.asarray(self._tree.query_ball_point((px, py), d + self._half_seg + 1e-9), dtype=np.int64)
+        last = len(self.seg_len) - 1
+        segments = np.unique(np.r_[np.clip(near - 1, 0, last), np.minimum(near, last), last])
+        return closest_on_polyline(self.points, self.seg_len, self._t_max, px, py, segments)
 
     def distance(self, points) -> np.ndarray:
         """Distance [m] from each of ``points`` (K, 2) to the path."""
@@ -116,7 +137,7 @@ class PathReference:
 
     def heading_at(self, point) -> float:
         """Heading [rad] of the path where ``point`` [m] projects (of the later segment at a vertex)."""
-        i, t, _ = closest_on_polyline(self.points, self.seg_len, self._t_max, float(point[0]), float(point[1]))
+        i, t, _ = self._closest(point)
         if i + 1 < len(self.seg_len) and self.s[i] + t * self.seg_len[i] >= self.s[i + 1]:
             i += 1  # at the vertex that ends segment i (the projection never passes it)
         return float(self.seg_heading[i])

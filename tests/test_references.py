@@ -67,3 +67,24 @@ def test_heading_at_is_the_heading_of_the_pose_where_the_point_projects(seed, st
     path = PathReference(np.cumsum(rng.uniform(-3, 3, (int(rng.integers(2, 30)), 2)), axis=0), 1.0, stop_at_end=stop)
     point = path.points[rng.integers(len(path.points))] if at_vertex else rng.uniform(-20, 20, 2)
     assert path.heading_at(point) == path.pose_at(path.project(point)[0])[0, 2]
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 10_000), stop=st.booleans(), points=st.integers(33, 400))
+def test_a_long_path_projects_exactly_as_a_scan_of_every_segment(seed, stop, points):
+    """The KD-tree shortcut of long paths gives the full scan's answer, on wiggly paths that
+    come back near themselves, for points near, far, before and beyond them."""
+    from aac_sumo.kernels import closest_on_polyline
+
+    rng = np.random.default_rng(seed)
+    steps = rng.uniform(0.05, 3.0, points)[:, None] * np.column_stack([np.cos(np.cumsum(rng.normal(0, 0.6, points))),
+                                                                       np.sin(np.cumsum(rng.normal(0, 0.6, points)))])
+    path = PathReference(np.cumsum(steps, axis=0), 5.0, stop_at_end=stop)
+    assert path._tree is not None
+    span = np.ptp(path.points, axis=0).max() + 10.0
+    for p in np.vstack([path.points[rng.integers(0, len(path.points), 20)] + rng.normal(0, 1.0, (20, 2)),
+                        path.points.mean(axis=0) + rng.uniform(-span, span, (20, 2))]):
+        i, t, d = closest_on_polyline(path.points, path.seg_len, path._t_max, p[0], p[1], np.arange(len(path.seg_len)))
+        s, dist = path.project(p)
+        assert dist == pytest.approx(d, abs=1e-12)
+        assert s == pytest.approx(path.s[i] + t * path.seg_len[i], abs=1e-9)

@@ -32,6 +32,7 @@ def gui_sim(names, gui=True):
     sim.robots = [SimpleNamespace(name=n) for n in names]
     sim.options = SumoOptions(Path("road.net.xml"), gui=gui)
     sim.removed = set()
+    sim.present = [True] * len(names)
     sim.api = SimpleNamespace(vehicle=RecordingVehicles())
     return sim
 

@@ -158,7 +158,7 @@ class AacCoordinator(Coordinator):
         start = time.perf_counter()
         authority, reason = self.choose_authority(world, active, records)
         proximity_ms = (time.perf_counter() - start) * 1e3 if reason == "proximity" else 0.0
-        others = np.array([j for j in range(n) if j != authority], dtype=int)
+        others = np.flatnonzero(world.on_road & (np.arange(n) != authority))  # robots off the road stand still, far away
         horizon_inputs = np.zeros((len(others), cfg.horizon + 2, 2))
         for row, j in enumerate(others):
             horizon_inputs[row], records[j].mode = self.intended_inputs(world, j, parked[j], cfg.horizon + 2)

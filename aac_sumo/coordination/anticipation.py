@@ -72,7 +72,7 @@ def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipa
     robot, state = world.robots[i], world.states[i]
     s0, _ = task.project(state[:2])
     front = robot.centre_offset + 0.5 * robot.length  # rear axle to front bumper [m]
-    others = [j for j in range(len(world.robots)) if j != i]
+    others = [j for j in np.flatnonzero(world.on_road) if j != i]
     centres = np.vstack([world.robot_centres()[others]] + [o.centre[None, :] for o in world.obstacles]).reshape(-1, 2)
     if len(centres) == 0:
         return np.zeros((0, 3))

@@ -314,9 +314,9 @@ class SumoSimulator(Simulator):
         if not self.options.gui:
             return
         shown = getattr(self, "_shown", {})
-        for robot in self.robots:
+        for robot, here in zip(self.robots, self.present):
             colour = SAFETY_STOP if robot.name in stopped else AUTHORITY if robot.name in authority else PLAIN
-            if shown.get(robot.name, PLAIN) != colour and robot.name not in self.removed and self.present[self.index[robot.name]]:
+            if shown.get(robot.name, PLAIN) != colour and robot.name not in self.removed and here:
                 self.api.vehicle.setColor(robot.name, colour)
                 shown[robot.name] = colour
         self._shown = shown
