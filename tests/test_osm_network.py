@@ -4,6 +4,7 @@ a road split into several edges, single-lane ramps and side roads (real netconve
 from __future__ import annotations
 
 import json
+import shutil
 import subprocess
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -166,3 +167,13 @@ def test_lane_change_runs_on_the_osm_example_with_cones_and_walkers(example_net,
     m = json.loads((tmp_path / "metrics.json").read_text())
     assert m["completed"] is True and m["collisions"] == 0
     assert m["min_pedestrian_clearance_m"] > 1.0
+
+
+def test_net_build_of_the_osm_example_writes_the_net_of_the_docs_command_that_its_sumocfg_names(example_net, tmp_path):
+    work = tmp_path / "osm_example"
+    shutil.copytree(EXAMPLE, work, ignore=shutil.ignore_patterns("*.net.xml"))
+    assert network.build(work) == [work / "example.net.xml"]
+    assert ET.parse(work / "osm_example.sumocfg").find(".//net-file").get("value") == "example.net.xml"
+    built, documented = (network.read(p, "sumo.net", "test", withInternal=True) for p in (work / "example.net.xml", example_net))
+    assert {lane.getID(): lane.getShape() for e in built.getEdges() for lane in e.getLanes()} == \
+        {lane.getID(): lane.getShape() for e in documented.getEdges() for lane in e.getLanes()}
