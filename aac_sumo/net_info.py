@@ -13,6 +13,7 @@ from pathlib import Path
 
 from aac_sumo import network
 from aac_sumo.config import ScenarioError
+from aac_sumo.sim.sumo_routes import FLOW_END, RoutesError, flow_departures
 
 SHOWN = 8  # candidate roads listed
 WHERE = "net info"
@@ -101,7 +102,14 @@ def _routes(path: Path) -> list[str]:
         raise ScenarioError(path, WHERE, f"a SUMO route file (XML: {exc})") from None
     if root.tag not in ("routes", "additional"):
         raise ScenarioError(path, WHERE, f"a SUMO route file (<routes>, found <{root.tag}>)")
-    used = Counter(v.get("type", "DEFAULT_VEHTYPE") for v in root.iter() if v.tag in ("vehicle", "flow", "trip"))
+    randomized: list[str] = []
+    used = Counter(v.get("type", "DEFAULT_VEHTYPE") for v in root.iter() if v.tag in ("vehicle", "trip"))
+    for flow in root.iter("flow"):  # its vehicles, as SUMO departs them (a randomized flow: one row, no count)
+        try:
+            used[flow.get("type", "DEFAULT_VEHTYPE")] += len(flow_departures(path, flow, FLOW_END))
+        except RoutesError:
+            randomized.append(f"  flow {flow.get('id')} (vType {flow.get('type', 'DEFAULT_VEHTYPE')}): randomized, "
+                              "its vehicles are known only as SUMO departs them")
     persons = [p for p in root.iter() if p.tag in ("person", "personFlow")]
     walkers = Counter(p.get("type", "DEFAULT_PEDTYPE") for p in persons)
     lines = [f"{path}:"]
@@ -112,7 +120,7 @@ def _routes(path: Path) -> list[str]:
         lines.append(f"  vType {tid} (vClass {vt.get('vClass', 'passenger')}{size}): "
                      f"{used.pop(tid, 0)} vehicles, {walkers.pop(tid, 0)} persons{role}")
     lines += [f"  vType {tid} (SUMO's default): {count} vehicles" for tid, count in used.items()]
-    lines += [f"  vType {tid} (SUMO's default): {count} persons" for tid, count in walkers.items()]
+    lines += [f"  vType {tid} (SUMO's default): {count} persons" for tid, count in walkers.items()] + randomized
     for p in persons:
         stages = [w.get("edges") or f"{w.get('from')} -> {w.get('to')}" for w in p if w.tag == "walk"]
         lines.append(f"  person {p.get('id')}: walks {', '.join(stages) or 'nowhere'}")

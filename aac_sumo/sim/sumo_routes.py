@@ -4,7 +4,7 @@ departs, its vType's footprint and its route's edges.
 
 Flows are expanded as SUMO does: vehicle ``FLOW.k`` departs at ``begin + k * period`` (period
 from ``period``, ``vehsPerHour``, or ``(end - begin) / number``), for ``k < number`` and before
-``end``. A randomized flow (``probability``, ``period="exp(...)"``) cannot be known in advance
+``end`` (24 hours without ``end`` and ``number``). A randomized flow (``probability``, ``period="exp(...)"``) cannot be known in advance
 and is refused for a controlled vType. Routes come from a ``<route>`` child, a ``route`` id, or
 ``from``/``to`` (and ``via``) edges routed on the network's shortest path, as SUMO routes a trip.
 """
@@ -18,6 +18,8 @@ from pathlib import Path
 
 #: SUMO's defaults for a vType that does not set its footprint (passenger car) [m].
 DEFAULT_LENGTH, DEFAULT_WIDTH = 5.0, 1.8
+#: SUMO's end of a flow that gives neither ``end`` nor ``number`` [s] (24 hours).
+FLOW_END = 86400.0
 
 
 @dataclass(frozen=True)
@@ -92,6 +94,14 @@ def _expand(path: Path, element: ET.Element, routes: dict, vtypes: dict, until: 
     if element.tag != "flow":
         depart = _number(path, element, "depart", 0.0)
         return [RoutedVehicle(vid, vtype, depart, length, width, edges, trip)] if depart < until else []
+    return [RoutedVehicle(f"{vid}.{k}", vtype, depart, length, width, edges, trip)
+            for k, depart in enumerate(flow_departures(path, element, until))]
+
+
+def flow_departures(path: Path, element: ET.Element, until: float) -> list[float]:
+    """Departure times [s] of the vehicles of the ``<flow>`` ``element`` of file ``path``
+    before ``until`` [s]; ``RoutesError`` for a randomized flow."""
+    vid = element.get("id", "")
     if element.get("probability") is not None or "exp" in (element.get("period") or ""):
         raise RoutesError(f"{path}: <flow id={vid!r}>: expected number, period or vehsPerHour (a randomized flow's "
                           "vehicles cannot be known before the run)")
@@ -106,13 +116,13 @@ def _expand(path: Path, element: ET.Element, routes: dict, vtypes: dict, until: 
     if period is None or period <= 0.0:
         raise RoutesError(f"{path}: <flow id={vid!r}>: expected a positive period, vehsPerHour, or number with end")
     count = int(number) if number is not None else 10**9
-    last = min(end if end is not None else float("inf"), until)
+    last = min(end if end is not None else FLOW_END if number is None else float("inf"), until)
     out = []
     for k in range(count):
         depart = begin + k * period
         if depart >= last:
             break
-        out.append(RoutedVehicle(f"{vid}.{k}", vtype, depart, length, width, edges, trip))
+        out.append(depart)
     return out
 
 
