@@ -194,7 +194,7 @@ def write_outputs(result: RunResult, out: Path, plot: bool = True) -> None:
     result.steps.to_csv(out / "steps.csv", index=False)
     result.trajectories.to_csv(out / "trajectories.csv", index=False)
     (out / "scenario.toml").write_text(result.scenario.to_toml())
-    if plot:
+    if plot and len(result.trajectories):  # a run stopped before its first period has nothing to draw
         from aac_sumo.report import plot_run
         from aac_sumo.report_timeline import plot_fairness, plot_timeline
 

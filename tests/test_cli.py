@@ -232,3 +232,20 @@ def test_an_interrupted_run_keeps_what_it_recorded_and_exits_non_zero(tmp_path, 
     steps = (out / "steps.csv").read_text().splitlines()
     assert len(steps) > 1 + 100  # a header and at least one period of 100 robots
     assert "everything recorded until then" in err
+
+
+def test_a_run_stopped_before_its_first_period_still_writes_its_files(tmp_path):
+    """A stop that comes during start-up (a loaded machine) leaves metrics, empty tables and
+    no pictures, rather than a traceback from drawing nothing."""
+    from aac_sumo import runner
+
+    runner.STOP.set()
+    try:
+        with pytest.raises(runner.RunInterrupted) as stop:
+            runner.run(config.load("circle_swap", ["circle_swap.n_robots=2"]))
+    finally:
+        runner.STOP.clear()
+    runner.write_outputs(stop.value.result, tmp_path)
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert metrics["error"] == "interrupted at t=0.00 s" and metrics["completed"] is False
+    assert (tmp_path / "steps.csv").exists() and not list(tmp_path.glob("*.png"))
