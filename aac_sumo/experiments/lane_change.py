@@ -36,7 +36,7 @@ from aac_sumo.config import Scenario, ScenarioError
 from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_spec
 from aac_sumo.references import LateralBand, PathReference, curve_speeds, smooth_path
 from aac_sumo.registry import register_experiment
-from aac_sumo.sim.sumo import SumoOptions, SumoSimulator
+from aac_sumo.sim.sumo import SumoOptions, sumo_simulator
 from aac_sumo.sim.sumo_config import SumoConfig, read_config
 from aac_sumo.world import WorldState
 
@@ -232,13 +232,13 @@ def build_lane_change(scenario: Scenario) -> Setup:
     config = sumo_config(scenario) if su["config"].strip() else None
     options = SumoOptions(net_path, routes, tuple(t.strip() for t in su["cone_types"].split(",") if t.strip()),
                           su["gui"], scenario["scenario.seed"], su["delay"], out, outputs, config.path if config else None,
-                          tuple(shlex.split(su["extra_args"])))
+                          tuple(shlex.split(su["extra_args"])), su["lateral_resolution"])
     if config is not None:
         overridden = config.overridden(options.our_options(scenario["scenario.dt"]))
         if overridden:
             print(f"aac-sumo: note: {config.path} sets {', '.join(overridden)}; the scenario's own apply "
                   f"(step-length {scenario['scenario.dt']}, seed {scenario['scenario.seed']}, collisions warned)", file=sys.stderr)
-    sim = SumoSimulator(robots, states, scenario["scenario.dt"], rd.edges, options)
+    sim = sumo_simulator(robots, states, scenario["scenario.dt"], rd.edges, options, su["isolate"])
     try:
         world = sim.observe()
         check_start(scenario, world, "lane_change.spacing")
