@@ -276,7 +276,7 @@ KIND_SECTIONS["lane_change"] = {
 SUMO_SECTION: dict[str, Key] = {
     "config": Key(str, "", "a SUMO configuration (.sumocfg): its net-file, route-files, additional files and options are used "
                   "(the scenario's step length, seed and collision options still apply; empty: none)"),
-    "extra_args": Key(str, "", "more SUMO command-line options, passed through (e.g. \"--lateral-resolution 0.8\"); ours apply after them"),
+    "extra_args": Key(str, "", "more SUMO command-line options, passed through (e.g. \"--default.speeddev 0\"); ours apply after them"),
     "net": Key(str, "", "SUMO .net.xml (empty: the bundled sumo_networks/lane_change network, or sumo.config's net-file)"),
     "routes": Key(str, "", "comma-separated SUMO route files with cones, pedestrians, other traffic (empty: the bundled ones with the bundled net, none otherwise)"),
     "edges": Key(str, "", "edge ids of the road in driving order, separated by spaces or commas (empty: the longest chain "
