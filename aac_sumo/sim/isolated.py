@@ -37,7 +37,8 @@ CLOSE_TIMEOUT_S = 60.0
 #: Seconds to wait for a child whose pipe broke to be reaped before it is killed.
 REAP_TIMEOUT_S = 5.0
 
-_CALLABLE = "<callable>"  # the reply to fetching a method: call it by name instead
+class _Method:
+    """The reply to fetching a method: call it by name instead."""
 
 
 class IsolatedSimulator(Simulator):
@@ -46,12 +47,13 @@ class IsolatedSimulator(Simulator):
     ``name`` names the simulator in messages, ``error`` is the exception class raised when the
     child dies (and for child exceptions that cannot be sent back), and ``mirror`` lists
     attributes (``t``, ``removed``, ...) whose values the child sends back after every call, so
-    that reading them costs no round trip. Start-up failures raise as in the child.
+    that reading them costs no round trip. Start-up failures raise as in the child. After a call
+    the parent gave up on (a KeyboardInterrupt while it waited), only :meth:`close` is safe.
     """
 
     def __init__(self, factory: Callable[..., Simulator], args: tuple = (), kwargs: dict | None = None, *,
                  name: str = "simulator", error: type[Exception] = RuntimeError, mirror: tuple[str, ...] = ("t", "dt")):
-        self._name, self._error, self._mirrored = name, error, {}
+        self._name, self._error, self._mirrored, self._started = name, error, {}, False
         context = multiprocessing.get_context("spawn")
         self._conn, child_end = context.Pipe()
         self._process = context.Process(target=_serve, args=(child_end, factory, args, kwargs or {}, tuple(mirror)),
@@ -63,6 +65,7 @@ class IsolatedSimulator(Simulator):
         except BaseException:
             self.close()
             raise
+        self._started = True
 
     # -- the protocol --------------------------------------------------------------------------
 
@@ -71,7 +74,7 @@ class IsolatedSimulator(Simulator):
         return self._request("call", method, args, kwargs)
 
     def fetch(self, attribute: str) -> Any:
-        """A copy of the child's simulator's ``attribute`` (``_CALLABLE`` for a method)."""
+        """A copy of the child's simulator's ``attribute`` (a ``_Method`` for a method)."""
         return self._request("get", attribute, (), {})
 
     def __getattr__(self, attribute: str) -> Any:
@@ -83,7 +86,7 @@ class IsolatedSimulator(Simulator):
         if attribute in mirrored:
             return mirrored[attribute]
         value = self.fetch(attribute)
-        if isinstance(value, str) and value == _CALLABLE:
+        if isinstance(value, _Method):
             return lambda *args, **kwargs: self.call(attribute, *args, **kwargs)
         return value
 
@@ -125,7 +128,7 @@ class IsolatedSimulator(Simulator):
         else:
             how = f"exit status {code}"
         t = self._mirrored.get("t")
-        when = f"at t={t:.2f} s" if t is not None else "while starting"
+        when = "while starting" if not self._started else f"at t={t:.2f} s" if t is not None else "mid-run"
         self._conn.close()
         self._process = None
         return self._error(f"{self._name}'s process died ({how}) {when}")
@@ -220,7 +223,7 @@ def _serve(conn, factory: Callable[..., Any], args: tuple, kwargs: dict, mirror:
             if op == "call":
                 value = value(*call_args, **call_kwargs)
             elif callable(value):
-                value = _CALLABLE
+                value = _Method()
             reply = ("ok", value, mirrored(target))
             conn.send(reply)
         except OSError:  # the parent is gone
