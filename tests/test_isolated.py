@@ -238,9 +238,10 @@ def test_ctrl_c_on_the_process_group_interrupts_an_isolated_run(tmp_path):
     """Ctrl-C reaches aac-sumo and SUMO's process alike: the run stops as interrupted (exit 130,
     outputs written), not as a SUMO crash."""
     out = tmp_path / "out"
-    cmd = [str(Path(sys.executable).parent / "aac-sumo"), "run", "lane_change", "--out", str(out)]
+    cmd = [str(Path(sys.executable).parent / "aac-sumo"), "run", "lane_change", "--set", "controller.coordinator=lfc",
+           "--out", str(out)]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
-    time.sleep(15.0)  # past start-up and warm-up, long before the 60 s run ends
+    time.sleep(15.0)  # past start-up and warm-up, long before the run ends (LFC's 15 solves a period: about a minute)
     os.killpg(proc.pid, signal.SIGINT)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
