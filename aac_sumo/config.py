@@ -282,7 +282,7 @@ KIND_SECTIONS["lane_change"] = {
 SUMO_SECTION: dict[str, Key] = {
     "config": Key(str, "", "a SUMO configuration (.sumocfg): its net-file, route-files, additional files and options are used "
                   "(the scenario's step length, seed and collision options still apply; empty: none)"),
-    "extra_args": Key(str, "", "more SUMO command-line options, passed through (e.g. \"--lateral-resolution 0.8\"); ours apply after them"),
+    "extra_args": Key(str, "", "more SUMO command-line options, passed through (e.g. \"--default.speeddev 0\"); ours apply after them"),
     "net": Key(str, "", "SUMO .net.xml (empty: the bundled sumo_networks/lane_change network, or sumo.config's net-file)"),
     "routes": Key(str, "", "comma-separated SUMO route files with cones, pedestrians, other traffic (empty: the bundled ones with the bundled net, none otherwise)"),
     "edges": Key(str, "", "edge ids of the road in driving order, separated by spaces or commas (empty: the longest chain "
@@ -300,6 +300,11 @@ SUMO_SECTION: dict[str, Key] = {
                    "lanechange (fcd.xml, tripinfo.xml, collision.xml, summary.xml, lanechange.xml)",
                    check=lambda v: all(x in ("fcd", "tripinfo", "collision", "summary", "lanechange") for x in v),
                    expect="a list of fcd, tripinfo, collision, summary, lanechange"),
+    "isolate": Key(bool, True, "run SUMO in a process of its own, so that a SUMO crash (a segfault in libsumo) ends the run with "
+                   "its error and everything recorded until then, not the whole command (false: in aac-sumo's process; "
+                   "sumo-gui always runs in its own)"),
+    "lateral_resolution": Key(float, 0.0, "SUMO's sublane model: --lateral-resolution for SUMO's own traffic [m] (0: off, "
+                              "the lane-based model, unless sumo.config or sumo.extra_args set it)", **NN),
     "output_dir": Key(str, "", "directory of SUMO's own output files and of its message log sumo.log (aac-sumo run sets it to --out; "
                       "empty: out/<scenario name> when outputs are asked for, else no files and SUMO's warnings off)"),
 }

@@ -40,7 +40,7 @@ from aac_sumo.experiments.lane_geometry import (
 )
 from aac_sumo.references import LateralBand, PathReference
 from aac_sumo.registry import register_experiment
-from aac_sumo.sim.sumo import SumoOptions, SumoSimulator
+from aac_sumo.sim.sumo import SumoOptions, sumo_simulator
 from aac_sumo.sim.sumo_config import SumoConfig, read_config
 from aac_sumo.world import WorldState
 
@@ -151,7 +151,7 @@ def sumo_options(scenario: Scenario, net_path: Path, routes: list[Path]) -> Sumo
     config = sumo_config(scenario) if su["config"].strip() else None
     options = SumoOptions(net_path, routes, tuple(t.strip() for t in su["cone_types"].split(",") if t.strip()),
                           su["gui"], scenario["scenario.seed"], su["delay"], out, outputs, config.path if config else None,
-                          tuple(shlex.split(su["extra_args"])))
+                          tuple(shlex.split(su["extra_args"])), su["lateral_resolution"])
     if config is not None:
         overridden = config.overridden(options.our_options(scenario["scenario.dt"]))
         if overridden:
@@ -189,7 +189,7 @@ def build_lane_change(scenario: Scenario) -> Setup:
         point, heading = along(rd.lanes[start_lane[k]], s0[k])
         states[k] = [point[0, 0], point[0, 1], heading[0], lc["speed"]]
 
-    sim = SumoSimulator(robots, states, scenario["scenario.dt"], rd.edges, sumo_options(scenario, net_path, routes))
+    sim = sumo_simulator(robots, states, scenario["scenario.dt"], rd.edges, sumo_options(scenario, net_path, routes), su["isolate"])
     try:
         world = sim.observe()
         check_start(scenario, world, "lane_change.spacing")

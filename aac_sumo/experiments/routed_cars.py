@@ -36,7 +36,8 @@ from aac_sumo.experiments.lane_geometry import (
     BAND_SETTLE, MIN_LANES, ROAD_MARGIN, SAMPLE_STEP, along, blend, lane_edges, smooth_reference, smoothstep,
 )
 from aac_sumo.references import LateralBand, PathReference
-from aac_sumo.sim.sumo import SumoOptions, SumoSimulator
+from aac_sumo.sim.sumo import SumoOptions, sumo_simulator
+from aac_sumo.sim.base import Simulator
 from aac_sumo.sim.sumo_routes import RoutedVehicle, RoutesError, controlled, read_routes
 from aac_sumo.world import WorldState, parking_spot
 
@@ -144,7 +145,7 @@ class RoutedCars:
     """The roads, references and bands of the controlled cars from SUMO's routes, made as they
     depart; ``prepare`` is the run's :attr:`Setup.prepare`."""
 
-    def __init__(self, scenario: Scenario, net, vehicles: list[RoutedVehicle], robots, sim: SumoSimulator):
+    def __init__(self, scenario: Scenario, net, vehicles: list[RoutedVehicle], robots, sim: Simulator | None):
         self.scenario, self.net, self.vehicles, self.robots, self.sim = scenario, net, vehicles, robots, sim
         lc = scenario.data["lane_change"]
         self.lc = lc
@@ -165,6 +166,7 @@ class RoutedCars:
         self.finish: list[tuple[PathReference, float] | None] = [None] * n
         self.free_flow = np.full(n, np.nan)
         self.done = np.zeros(n, dtype=bool)
+        self.admitted = np.zeros(n, dtype=bool)
         self.cone_centres: list[np.ndarray] | None = None
         self.coordinator = None
 
@@ -201,14 +203,12 @@ class RoutedCars:
     def prepare(self, world: WorldState) -> WorldState:
         """Give the cars SUMO departed since the last period their references (and the
         coordinator a fresh start for them); take the finished ones off the road."""
-        entered = self.sim.take_entered()
-        for k in entered:
-            self.admit(world, k)
-        for k in np.flatnonzero(self.done & world.on_road):
+        for k in np.flatnonzero(world.on_road & ~self.admitted):
+            self.admit(world, int(k))
+        leaving = np.flatnonzero(self.done & world.on_road)
+        for k in leaving:
             self.sim.retire(int(k))
-        if entered or (self.done & world.on_road).any():
-            world = self.sim.observe()
-        return world
+        return self.sim.observe() if leaving.size else world
 
     def admit(self, world: WorldState, k: int) -> None:
         lc, v = self.lc, self.vehicles[k]
@@ -229,6 +229,7 @@ class RoutedCars:
         line = PathReference(rd.lanes[final], 1.0, stop_at_end=False)
         end_s = max(line.length - END_MARGIN, line.project(state[:2])[0])
         self.tasks[k], self.bands[k], self.finish[k] = task, band, (line, end_s)
+        self.admitted[k] = True
         self.free_flow[k] = world.t + task.project(along(rd.lanes[final], end_s)[0][0])[0] / lc["speed"]
         self.coordinator.admit(world, k)
 
@@ -258,7 +259,7 @@ def build_routed(scenario: Scenario, net_path: Path, routes: list[Path], options
         raise ScenarioError(scenario.source, "lane_change.speed", f"at most robot.v_max ({v_max})", scenario["lane_change.speed"])
     states = np.array([parking_spot(k) for k in range(len(robots))])
     cars = RoutedCars(scenario, net, vehicles, robots, None)
-    sim = SumoSimulator(robots, states, scenario["scenario.dt"], [], options, routed=frozenset(v.id for v in vehicles))
+    sim = sumo_simulator(robots, states, scenario["scenario.dt"], [], options, scenario["sumo.isolate"], frozenset(v.id for v in vehicles))
     try:
         cars.sim = sim
         def finished(world: WorldState) -> np.ndarray:  # a function: a coordinator's copy (warm-up) shares it

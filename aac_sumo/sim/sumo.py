@@ -16,6 +16,7 @@ the event is reported on stderr and in :attr:`SumoSimulator.events`.
 from __future__ import annotations
 
 import math
+import multiprocessing
 import sys
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -26,6 +27,7 @@ import numpy as np
 from aac_sumo.dynamics import FleetModel
 from aac_sumo.network import sumo_binary
 from aac_sumo.sim.base import ContactReport, Simulator, agent_rows, footprint_contacts
+from aac_sumo.sim.isolated import IsolatedSimulator
 from aac_sumo.sim.sumo_frames import state_from_sumo, sumo_from_state
 from aac_sumo.world import Obstacle, RobotSpec, WorldState, parking_spot
 
@@ -66,11 +68,13 @@ class SumoOptions:
     outputs: tuple[str, ...] = ()
     config: Path | None = None  # a user's .sumocfg, loaded first: ours override what it sets
     extra_args: tuple[str, ...] = ()  # more SUMO options, before ours
+    lateral_resolution: float = 0.0  # SUMO's sublane model's lateral resolution [m]; 0: off (not set by us)
 
     def our_options(self, dt: float) -> dict[str, str]:
         """The SUMO options the co-simulation sets itself, name -> value."""
         return {"step-length": repr(dt), "seed": str(self.seed), "collision.action": "warn", "collision.mingap-factor": "0",
-                "collision.check-junctions": "true", "intermodal-collision.action": "warn", "time-to-teleport": "-1"}
+                "collision.check-junctions": "true", "intermodal-collision.action": "warn", "time-to-teleport": "-1",
+                **({"lateral-resolution": repr(float(self.lateral_resolution))} if self.lateral_resolution > 0 else {})}
 
     def command(self, dt: float) -> list[str]:
         cmd = [sumo_binary("sumo-gui" if self.gui else "sumo")] + (["-c", str(self.config)] if self.config else [])
@@ -112,7 +116,7 @@ class SumoSimulator(Simulator):
     The robots named in ``routed`` are vehicles of SUMO's own route files instead: they are not
     on the road (:attr:`WorldState.present`) until SUMO departs them, from then on ours (speed
     and lane-change mode 0, moved by our model), and off the road again once SUMO removes them
-    (their route ended) or :meth:`retire` takes them out. :meth:`take_entered` tells who came."""
+    (their route ended) or :meth:`retire` takes them out."""
 
     def __init__(self, robots: list[RobotSpec], states: np.ndarray, dt: float, edges: list[str], options: SumoOptions,
                  routed: frozenset[str] = frozenset()):
@@ -124,7 +128,6 @@ class SumoSimulator(Simulator):
         self.routed = frozenset(routed)
         self.present = np.array([r.name not in self.routed for r in self.robots], dtype=bool)
         self.index = {r.name: i for i, r in enumerate(self.robots)}
-        self.entered: list[int] = []
         for i in np.flatnonzero(~self.present):
             self.states[i] = parking_spot(int(i))
         self.removed: set[str] = set()
@@ -208,12 +211,6 @@ class SumoSimulator(Simulator):
             x, y = v.getPosition(vid)
             self.states[i] = state_from_sumo(x, y, v.getAngle(vid), v.getSpeed(vid), robot.length, robot.model.wheelbase)
             self.present[i] = True
-            self.entered.append(i)
-
-    def take_entered(self) -> list[int]:
-        """The robots that came onto the road since the last call (indices, in order)."""
-        out, self.entered = self.entered, []
-        return out
 
     def retire(self, i: int) -> None:
         """Take routed robot ``i`` off the road: SUMO removes it, and it stands parked."""
@@ -340,6 +337,19 @@ class SumoSimulator(Simulator):
             raise
         except Exception as exc:
             raise SumoError(f"SUMO failed while {doing} at t={self.t:.2f} s: {_first_line(exc)}") from exc
+
+
+def sumo_simulator(robots: list[RobotSpec], states: np.ndarray, dt: float, edges: list[str], options: SumoOptions,
+                   isolate: bool = True, routed: frozenset[str] = frozenset()) -> Simulator:
+    """A :class:`SumoSimulator` (arguments as its own), with ``isolate`` in a process of its own
+    (:class:`~aac_sumo.sim.isolated.IsolatedSimulator`), so that a SUMO crash ends in a
+    :class:`SumoError` instead of ending the run. sumo-gui is a process of its own already and
+    runs in-process, as does every run from a daemonic process (a Dask worker), which may not
+    start children."""
+    if isolate and not options.gui and not multiprocessing.current_process().daemon:
+        return IsolatedSimulator(SumoSimulator, (robots, states, dt, edges, options, routed), name="SUMO", error=SumoError,
+                                 mirror=("t", "dt", "removed", "events"))
+    return SumoSimulator(robots, states, dt, edges, options, routed)
 
 
 def _first_line(exc: BaseException) -> str:
