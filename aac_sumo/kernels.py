@@ -351,20 +351,52 @@ def gentlest_stops(check, inputs, steer, states, headings, wheelbase, a_min, a_m
 
 
 @numba.njit(cache=True)
-def closest_on_polyline(points, seg_len, t_max, px, py, segments):
-    """Of the segments ``segments`` (ascending indices) of polyline ``points`` (M, 2) [m]
-    (segment lengths ``seg_len`` (M-1,)), the segment ``i`` closest to the point ``(px, py)``
-    (the first on ties), the fraction ``t`` of it, clipped into ``[0, t_max[i]]``, at which the
-    closest point lies, and the distance [m] to it."""
-    best_i, best_t, best_d = 0, 0.0, np.inf
-    for i in segments:
+def _closest_in(points, seg_len, t_max, px, py, first, last, best_i, best_t, best_d):
+    """:func:`closest_on_polyline` over segments ``first..last-1``, starting from the best so far."""
+    for i in range(first, last):
         ax, ay = points[i, 0], points[i, 1]
         dx, dy = points[i + 1, 0] - ax, points[i + 1, 1] - ay
         t = min(max(((px - ax) * dx + (py - ay) * dy) / seg_len[i] ** 2, 0.0), t_max[i])
         d = math.hypot(ax + t * dx - px, ay + t * dy - py)
-        if d < best_d:
+        if d < best_d or (d == best_d and i < best_i):
             best_i, best_t, best_d = i, t, d
     return best_i, best_t, best_d
+
+
+@numba.njit(cache=True)
+def closest_on_polyline(points, seg_len, t_max, px, py, chunk_centre, chunk_radius, chunk):
+    """The segment ``i`` of polyline ``points`` (M, 2) [m] (segment lengths ``seg_len`` (M-1,))
+    closest to the point ``(px, py)`` (the first on ties), the fraction ``t`` of it, clipped
+    into ``[0, t_max[i]]``, at which the closest point lies, and the distance [m] to it.
+
+    Segments come in chunks of ``chunk``, chunk ``c`` within ``chunk_radius[c]`` of
+    ``chunk_centre[c]`` (:func:`polyline_chunks`): the chunks are scanned nearest bound first,
+    and those whose bound is beyond the best distance found are skipped, with the same answer
+    as a scan of every segment. The last segment, which may carry on past the end
+    (``t_max`` above 1), is always scanned."""
+    n = seg_len.shape[0]
+    best_i, best_t, best_d = _closest_in(points, seg_len, t_max, px, py, n - 1, n, 0, 0.0, np.inf)
+    bound = np.empty(chunk_radius.shape[0])
+    for c in range(bound.shape[0]):
+        bound[c] = max(math.hypot(chunk_centre[c, 0] - px, chunk_centre[c, 1] - py) - chunk_radius[c], 0.0)
+    for c in np.argsort(bound):
+        if bound[c] > best_d:
+            break
+        best_i, best_t, best_d = _closest_in(points, seg_len, t_max, px, py, c * chunk, min((c + 1) * chunk, n), best_i, best_t, best_d)
+    return best_i, best_t, best_d
+
+
+def polyline_chunks(points: np.ndarray, chunk: int) -> tuple[np.ndarray, np.ndarray]:
+    """Centres (C, 2) and radii (C,) [m] of circles holding the segments of ``points`` (M, 2),
+    ``chunk`` segments each (the last chunk may be shorter): the bounds of :func:`closest_on_polyline`."""
+    n = len(points) - 1
+    centres, radii = [], []
+    for start in range(0, n, chunk):
+        part = points[start:min(start + chunk, n) + 1]
+        centre = 0.5 * (part.min(axis=0) + part.max(axis=0))
+        centres.append(centre)
+        radii.append(float(np.hypot(*(part - centre).T).max()))
+    return np.array(centres), np.array(radii)
 
 
 @numba.njit(cache=True)

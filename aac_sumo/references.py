@@ -6,13 +6,12 @@ Positions in the world frame [m]; the reference is for the rear-axle point.
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from aac_sumo.geometry import polyline_offset, wrap_angle
-from aac_sumo.kernels import closest_on_polyline
+from aac_sumo.kernels import closest_on_polyline, polyline_chunks
 
-#: Paths with more waypoints than this project through a KD-tree of them (:meth:`PathReference.project`).
-KD_TREE_POINTS = 32
+#: Segments per bounding circle of a path's projection (:func:`~aac_sumo.kernels.closest_on_polyline`).
+PROJECTION_CHUNK = 16
 
 
 #: A robot backing off from a goal inside its turning circle goes on until the goal lies this
@@ -87,9 +86,7 @@ class PathReference:
         self.arrive = float(arrive)
         # upper bound of the fraction of each segment a projection may reach: past the end of a path that does not stop
         self._t_max = np.r_[np.ones(len(self.seg_len) - 1), 1.0 if stop_at_end else np.inf]
-        self._all = np.arange(len(self.seg_len))
-        self._tree = cKDTree(self.points) if len(self.points) > KD_TREE_POINTS else None
-        self._half_seg = 0.5 * float(self.seg_len.max())
+        self._chunks = polyline_chunks(self.points, PROJECTION_CHUNK)
 
     def project(self, point) -> tuple[float, float]:
         """Arc length [m] of the closest path point to ``point`` and the distance [m] to it. A
@@ -99,18 +96,7 @@ class PathReference:
         return float(self.s[i] + t * self.seg_len[i]), float(dist)
 
     def _closest(self, point) -> tuple[int, float, float]:
-        """:func:`~aac_sumo.kernels.closest_on_polyline` of ``point`` over every segment. A long
-        path scans only the segments that can hold a point closer than its nearest vertex (an
-        end within that distance plus half the longest segment, from its KD-tree), and its last
-        segment (which may carry on past the end): the same answer, much faster."""
-        px, py = float(point[0]), float(point[1])
-        if self._tree is None:
-            return closest_on_polyline(self.points, self.seg_len, self._t_max, px, py, self._all)
-        d, _ = self._tree.query((px, py))
-        near = np.asarray(self._tree.query_ball_point((px, py), d + self._half_seg + 1e-9), dtype=np.int64)
-        last = len(self.seg_len) - 1
-        segments = np.unique(np.r_[np.clip(near - 1, 0, last), np.minimum(near, last), last])
-        return closest_on_polyline(self.points, self.seg_len, self._t_max, px, py, segments)
+        return closest_on_polyline(self.points, self.seg_len, self._t_max, float(point[0]), float(point[1]), *self._chunks, PROJECTION_CHUNK)
 
     def distance(self, points) -> np.ndarray:
         """Distance [m] from each of ``points`` (K, 2) to the path."""

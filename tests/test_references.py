@@ -70,21 +70,22 @@ def test_heading_at_is_the_heading_of_the_pose_where_the_point_projects(seed, st
 
 
 @settings(max_examples=60, deadline=None)
-@given(seed=st.integers(0, 10_000), stop=st.booleans(), points=st.integers(33, 400))
-def test_a_long_path_projects_exactly_as_a_scan_of_every_segment(seed, stop, points):
-    """The KD-tree shortcut of long paths gives the full scan's answer, on wiggly paths that
-    come back near themselves, for points near, far, before and beyond them."""
-    from aac_sumo.kernels import closest_on_polyline
-
+@given(seed=st.integers(0, 10_000), stop=st.booleans(), points=st.integers(2, 400))
+def test_projection_finds_the_closest_point_of_every_segment(seed, stop, points):
+    """The projection's pruned search (bounding circles of segment chunks) gives the answer of a
+    plain scan of every segment, on wiggly paths that come back near themselves, for points
+    near, far, before and beyond them (past the end of a path that does not stop)."""
     rng = np.random.default_rng(seed)
-    steps = rng.uniform(0.05, 3.0, points)[:, None] * np.column_stack([np.cos(np.cumsum(rng.normal(0, 0.6, points))),
-                                                                       np.sin(np.cumsum(rng.normal(0, 0.6, points)))])
-    path = PathReference(np.cumsum(steps, axis=0), 5.0, stop_at_end=stop)
-    assert path._tree is not None
+    turns = np.cumsum(rng.normal(0, 0.6, points))
+    path = PathReference(np.cumsum(rng.uniform(0.05, 3.0, points)[:, None] * np.column_stack([np.cos(turns), np.sin(turns)]), axis=0),
+                         5.0, stop_at_end=stop)
     span = np.ptp(path.points, axis=0).max() + 10.0
     for p in np.vstack([path.points[rng.integers(0, len(path.points), 20)] + rng.normal(0, 1.0, (20, 2)),
                         path.points.mean(axis=0) + rng.uniform(-span, span, (20, 2))]):
-        i, t, d = closest_on_polyline(path.points, path.seg_len, path._t_max, p[0], p[1], np.arange(len(path.seg_len)))
+        a, b = path.points[:-1], path.points[1:]
+        t = np.clip(np.einsum("ij,ij->i", p - a, b - a) / path.seg_len**2, 0.0, path._t_max)
+        d = np.hypot(*(a + t[:, None] * (b - a) - p).T)
+        i = int(np.argmin(d))  # the first on ties
         s, dist = path.project(p)
-        assert dist == pytest.approx(d, abs=1e-12)
-        assert s == pytest.approx(path.s[i] + t * path.seg_len[i], abs=1e-9)
+        assert dist == pytest.approx(d[i], abs=1e-12)
+        assert s == pytest.approx(path.s[i] + t[i] * path.seg_len[i], abs=1e-9)
