@@ -174,7 +174,8 @@ COMMON: dict[str, dict[str, Key]] = {
                         "what an authority whose solve fails applies: brake (the planner's fallback, as in the paper) or tracking "
                         "(the tracking law through the safety stop; needs safety_stop)"),
         "ignore_followers": Key(bool, False, "the authority does not avoid robots straight behind it: they keep their distance "
-                                "through the safety stop (needs safety_stop)"),
+                                "through the safety stop (needs safety_stop); nor does the safety stop brake for uncontrolled vehicles "
+                                "behind a robot that drive its way (SUMO's cars keep their own distance)"),
         "commit": Key(bool, True, "committed plans: every robot drives the plan of its last turn, ending in a stopping tail, "
                       "and a new plan replaces it only when it keeps commit_margin from every other commitment (collision-free "
                       "by construction); false: the paper's stored plan, then the tracking law"),
@@ -204,7 +205,8 @@ COMMON: dict[str, dict[str, Key]] = {
         "lookahead": Key(float, 1.0, "pure-pursuit lookahead of that tracking law [m]", **P),
         "speed_gain": Key(float, 1.0, "speed-error gain of that tracking law [1/s]", **P),
         "ignore_followers": Key(bool, False, "a robot does not avoid robots straight behind it: they keep their distance "
-                                "through the safety stop (needs safety_stop)"),
+                                "through the safety stop (needs safety_stop); nor does the safety stop brake for uncontrolled vehicles "
+                                "behind a robot that drive its way (SUMO's cars keep their own distance)"),
     },
     "metrics": {
         "accel_threshold": Key(float, 3.0, "|longitudinal acceleration| that counts as aggressive [m/s^2]", **P),

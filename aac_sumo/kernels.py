@@ -304,17 +304,19 @@ def courses_unsafe(own, brake, targets, skip, eased, growing, margin, tie):
 
 
 @numba.njit(cache=True)
-def stop_flags(check, rows, fixed, standing, growing, margin, tie):
+def stop_flags(check, rows, fixed, standing, growing, margin, tie, ignored):
     """Which of robots ``check`` (m,) fail the safety stop's rule (bool, m): :func:`courses_unsafe`
     of their courses' footprint rows ``rows`` (n, K+1, 5), every robot's, against every robot's
     course, then ``fixed`` (n + obstacles, K+1, 5: every robot braking at once, then the
-    obstacles), skipping itself on either course; ``standing`` (2 n + obstacles) marks the
-    targets that count only on contact, ``growing`` those that count only while a course moves."""
+    obstacles), skipping itself on either course and the targets ``ignored`` (n, 2 n +
+    obstacles) marks for it; ``standing`` (2 n + obstacles) marks the targets that count only
+    on contact, ``growing`` those that count only while a course moves."""
     n, m = rows.shape[0], check.shape[0]
     targets = np.concatenate((rows, fixed))
     skip = np.zeros((m, targets.shape[0]), dtype=np.bool_)
     eased = np.empty((m, targets.shape[0]), dtype=np.bool_)
     for r in range(m):
+        skip[r, :] = ignored[check[r]]
         skip[r, check[r]] = True
         skip[r, n + check[r]] = True
         eased[r, :] = standing
@@ -323,18 +325,19 @@ def stop_flags(check, rows, fixed, standing, growing, margin, tie):
 
 @numba.njit(cache=True)
 def gentlest_stops(check, inputs, steer, states, headings, wheelbase, a_min, a_max, v_min, v_max, steer_limits, offset,
-                   length, width, dt, turn_time, steps, fixed, standing, growing, margin, tie, a_level):
+                   length, width, dt, turn_time, steps, fixed, standing, growing, margin, tie, a_level, ignored):
     """The safety stop's choice for robots ``check`` (m,) given every robot's ``inputs`` (n, 2):
     a robot that fails :func:`stop_flags` on its :func:`braking_courses` course (``steps``
     stages, footprints by :func:`footprint_rows`, braking at ``a_min``) gets
-    ``[min(input, share * a_level), steer]`` for share 0, 1/3 and 2/3 in turn, until it passes;
+    ``[min(input, share * a_level), steer]`` for share 0, 1/3 and 2/3 in turn, until it passes
+    (``ignored`` as for :func:`stop_flags`);
     after each round every robot of ``check`` still flagged is checked again against the
     others' new courses. Returns the inputs (n, 2) and which robots of ``check`` still fail
     (bool, m). Per-robot arrays are (n,), ``steer_limits`` (n, 3)."""
     rows = footprint_rows(braking_courses(states, inputs, True, inputs[:, 1], headings, wheelbase, a_min, a_max, v_min, v_max,
                                           steer_limits, dt, turn_time, steps), offset, length, width)
     chosen = inputs.copy()
-    flagged = stop_flags(check, rows, fixed, standing, growing, margin, tie)
+    flagged = stop_flags(check, rows, fixed, standing, growing, margin, tie, ignored)
     for share in (0.0, 1.0 / 3.0, 2.0 / 3.0):
         if not flagged.any():
             break
@@ -346,7 +349,7 @@ def gentlest_stops(check, inputs, steer, states, headings, wheelbase, a_min, a_m
                                          wheelbase[i:i + 1], a_min[i:i + 1], a_max[i:i + 1], v_min[i:i + 1], v_max[i:i + 1],
                                          steer_limits[i:i + 1], dt, turn_time, steps)
                 rows[i] = footprint_rows(course, offset[i:i + 1], length[i:i + 1], width[i:i + 1])[0]
-        flagged &= stop_flags(check, rows, fixed, standing, growing, margin, tie)
+        flagged &= stop_flags(check, rows, fixed, standing, growing, margin, tie, ignored)
     return chosen, flagged
 
 

@@ -120,6 +120,7 @@ class AacCoordinator(Coordinator):
                  params: AacParams = AacParams()):
         super().__init__(planner, tasks, corridors, finished)
         self.params = params
+        self.leaves_followers = params.ignore_followers
         self.rng = np.random.default_rng(params.seed)
         self.cursor = -1
         self.used = np.zeros(len(tasks), dtype=int)  # inputs already applied from each stored plan

@@ -95,6 +95,8 @@ class Coordinator(ABC):
     name = "base"
     #: Reference speeds and lanes that look beyond the horizon (:mod:`~aac_sumo.coordination.anticipation`); None: the task's.
     anticipation: Anticipation | None = None
+    #: Whether the safety stop leaves each robot's uncontrolled followers to keep their distance (:func:`~aac_sumo.coordination.safety.following`).
+    leaves_followers: bool = False
 
     def __init__(self, planner: MpcPlanner, tasks: list[PathReference], corridors: list[np.ndarray | None] | None = None,
                  finished: Finished | None = None):
@@ -176,7 +178,8 @@ class Coordinator(ABC):
         """The safety stop of this period: robots brake turning towards their reference's heading
         where they are (a car brakes along its lane), as the planner's fallback does."""
         headings = np.array([task.heading_at(state[:2]) for task, state in zip(self.tasks, world.states)])
-        return SafetyCheck(world, self.fleet, self.planner.config, headings, self.last_inputs[:, 1])
+        return SafetyCheck(world, self.fleet, self.planner.config, headings, self.last_inputs[:, 1],
+                           followers=self.leaves_followers)
 
     def hold_inputs(self, world: WorldState, i: int, steps: int) -> np.ndarray:
         """Inputs (steps, 2) that bring robot ``i`` to a stop where it is, at its comfort

@@ -54,6 +54,7 @@ class LfcCoordinator(Coordinator):
                  params: LfcParams = LfcParams()):
         super().__init__(planner, tasks, corridors, finished)
         self.params = params
+        self.leaves_followers = params.ignore_followers
 
     def _decide(self, world: WorldState) -> Decision:
         n, cfg = len(world.robots), self.planner.config

@@ -38,16 +38,46 @@ from aac_sumo.world import WorldState
 
 #: Gap difference [m] below which a course counts as no closer than braking at once.
 BRAKING_TIE = 1e-6
+#: A vehicle behind a robot follows it when their headings differ by less than this [rad].
+FOLLOW_ANGLE = np.pi / 4
+#: Obstacle kinds that drive as vehicles on their own (SUMO's traffic, scripted agents).
+VEHICLE_KINDS = ("scripted", "robot")
+
+
+def following(world: WorldState) -> np.ndarray:
+    """Which targets of the check (n, 2 n + obstacles: the robots' courses, their braking, then
+    the obstacles) each robot leaves out as its followers: the uncontrolled vehicles wholly
+    behind it (centre more than half the two lengths behind its centre, along its heading)
+    that drive its way (headings within ``FOLLOW_ANGLE``). As on a road, a follower keeps its
+    distance: predicting it at constant velocity into a braking robot made the robot brake the
+    harder, which is no answer to a car closing from behind."""
+    n, obstacles = len(world.robots), world.obstacles
+    out = np.zeros((n, 2 * n + len(obstacles)), dtype=bool)
+    if not obstacles:
+        return out
+    centres, heading = world.robot_centres(), world.states[:, 2]
+    length = np.array([r.length for r in world.robots])
+    for j, o in enumerate(obstacles):
+        if o.kind not in VEHICLE_KINDS or not np.any(o.velocity):
+            continue
+        rel = o.centre[None, :] - centres
+        along = rel[:, 0] * np.cos(heading) + rel[:, 1] * np.sin(heading)
+        same_way = np.abs(np.angle(np.exp(1j * (o.heading - heading)))) < FOLLOW_ANGLE
+        out[:, 2 * n + j] = (along < -0.5 * (length + o.length)) & same_way
+    return out
 
 
 class SafetyCheck:
     """The safety stop of one period of ``world``, for robots of ``fleet`` driven with the
     planner's ``config`` (period, pedestrian reach); robots brake turning towards ``headings``
-    (n,) [rad], from the steering ``previous_steer`` (n,) [rad] they applied the period before."""
+    (n,) [rad], from the steering ``previous_steer`` (n,) [rad] they applied the period before.
+    With ``followers``, each robot leaves its uncontrolled followers out (:func:`following`)."""
 
-    def __init__(self, world: WorldState, fleet: Fleet, config: MpcConfig, headings: np.ndarray, previous_steer: np.ndarray):
+    def __init__(self, world: WorldState, fleet: Fleet, config: MpcConfig, headings: np.ndarray, previous_steer: np.ndarray,
+                 followers: bool = False):
         self.world, self.fleet, self.config, self.headings = world, fleet, config, np.asarray(headings, dtype=float)
         self.previous_steer = np.asarray(previous_steer, dtype=float)
+        self.ignored = following(world) if followers else np.zeros((len(world.robots), 2 * len(world.robots) + len(world.obstacles)), dtype=bool)
         self._around: dict = {}
         self._steer = None
 
@@ -88,14 +118,14 @@ class SafetyCheck:
         steps, fixed, standing, growing = self.surroundings(a_brake)
         return gentlest_stops(check, inputs, self._steer, world.states, self.headings, fleet.wheelbase, a_brake, fleet.a_max,
                               fleet.v_min, fleet.v_max, fleet.steer_limits, fleet.offset, fleet.length, fleet.width, self.config.dt,
-                              FALLBACK_TURN_TIME, steps, fixed, standing, growing, margin, BRAKING_TIE, a_brake)
+                              FALLBACK_TURN_TIME, steps, fixed, standing, growing, margin, BRAKING_TIE, a_brake, self.ignored)
 
     def unsafe(self, check: np.ndarray, inputs: np.ndarray, margin: float) -> np.ndarray:
         """Which of robots ``check`` must brake instead of applying ``inputs`` (n, 2, every robot's
         input this period as far as known; zero where not), everyone braking comfortably."""
         steps, fixed, standing, growing = self.surroundings()
         rows = self.fleet.footprints(np.arange(len(self.world.robots)), self.stopping_course(inputs, steps, -self.fleet.comfort))  # (n, K+1, 5)
-        return stop_flags(np.asarray(check, dtype=np.int64), rows, fixed, standing, growing, margin, BRAKING_TIE)
+        return stop_flags(np.asarray(check, dtype=np.int64), rows, fixed, standing, growing, margin, BRAKING_TIE, self.ignored)
 
     def surroundings(self, a_brake: np.ndarray | None = None) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
         """What every check of this period in the regime of braking at ``a_brake`` (n,) [m/s^2]
