@@ -66,7 +66,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     parser = _Parser(prog=PROG, description="AAC + MPC-FCBF experiments: run, sweep, reproduce the paper's tables, benchmark.")
     parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="{run,animate,compare,sweep,tune,table,bench,net,scenarios,keys}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="{run,animate,compare,sweep,tune,table,bench,stress,net,scenarios,keys}")
 
     def add_executor(p, resume: bool):
         """Where the runs go (local processes or a Dask cluster), resuming, progress bar."""
@@ -150,6 +150,20 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--repeats", type=_positive_int, default=3, metavar="R",
                    help="aac: runs per coordinator, scenario and horizon; medians pool them (default 3)")
 
+    from aac_sumo.stress import KINDS
+
+    p = sub.add_parser("stress", help="randomized scenario variants; stress.csv and stress.md list every failure with the "
+                       "command that reproduces it", description="Run N scenario variants drawn from the distributions of "
+                       "docs/reliability.md (a pure function of --seed and the run index) and classify each run: completed, "
+                       "deadlock, timeout, collision or error. Exit status 1 when any run collided or failed.")
+    p.add_argument("--runs", type=_positive_int, default=20, metavar="N", help="runs (default 20)")
+    p.add_argument("--kinds", default=",".join(KINDS), metavar="K1,K2,...",
+                   help=f"scenario kinds, dealt to the runs in turn (default {','.join(KINDS)})")
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="the campaign's seed: same seed, same runs (default 0)")
+    p.add_argument("--duration", type=float, metavar="SECONDS", help="cap every run's scenario.duration (default: each kind's cap)")
+    p.add_argument("--out", type=Path, default=Path("out/stress"), help="output directory (default out/stress)")
+    add_executor(p, resume=True)
+
     p = sub.add_parser("net", help="SUMO networks: net build DIR runs netconvert on DIR's plain-XML sources; "
                        "net info NET [ROUTES...] lists the roads a scenario can drive on")
     net = p.add_subparsers(dest="action", required=True, metavar="{build,info}")
@@ -173,7 +187,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         args = build_parser().parse_args(argv)
         return {"run": cmd_run, "sweep": cmd_sweep, "tune": cmd_tune, "table": cmd_table, "bench": cmd_bench,
-                "net": cmd_net, **VIEW_COMMANDS}[args.command](args)
+                "net": cmd_net, "stress": cmd_stress, **VIEW_COMMANDS}[args.command](args)
     except SystemExit as exc:  # --help
         return exc.code if isinstance(exc.code, int) else 0
     except (UsageError, ScenarioError, SweepError, SumoError, RunDirError, FileNotFoundError) as exc:
@@ -325,6 +339,21 @@ def _report_failures(rows: list[dict]) -> int:
     failed = sum(r.get("status") != "ok" for r in rows)
     if failed:
         print(f"{PROG}: {failed} of {len(rows)} runs failed (status=error in results.csv)", file=sys.stderr)
+        return 1
+    return 0
+
+
+def cmd_stress(args) -> int:
+    from aac_sumo import stress
+
+    _check_out(args.out)
+    rows, text = stress.stress(args.runs, stress.parse_kinds(args.kinds), args.seed, args.out, args.workers, args.scheduler,
+                               args.resume, progress=not args.no_progress, duration=args.duration)
+    print(text, end="")
+    print(f"outputs: {args.out / 'stress.csv'}, {args.out / 'stress.md'}")
+    bad = {o: sum(r["outcome"] == o for r in rows) for o in ("collision", "error")}
+    if any(bad.values()):
+        print(f"{PROG}: {bad['collision']} collision(s) and {bad['error']} error(s) in {len(rows)} runs (see stress.md)", file=sys.stderr)
         return 1
     return 0
 
