@@ -201,18 +201,25 @@ def write(out: Path, mpc: BenchReport | None = None, aac: BenchReport | None = N
 
 # --- coordinators: AAC against LFC per control period ------------------------------------------
 
-AAC_SCENARIOS = ("swarm_rescue", "lane_change", "random_crossing")
+AAC_SCENARIOS = ("swarm_rescue", "lane_change", "random_crossing", "highway_work_zone")
 #: Robot counts of the random-crossing scaling rows (AAC with one authority per cluster, N = 10,
 #: the first SCALING_SECONDS of each run: the crowded part).
 SCALING = (15, 100)
 SCALING_SECONDS = 20.0
+#: The highway work zone's rows (N = 10, whole runs): AAC with one authority per cluster with 15
+#: controlled cars (the flow's first 15; SUMO drives the other 85) and with all 100, then the
+#: scenario's own AAC (the paper's one authority per period) with all 100.
+CLUSTERS = ["aac.commit=true", 'aac.authorities="clusters"']
+HIGHWAY = (("highway_15", ["sumo.controlled_types=", "sumo.controlled_ids=aac.?,aac.1[0-4]", *CLUSTERS]),
+           ("highway_100", CLUSTERS), ("highway_100_one_authority", []))
 
 
 def bench_aac(horizons=HORIZONS, scenarios=AAC_SCENARIOS, repeats=3, progress=None) -> BenchReport:
     """Coordinator wall time per control period, AAC and LFC, in ``repeats`` full runs of each
     bundled scenario at each horizon, one after the other in this process (see
     :func:`_coordinator_record`). ``ratio`` on the AAC record is LFC's median over AAC's (AAC's
-    speed-up)."""
+    speed-up). The random crossing and the highway work zone give AAC's scaling rows instead
+    (:func:`_scaling_records`, :func:`_highway_records`)."""
     from aac_sumo import config
 
     report = BenchReport()
@@ -224,6 +231,9 @@ def bench_aac(horizons=HORIZONS, scenarios=AAC_SCENARIOS, repeats=3, progress=No
             continue
         if scenario == "random_crossing":
             report.records += _scaling_records(repeats, report.notes, progress)
+            continue
+        if scenario == "highway_work_zone":
+            report.records += _highway_records(repeats, report.notes, progress)
             continue
         for horizon in horizons:
             aac, lfc = (_coordinator_record(name, scenario, horizon, repeats, report.notes, progress) for name in ("aac", "lfc"))
@@ -240,6 +250,18 @@ def _scaling_records(repeats: int, notes: list[str], progress=None) -> list[Benc
     for n in SCALING:
         sets = [f"random_crossing.n_robots={n}", 'aac.authorities="clusters"', f"scenario.duration={SCALING_SECONDS}"]
         record = _coordinator_record("aac", "random_crossing", 10, repeats, notes, progress, sets, f"random_crossing_{n}")
+        if records:
+            record.ratio_to, record.ratio = records[0].name, record.median_ms / records[0].median_ms
+        records.append(record)
+    return records
+
+
+def _highway_records(repeats: int, notes: list[str], progress=None) -> list[BenchRecord]:
+    """The HIGHWAY rows, whole runs at N = 10; the second and third records' ratio is their
+    median over the first's (the growth of the per-period time from 15 to 100 cars)."""
+    records = []
+    for label, sets in HIGHWAY:
+        record = _coordinator_record("aac", "highway_work_zone", 10, repeats, notes, progress, sets, label)
         if records:
             record.ratio_to, record.ratio = records[0].name, record.median_ms / records[0].median_ms
         records.append(record)

@@ -149,6 +149,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--solvers", default=None, metavar="S1,S2,...", help="solver configurations (default fatrop-c,fatrop,ipopt,sqp)")
     p.add_argument("--repeats", type=_positive_int, default=3, metavar="R",
                    help="aac: runs per coordinator, scenario and horizon; medians pool them (default 3)")
+    p.add_argument("--scenarios", default=None, metavar="S1,S2,...",
+                   help="aac: the scenarios to time (default swarm_rescue,lane_change,random_crossing,highway_work_zone)")
 
     from aac_sumo.stress import KINDS
 
@@ -396,7 +398,13 @@ def cmd_bench(args) -> int:
     _check_out(args.out)
     progress = lambda what: print(f"timing {what} ...", file=sys.stderr, flush=True)  # noqa: E731
     mpc = bench.bench_mpc(args.samples, horizons, solvers, progress=progress) if args.target in ("mpc", "all") else None
-    aac = bench.bench_aac(horizons, repeats=args.repeats, progress=progress) if args.target in ("aac", "all") else None
+    scenarios = bench.AAC_SCENARIOS
+    if args.scenarios is not None:
+        scenarios = tuple(s.strip() for s in args.scenarios.split(","))
+        unknown = [s for s in scenarios if s not in bench.AAC_SCENARIOS]
+        if unknown or not scenarios:
+            raise UsageError(f"bench: --scenarios {args.scenarios!r}: expected names among {', '.join(bench.AAC_SCENARIOS)}")
+    aac = bench.bench_aac(horizons, scenarios, repeats=args.repeats, progress=progress) if args.target in ("aac", "all") else None
     print(bench.write(args.out, mpc, aac), end="")
     print(f"outputs: {args.out / 'bench.json'}, {args.out / 'bench.md'}")
     return 0
