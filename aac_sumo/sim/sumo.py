@@ -273,6 +273,7 @@ class SumoSimulator(Simulator):
                     continue
                 x, y, angle = sumo_from_state(self.states[i], robot.length, robot.model.wheelbase)
                 self.api.vehicle.moveToXY(robot.name, "", -1, x, y, angle, keepRoute=2)
+                self.api.vehicle.setPreviousSpeed(robot.name, float(self.states[i, 3]))
             self.api.simulationStep()
             self.t = self.api.simulation.getTime() - self.t0
             self._take_departed()
