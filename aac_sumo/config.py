@@ -136,7 +136,7 @@ COMMON: dict[str, dict[str, Key]] = {
         "prediction_window": Key(int, 2, "observed speeds (one per control period) whose least-squares slope is an "
                                  "obstacle's estimated acceleration; 2 = the backward difference",
                                  check=lambda n: 2 <= n <= 50, expect="in 2..50"),
-        "obstacle_slots": Key(int, 8, "obstacles the MPC considers (nearest first)", check=lambda n: 1 <= n <= 100, expect="in 1..100"),
+        "obstacle_slots": Key(int, 8, "obstacles the MPC considers (nearest first)", check=lambda n: 1 <= n <= 64, expect="in 1..64"),
         "ego_discs": Key(int, 1, "discs covering the ego footprint", check=lambda n: 1 <= n <= 5, expect="in 1..5"),
         "q_pos": Key(float, 1.0, "Q weight on position error [1/m^2]", **NN),
         "q_heading": Key(float, 1.0, "Q weight on heading error [1/rad^2]", **NN),

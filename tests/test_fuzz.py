@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import tempfile
 from pathlib import Path
 
@@ -26,7 +27,10 @@ from aac_sumo.config import ScenarioError
 from aac_sumo.experiments.lane_change import BUNDLED_NET, BUNDLED_ROUTES
 from aac_sumo.sim.sumo import SumoError
 
-FUZZ = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+#: Examples per fuzz test; AAC_FUZZ_SCALE=20 fuzzes twenty times longer.
+SCALE = int(os.environ.get("AAC_FUZZ_SCALE", "1"))
+FUZZ = settings(max_examples=40 * SCALE, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+FEW = settings(FUZZ, max_examples=15 * SCALE)
 #: Bundled scenarios on the internal simulator (fast to build); lane_change starts SUMO.
 INTERNAL = ("braking", "swarm_rescue", "circle_swap", "random_crossing")
 ONE_LINE_ERRORS = (ScenarioError, SumoError)
@@ -68,7 +72,11 @@ def outcome(source: str, sets: list[str]) -> ScenarioError | SumoError | None:
     """None when ``source`` with ``sets`` loads and builds; else the one-line error it raised
     (any other exception fails the test)."""
     try:
-        setup = experiments.build(config.load(source, sets))
+        scenario = config.load(source, sets)
+        c = scenario.data["controller"]  # the MPC problem's size costs build time alone: load checked it
+        setup = experiments.build(scenario.with_overrides(
+            ["controller.codegen=false", f"controller.horizon={min(c['horizon'], 5)}",
+             f"controller.obstacle_slots={min(c['obstacle_slots'], 8)}", f"controller.ego_discs={min(c['ego_discs'], 2)}"]))
     except ONE_LINE_ERRORS as exc:
         return exc
     setup.sim.close()
@@ -83,6 +91,9 @@ def assert_cli_error(capsys, argv: list[str], error: Exception, *names: str) -> 
     assert "Traceback" not in err
     lines = err.splitlines()
     assert len(lines) == 1 and lines[0].startswith("aac-sumo: error: "), err
+    if isinstance(error, SumoError):  # SUMO refused files it parsed: its message, and its command naming them
+        assert lines[0].startswith("aac-sumo: error: SUMO did not start (")
+        return
     for name in names + ((error.key,) if isinstance(error, ScenarioError) else ()):
         assert one_line(name) in lines[0], (name, lines[0])
 
@@ -109,7 +120,7 @@ def test_set_any_value_on_any_key(capsys, name, data):
     check(capsys, name, sets, str(config.resolve(name)))
 
 
-@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@FEW
 @given(data=st.data())
 def test_set_any_value_on_a_lane_change_key(capsys, data):
     key = data.draw(st.sampled_from([k for k in keys_of("lane_change") if k not in ("sumo.gui", "sumo.output_dir")]))
@@ -132,7 +143,7 @@ def test_huge_sizes_are_refused_at_once(capsys, assignment):
     name = assignment.split(".")[0] if assignment.startswith(("circle", "random")) else "circle_swap"
     error = outcome(name, [assignment])
     assert error is not None
-    assert_cli_error(capsys, ["run", name, "--set", assignment], error, "--set")
+    assert_cli_error(capsys, ["run", name, "--set", assignment], error, str(config.resolve(name)))
 
 
 def test_set_scenario_kind_switches_the_sections(capsys):
@@ -222,13 +233,15 @@ def broken_xml():
     )
 
 
-@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@FEW
 @given(key=st.sampled_from(["sumo.net", "sumo.routes", "sumo.config"]), data=broken_xml())
 def test_broken_sumo_files(capsys, key, data):
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "broken.xml"
         path.write_bytes(data)
         check(capsys, "lane_change", [f"{key}={json.dumps(str(path))}"], "lane_change.toml", key)
+        if isinstance(outcome("lane_change", [f"{key}={json.dumps(str(path))}"]), SumoError):
+            assert key == "sumo.routes", "a net or configuration SUMO refuses is found before SUMO starts"
 
 
 @pytest.mark.parametrize("key", ["sumo.net", "sumo.routes", "sumo.config"])
@@ -238,7 +251,7 @@ def test_a_directory_given_as_sumo_file(capsys, tmp_path, key):
     check(capsys, "lane_change", [f"{key}={tmp_path}"], "lane_change.toml", key)
 
 
-@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@FEW
 @given(data=broken_xml())
 def test_net_info_on_broken_files(capsys, data):
     with tempfile.TemporaryDirectory() as folder:
@@ -270,7 +283,7 @@ def test_a_nan_state_ends_the_run_with_a_clear_error_and_keeps_the_records(tmp_p
         return report
 
     monkeypatch.setattr(InternalSimulator, "step", faulty_step)
-    result = runner.run(config.load("swarm_rescue", ["controller.horizon=5", "scenario.duration=3"]))
+    result = runner.run(config.load("swarm_rescue", ["controller.horizon=5", "controller.codegen=false", "scenario.duration=1"]))
     error = result.metrics["error"]
     assert "non-finite state of robot1 at t=0.50 s" in error
     assert result.metrics["completed"] is False
