@@ -100,7 +100,7 @@ COMMON: dict[str, dict[str, Key]] = {
         "seed": Key(int, 0, "seed of every random choice in the run (SUMO's seed is a 32-bit integer)",
                     check=lambda s: 0 <= s <= MAX_SEED, expect=f"in 0..{MAX_SEED}"),
         "dt": Key(float, 0.1, "control period and simulation step [s]", check=lambda dt: 0.001 <= dt <= 1.0, expect="in [0.001, 1]"),
-        "duration": Key(float, 20.0, "time limit [s] (at most a day)", check=lambda d: 0 < d <= 86400.0, expect="in (0, 86400]"),
+        "duration": Key(float, 20.0, "time limit, at most a day [s]", check=lambda d: 0 < d <= 86400.0, expect="in (0, 86400]"),
     },
     "controller": {
         "coordinator": Key(("aac", "lfc", "independent"), "aac",

@@ -21,11 +21,12 @@ import tomli_w
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from aac_sumo import config, experiments, runner
+from aac_sumo import config, experiments, runner, sweep
 from aac_sumo.cli import main
 from aac_sumo.config import ScenarioError
 from aac_sumo.experiments.lane_change import BUNDLED_NET, BUNDLED_ROUTES
 from aac_sumo.sim.sumo import SumoError
+from aac_sumo.sweep import SweepError
 
 #: Examples per fuzz test; AAC_FUZZ_SCALE=20 fuzzes twenty times longer.
 SCALE = int(os.environ.get("AAC_FUZZ_SCALE", "1"))
@@ -102,7 +103,7 @@ def check(capsys, source: str, sets: list[str], *names: str) -> None:
     error = outcome(source, sets)
     if error is not None:
         with tempfile.TemporaryDirectory() as out:
-            argv = ["run", source, "--out", out] + [a for s in sets for a in ("--set", s)]
+            argv = ["run", source, "--out", out] + [f"--set={s}" for s in sets]  # --set=-x: a value, not an option
             assert_cli_error(capsys, argv, error, *names)
 
 
@@ -131,6 +132,19 @@ def test_set_any_value_on_a_lane_change_key(capsys, data):
 @given(text=st.text(max_size=30))
 def test_set_any_text(capsys, text):
     check(capsys, "braking", [text], str(config.resolve("braking")))
+
+
+@FUZZ
+@given(grid=st.lists(st.tuples(st.sampled_from(keys_of("braking")), st.lists(set_texts(), min_size=1, max_size=3)), min_size=1, max_size=2))
+def test_grid_any_values(capsys, tmp_path, grid):
+    """``aac-sumo sweep --grid KEY=V1,V2``: every combination is checked before any run starts."""
+    texts = [f"{key}={','.join(values)}" for key, values in grid]
+    try:
+        sweep.plan_tasks("braking", [], sweep.parse_grid(texts), seeds=2)
+    except (ScenarioError, SweepError) as exc:
+        argv = ["sweep", "braking", "--out", str(tmp_path / "out")] + [f"--grid={t}" for t in texts]
+        assert_cli_error(capsys, argv, exc, "--grid")
+        assert not (tmp_path / "out" / "results.csv").exists()
 
 
 @pytest.mark.parametrize("assignment", [
