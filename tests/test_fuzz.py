@@ -114,10 +114,9 @@ def check(capsys, source: str, sets: list[str], *names: str) -> None:
 @FUZZ
 @given(data=st.data())
 def test_set_any_value_on_any_key(capsys, name, data):
+    """One to three ``--set KEY=VALUE`` on the kind's keys: a scenario that builds, or one line
+    naming the file and the key (with ``--set`` when the value itself is wrong)."""
     sets = [f"{data.draw(st.sampled_from(keys_of(name)))}={data.draw(set_texts())}" for _ in range(data.draw(st.integers(1, 3)))]
-    error = outcome(name, sets)
-    if error is not None and "--set" in error.file:
-        assert error.key in [s.split("=", 1)[0].strip() for s in sets] or "=" not in error.key
     check(capsys, name, sets, str(config.resolve(name)))
 
 
@@ -131,6 +130,7 @@ def test_set_any_value_on_a_lane_change_key(capsys, data):
 @FUZZ
 @given(text=st.text(max_size=30))
 def test_set_any_text(capsys, text):
+    """Any text after ``--set``: no ``=``, unknown keys, unicode, control characters."""
     check(capsys, "braking", [text], str(config.resolve("braking")))
 
 
