@@ -88,15 +88,19 @@ def rows(*fields: str) -> dict:
 
 
 P = dict(check=_positive, expect="> 0")
+#: Upper bounds that keep a typo (``n_robots=1000000000``) from hanging a run or exhausting memory.
+MAX_ROBOTS = 200
+MAX_SEED = 2**31 - 1
 NN = dict(check=_non_negative, expect=">= 0")
 
 COMMON: dict[str, dict[str, Key]] = {
     "scenario": {
         "name": Key(str, "unnamed", "label written into metrics.json"),
         "kind": Key(("braking", "swarm_rescue", "circle_swap", "lane_change", "random_crossing"), "braking", "which experiment builds the world"),
-        "seed": Key(int, 0, "seed of every random choice in the run", **NN),
-        "dt": Key(float, 0.1, "control period and simulation step [s]", **P),
-        "duration": Key(float, 20.0, "time limit [s]", **P),
+        "seed": Key(int, 0, "seed of every random choice in the run (SUMO's seed is a 32-bit integer)",
+                    check=lambda s: 0 <= s <= MAX_SEED, expect=f"in 0..{MAX_SEED}"),
+        "dt": Key(float, 0.1, "control period and simulation step [s]", check=lambda dt: 0.001 <= dt <= 1.0, expect="in [0.001, 1]"),
+        "duration": Key(float, 20.0, "time limit, at most a day [s]", check=lambda d: 0 < d <= 86400.0, expect="in (0, 86400]"),
     },
     "controller": {
         "coordinator": Key(("aac", "lfc", "independent"), "aac",
@@ -132,7 +136,7 @@ COMMON: dict[str, dict[str, Key]] = {
         "prediction_window": Key(int, 2, "observed speeds (one per control period) whose least-squares slope is an "
                                  "obstacle's estimated acceleration; 2 = the backward difference",
                                  check=lambda n: 2 <= n <= 50, expect="in 2..50"),
-        "obstacle_slots": Key(int, 8, "obstacles the MPC considers (nearest first)", check=lambda n: n >= 1, expect=">= 1"),
+        "obstacle_slots": Key(int, 8, "obstacles the MPC considers (nearest first)", check=lambda n: 1 <= n <= 64, expect="in 1..64"),
         "ego_discs": Key(int, 1, "discs covering the ego footprint", check=lambda n: 1 <= n <= 5, expect="in 1..5"),
         "q_pos": Key(float, 1.0, "Q weight on position error [1/m^2]", **NN),
         "q_heading": Key(float, 1.0, "Q weight on heading error [1/rad^2]", **NN),
@@ -142,7 +146,7 @@ COMMON: dict[str, dict[str, Key]] = {
         "s_accel": Key(float, 0.1, "S weight on acceleration change", **NN),
         "s_steer": Key(float, 1.0, "S weight on steering change", **NN),
         "terminal_scale": Key(float, 5.0, "terminal weight P = terminal_scale * Q", **NN),
-        "max_iter": Key(int, 100, "iteration cap per solve", **P),
+        "max_iter": Key(int, 100, "iteration cap per solve", check=lambda n: 1 <= n <= 100_000, expect="in 1..100000"),
         "max_cpu_time": Key(float, 60.0, "CPU-time cap per ipopt solve [s]; keep it above what max_iter allows, or results depend on machine speed", **P),
     },
     "robot": {
@@ -160,7 +164,8 @@ COMMON: dict[str, dict[str, Key]] = {
     },
     "aac": {
         "close_distance": Key(float, 2.0, "robots whose footprint centres are closer than this form a close pair [m]", **P),
-        "proximity_iterations": Key(int, 40, "sampling-tree iterations per robot in the proximity decision", **P),
+        "proximity_iterations": Key(int, 40, "sampling-tree iterations per robot in the proximity decision",
+                                    check=lambda n: 1 <= n <= 10_000, expect="in 1..10000"),
         "alpha": Key(float, 1.0, "proximity score weight on progress toward the goal [1/m]", **NN),
         "beta": Key(float, 2.0, "proximity score weight on the collision cost with other robots", **NN),
         "tree_step": Key(float, 0.3, "sampling-tree step length [m]", **P),
@@ -240,7 +245,7 @@ KIND_SECTIONS["swarm_rescue"] = {
     "start_jitter": Key(float, 0.1, "the seed shifts every start position uniformly within +- this [m]", **NN),
 }
 KIND_SECTIONS["circle_swap"] = {
-    "n_robots": Key(int, 8, "robots evenly spaced on the circle", check=lambda n: n >= 2, expect=">= 2"),
+    "n_robots": Key(int, 8, "robots evenly spaced on the circle", check=lambda n: 2 <= n <= MAX_ROBOTS, expect=f"in 2..{MAX_ROBOTS}"),
     "radius": Key(float, 4.0, "circle radius; each robot drives to the antipodal point [m]", **P),
     "cruise_speed": Key(float, 1.0, "reference speed along the straight path to the goal [m/s]", **P),
     "goal_tolerance": Key(float, 0.3, "a robot has arrived when its rear axle is this close to its goal [m]", **P),
@@ -248,7 +253,7 @@ KIND_SECTIONS["circle_swap"] = {
 }
 KIND_SECTIONS["random_crossing"] = {
     "n_robots": Key(int, 20, "robots, each with a seeded random start and a goal far across the area",
-                    check=lambda n: 2 <= n <= 200, expect="in 2..200"),
+                    check=lambda n: 2 <= n <= MAX_ROBOTS, expect=f"in 2..{MAX_ROBOTS}"),
     "area_per_robot": Key(float, 6.0, "the square area's side is sqrt(n_robots * area_per_robot): the density stays "
                           "constant as n grows [m^2]", **P),
     "min_travel_fraction": Key(float, 0.6, "each goal is at least this fraction of the area side from its start, so "
@@ -264,7 +269,8 @@ KIND_SECTIONS["random_crossing"] = {
     "goal_tolerance": Key(float, 0.3, "a robot has arrived when its rear axle is this close to its goal [m]", **P),
 }
 KIND_SECTIONS["lane_change"] = {
-    "vehicles": Key(int, 15, "controlled vehicles, dealt to the lanes in turn (vehicle k starts in lane k mod lanes)", **P),
+    "vehicles": Key(int, 15, "controlled vehicles, dealt to the lanes in turn (vehicle k starts in lane k mod lanes)",
+                    check=lambda n: 1 <= n <= MAX_ROBOTS, expect=f"in 1..{MAX_ROBOTS}"),
     "speed": Key(float, 10.0, "cruise speed of every reference [m/s]", **P),
     "spacing": Key(float, 24.0, "distance between consecutive vehicles of one lane; lane i is shifted by i*spacing/lanes [m]", **P),
     "start_s": Key(float, 10.0, "arc length of the rearmost start (rear axle) along its lane [m]", **NN),
@@ -344,17 +350,20 @@ class Scenario:
             schema = schema_for(data["scenario"]["kind"])
             section, key = _lookup(schema, dotted.strip(), where)
             data[section][key] = _check(schema, section, key, parse_value(raw.strip(), schema[section][key]), where)
+            if (section, key) == ("scenario", "kind"):  # the new kind's sections, defaults where the data has none
+                data = {s: data.get(s, _defaults(keys)) for s, keys in schema_for(data["scenario"]["kind"]).items()}
         return Scenario(data, self.source)
 
     @classmethod
     def from_dict(cls, raw: dict[str, dict[str, Any]], source: str = "<dict>") -> "Scenario":
         """A scenario from nested ``{section: {key: value}}`` as a TOML file would hold it:
         validated, defaults filled; ``source`` names it in errors."""
-        kind = raw.get("scenario", {}).get("kind", COMMON["scenario"]["kind"].default)
-        if kind not in KIND_SECTIONS:
+        head = raw.get("scenario")
+        kind = head.get("kind", COMMON["scenario"]["kind"].default) if isinstance(head, dict) else COMMON["scenario"]["kind"].default
+        if not isinstance(kind, str) or kind not in KIND_SECTIONS:
             raise ScenarioError(source, "scenario.kind", COMMON["scenario"]["kind"].expected(), kind)
         schema = schema_for(kind)
-        data = {section: {k: key.default for k, key in keys.items()} for section, keys in schema.items()}
+        data = {section: _defaults(keys) for section, keys in schema.items()}
         for section, table in raw.items():
             if section not in schema:
                 raise ScenarioError(source, section, "a section among " + ", ".join(schema) + _did_you_mean(section, schema))
@@ -373,6 +382,10 @@ class Scenario:
 def schema_for(kind: str) -> dict[str, dict[str, Key]]:
     """All sections a scenario of ``kind`` may hold."""
     return COMMON | {kind: KIND_SECTIONS[kind]} | KIND_EXTRA_SECTIONS.get(kind, {})
+
+
+def _defaults(keys: dict[str, Key]) -> dict[str, Any]:
+    return {k: copy.deepcopy(key.default) for k, key in keys.items()}
 
 
 def parse_value(raw: str, key: Key) -> Any:

@@ -115,11 +115,25 @@ class Executor:
         return self._map_local(fn, items)
 
     def _map_dask(self, fn, items) -> Iterator[tuple[int, Any]]:
+        """As :meth:`_map_local`: a worker that dies fails every call it held (``KilledWorker``
+        once the scheduler's ``allowed-failures`` are spent), so each such call is rerun alone at
+        the end, where only the culprit fails again."""
+        from distributed import KilledWorker
+
         futures = {self._dask.submit(fn, item): i for i, item in enumerate(items)}
+        suspects: list[int] = []
         try:
             for fut in as_completed(futures):
                 exc = fut.exception()
-                yield futures[fut], exc if exc is not None else fut.result()
+                if isinstance(exc, KilledWorker):
+                    suspects.append(futures[fut])
+                else:
+                    yield futures[fut], exc if exc is not None else fut.result()
+            for i in sorted(suspects):
+                fut = self._dask.submit(fn, items[i])
+                futures[fut] = i
+                exc = fut.exception()
+                yield i, exc if exc is not None else fut.result()
         finally:
             for fut in futures:
                 fut.cancel()

@@ -76,7 +76,8 @@ class RunInterrupted(KeyboardInterrupt):
 
 def loop(setup: Setup, rec: Recording) -> None:
     """The closed loop, one control period per step until every task is finished, the time
-    limit, or a deadlock: observe, decide, step, and record into ``rec``."""
+    limit, or a deadlock: observe, decide, step, and record into ``rec``. A non-finite robot
+    state ends it with ``FloatingPointError`` (:func:`check_finite`)."""
     scenario, sim, coord = setup.scenario, setup.sim, setup.coordinator
     dt, duration = scenario["scenario.dt"], scenario["scenario.duration"]
     stop, patience = scenario["metrics.stop_speed"], scenario["metrics.deadlock_time"]
@@ -87,6 +88,7 @@ def loop(setup: Setup, rec: Recording) -> None:
         if STOP.is_set():  # asked to stop (aac-sumo run's SIGINT/SIGTERM handler), between two periods
             raise KeyboardInterrupt
         world = sim.observe() if setup.prepare is None else setup.prepare(sim.observe())
+        check_finite(world)
         rec.traj += [dict(t=round(world.t, 9), **a) for a in sim.agents()]
         done = np.asarray(setup.finished(world), dtype=bool)
         here = world.on_road
@@ -129,6 +131,16 @@ def loop(setup: Setup, rec: Recording) -> None:
                 arrived=bool(done[i]), clearance_m=contacts.clearance[i], nearest_robot_m=nearest[i], ttc_s=ttc[i],
                 pedestrian_clearance_m=to_pedestrians[i],
             ))
+
+
+def check_finite(world: WorldState) -> None:
+    """``FloatingPointError`` naming the first robot whose state holds a NaN or an infinity: the
+    run stops there (its records so far kept) instead of feeding it to the controller."""
+    finite = np.isfinite(world.states).all(axis=1)
+    if not finite.all():
+        i = int(np.flatnonzero(~finite)[0])
+        raise FloatingPointError(f"non-finite state of {world.robots[i].name} at t={world.t:.2f} s "
+                                 f"([x, y, heading, v] = {world.states[i].tolist()})")
 
 
 STEP_COLUMNS = [

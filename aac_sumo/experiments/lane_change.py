@@ -41,7 +41,7 @@ from aac_sumo.experiments.lane_geometry import (
 from aac_sumo.references import LateralBand, PathReference
 from aac_sumo.registry import register_experiment
 from aac_sumo.sim.sumo import SumoOptions, sumo_simulator
-from aac_sumo.sim.sumo_config import SumoConfig, read_config
+from aac_sumo.sim.sumo_config import SumoConfig, read_config, xml_problem
 from aac_sumo.world import WorldState
 
 BUNDLED_NET_DIR = Path(__file__).resolve().parents[2] / "sumo_networks" / "lane_change"
@@ -92,9 +92,9 @@ def scenario_file(scenario: Scenario, text: str, key: str) -> Path:
 
 def network_files(scenario: Scenario) -> tuple[Path, list[Path]]:
     """The network and route files of ``[sumo]`` (:func:`scenario_file`), those of ``sumo.config``
-    included."""
+    included; route files that are not well-formed XML are an exit-2 error naming their key."""
     su = scenario.data["sumo"]
-    routes = [scenario_file(scenario, r, "sumo.routes") for r in su["routes"].split(",") if r.strip()]
+    routes = [route_file(scenario, scenario_file(scenario, r, "sumo.routes"), "sumo.routes") for r in su["routes"].split(",") if r.strip()]
     if su["config"].strip():
         cfg = sumo_config(scenario)
         if su["net"].strip() and cfg.net is not None:
@@ -105,10 +105,21 @@ def network_files(scenario: Scenario) -> tuple[Path, list[Path]]:
         missing = [p for p in [cfg.net, *cfg.routes] if p is not None and not p.is_file()]
         if missing:
             raise ScenarioError(scenario.source, "sumo.config", f"the files {cfg.path} names to exist", str(missing[0]))
+        for path in cfg.routes:
+            route_file(scenario, path, "sumo.config")
         return (cfg.net or scenario_file(scenario, su["net"], "sumo.net")), cfg.routes + routes
     if not su["net"].strip():
         return BUNDLED_NET, BUNDLED_ROUTES if not su["routes"].strip() else routes
     return scenario_file(scenario, su["net"], "sumo.net"), routes
+
+
+def route_file(scenario: Scenario, path: Path, key: str) -> Path:
+    """``path`` when it is well-formed XML, else an exit-2 error naming ``key`` (SUMO's own
+    message on a broken file names neither)."""
+    problem = xml_problem(path)
+    if problem is not None:
+        raise ScenarioError(scenario.source, key, f"SUMO route files in XML ({path}: {problem})", str(path))
+    return path
 
 
 def with_resolved_paths(scenario: Scenario) -> Scenario:

@@ -36,6 +36,7 @@ axle is within ``goal_tolerance`` of its goal.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,6 +54,7 @@ SECTION = "random_crossing"
 BATCH = 64         # candidate start-goal pairs drawn at once
 MAX_TRIES = 5_000  # rejected candidates per robot before an attempt is a dead end
 ATTEMPTS = 8       # fresh draws (debris and robots) before the scenario is rejected
+MAX_DEBRIS = 2_000 # debris pieces at most (a bound on memory and time)
 
 #: Rejection reasons, and the key to change when one of them keeps a robot from being placed.
 REASONS = {
@@ -80,6 +82,13 @@ def area_side(scenario: Scenario) -> float:
     return float(np.sqrt(p["n_robots"] * p["area_per_robot"]))
 
 
+def debris_count(scenario: Scenario) -> int | float:
+    """Debris pieces of the draw: ``round(debris_density * side^2 / 100)`` (inf when it overflows)."""
+    side = area_side(scenario)
+    count = scenario.data[SECTION]["debris_density"] * side * side / 100.0
+    return round(count) if math.isfinite(count) else math.inf
+
+
 def draw(scenario: Scenario) -> Draw:
     """The seeded random starts, goals and debris of ``scenario`` (see the module docstring)."""
     p = scenario.data[SECTION]
@@ -93,6 +102,9 @@ def draw(scenario: Scenario) -> Draw:
     if 0.5 * side <= reach:
         raise ScenarioError(scenario.source, f"{SECTION}.area_per_robot",
                             f"an area whose side ({side:.2f} m) exceeds twice the robot's reach ({reach:.2f} m)", p["area_per_robot"])
+    if debris_count(scenario) > MAX_DEBRIS:
+        raise ScenarioError(scenario.source, f"{SECTION}.debris_density", f"at most {MAX_DEBRIS} debris pieces in the "
+                            f"{side:.3g} m x {side:.3g} m area (debris_density * side^2 / 100)", p["debris_density"])
 
     failures = []
     for _ in range(ATTEMPTS):
@@ -109,7 +121,7 @@ def _attempt(scenario: Scenario, rng: np.random.Generator, side: float, reach: f
     p, r = scenario.data[SECTION], scenario.data["robot"]
     half, margin = 0.5 * side, 0.5 * side - reach
     length, width, offset = r["length"], r["width"], 0.5 * r["wheelbase"]
-    n_debris = int(round(p["debris_density"] * side**2 / 100.0))
+    n_debris = debris_count(scenario)
     debris = np.column_stack([
         rng.uniform(-half, half, size=(n_debris, 2)),
         rng.uniform(p["debris_min_size"], p["debris_max_size"], size=(n_debris, 2)),

@@ -8,8 +8,10 @@ them, outputs, ...) applies as written; paths in it are relative to its folder, 
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
+from xml.parsers import expat
 from dataclasses import dataclass, field
 from pathlib import Path
+
 
 @dataclass
 class SumoConfig:
@@ -52,3 +54,19 @@ def read_config(path: Path) -> SumoConfig:
 
     nets = files("net-file")
     return SumoConfig(path, nets[0] if nets else None, files("route-files"), options)
+
+
+def xml_problem(path: Path) -> str | None:
+    """Why the file at ``path`` is not well-formed XML (one line), or None when it is. Streamed
+    through expat in chunks: no tree is kept, so large route files cost little."""
+    parser = expat.ParserCreate()
+    try:
+        with open(path, "rb") as fh:
+            while chunk := fh.read(1 << 20):
+                parser.Parse(chunk, False)
+        parser.Parse(b"", True)
+    except expat.ExpatError as exc:
+        return f"not XML: {expat.ErrorString(exc.code)} at line {exc.lineno}, column {exc.offset}"
+    except OSError as exc:
+        return exc.strerror or str(exc)
+    return None
