@@ -389,6 +389,19 @@ def closest_on_polyline(points, seg_len, t_max, px, py, chunk_centre, chunk_radi
     return best_i, best_t, best_d
 
 
+@numba.njit(cache=True)
+def project_points(points, seg_len, cum, t_max, queries, chunk_centre, chunk_radius, chunk):
+    """Arc lengths (K,) [m] along polyline ``points`` (cumulative lengths ``cum``) of the
+    closest points to ``queries`` (K, 2), and the distances (K,) [m] to them
+    (:func:`closest_on_polyline` each)."""
+    s = np.empty(queries.shape[0])
+    d = np.empty(queries.shape[0])
+    for k in range(queries.shape[0]):
+        i, t, d[k] = closest_on_polyline(points, seg_len, t_max, queries[k, 0], queries[k, 1], chunk_centre, chunk_radius, chunk)
+        s[k] = cum[i] + t * seg_len[i]
+    return s, d
+
+
 def polyline_chunks(points: np.ndarray, chunk: int) -> tuple[np.ndarray, np.ndarray]:
     """Centres (C, 2) and radii (C,) [m] of circles holding the segments of ``points`` (M, 2),
     ``chunk`` segments each (the last chunk may be shorter): the bounds of :func:`closest_on_polyline`."""

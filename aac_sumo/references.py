@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from aac_sumo.geometry import polyline_offset, wrap_angle
-from aac_sumo.kernels import closest_on_polyline, polyline_chunks
+from aac_sumo.kernels import closest_on_polyline, polyline_chunks, project_points
 
 #: Segments per bounding circle of a path's projection (:func:`~aac_sumo.kernels.closest_on_polyline`).
 PROJECTION_CHUNK = 16
@@ -94,6 +94,11 @@ class PathReference:
         onto that extension (arc length above ``length``)."""
         i, t, dist = self._closest(point)
         return float(self.s[i] + t * self.seg_len[i]), float(dist)
+
+    def project_many(self, points) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`project` of each of ``points`` (K, 2): arc lengths (K,) and distances (K,) [m]."""
+        queries = np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 2))
+        return project_points(self.points, self.seg_len, self.s, self._t_max, queries, *self._chunks, PROJECTION_CHUNK)
 
     def _closest(self, point) -> tuple[int, float, float]:
         return closest_on_polyline(self.points, self.seg_len, self._t_max, float(point[0]), float(point[1]), *self._chunks, PROJECTION_CHUNK)

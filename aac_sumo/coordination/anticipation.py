@@ -70,7 +70,7 @@ def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipa
     speed it keeps on top (a walker's reach while the robot brakes: ``pedestrian_reach / decel``
     [s])."""
     robot, state = world.robots[i], world.states[i]
-    s0, _ = task.project(state[:2])
+    s0, off0 = task.project(state[:2])
     front = robot.centre_offset + 0.5 * robot.length  # rear axle to front bumper [m]
     others = [j for j in np.flatnonzero(world.on_road) if j != i]
     centres = np.vstack([world.robot_centres()[others]] + [o.centre[None, :] for o in world.obstacles]).reshape(-1, 2)
@@ -82,12 +82,22 @@ def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipa
     velocity = np.vstack([world.states[others, 3:4] * np.column_stack([np.cos(world.states[others, 2]), np.sin(world.states[others, 2])])]
                          + [np.asarray(o.velocity, dtype=float)[None, :] for o in world.obstacles]).reshape(-1, 2)
     walker = np.r_[np.zeros(len(others), dtype=bool), [o.kind == "pedestrian" for o in world.obstacles]]
-    projected = np.array([task.project(c) for c in centres])  # (K, 2): arc length, distance
-    ahead = projected[:, 0] - s0
-    near = (ahead > 0.0) & (ahead <= params.look)
+    # what lies farther from the robot than its path's look-ahead plus the most the agent could
+    # reach across cannot count (below), and is not projected at all
+    speed = np.hypot(velocity[:, 0], velocity[:, 1])
+    arrive_max = params.look / max(abs(state[3]), 1.0)
+    reach_max = np.where(walker, speed * arrive_max + params.pedestrian_reach * arrive_max, speed * params.cut_in)
+    bound = (off0 + params.look + max(params.pedestrian_margin, params.lateral_margin) + 0.5 * np.hypot(lengths, widths)
+             + 0.5 * robot.width + reach_max)
+    candidate = np.flatnonzero(np.hypot(*(centres - state[:2]).T) <= bound + 1e-6)
+    s, off = task.project_many(centres[candidate])
+    ahead = s - s0
+    near_c = (ahead > 0.0) & (ahead <= params.look)
+    near = np.zeros(len(centres), dtype=bool)
+    near[candidate[near_c]] = True
     if not near.any():
         return np.zeros((0, 3))
-    s, off, ahead = projected[near, 0], projected[near, 1], ahead[near]
+    s, off, ahead = s[near_c], off[near_c], ahead[near_c]
     c, vel, walker = centres[near], velocity[near], walker[near]
     poses = task.pose_at(s)
     direction = poses[:, 2]
