@@ -262,6 +262,23 @@ def times_to_collision(rows, velocity, n):
 
 
 @numba.njit(cache=True)
+def _course_discs(rows):
+    """Per course of footprint rows ``rows`` (C, K+1, 5), a disc ``[cx, cy, r]`` [m] holding its
+    footprints' circumscribed discs at every stage k >= 1."""
+    out = np.empty((rows.shape[0], 3))
+    for c in range(rows.shape[0]):
+        lo_x, hi_x, lo_y, hi_y = np.inf, -np.inf, np.inf, -np.inf
+        for k in range(1, rows.shape[1]):
+            lo_x, hi_x = min(lo_x, rows[c, k, 0]), max(hi_x, rows[c, k, 0])
+            lo_y, hi_y = min(lo_y, rows[c, k, 1]), max(hi_y, rows[c, k, 1])
+        cx, cy, r = 0.5 * (lo_x + hi_x), 0.5 * (lo_y + hi_y), 0.0
+        for k in range(1, rows.shape[1]):
+            r = max(r, math.hypot(rows[c, k, 0] - cx, rows[c, k, 1] - cy) + 0.5 * math.hypot(rows[c, k, 2], rows[c, k, 3]))
+        out[c, 0], out[c, 1], out[c, 2] = cx, cy, r
+    return out
+
+
+@numba.njit(cache=True)
 def courses_unsafe(own, brake, targets, skip, eased, growing, margin, tie):
     """Which courses fail the safety stop's rule (bool, m). Robot i's course ``own[i]`` and its
     braking at once ``brake[i]`` (m, K+1, 5) are footprint rows per stage; ``targets`` (T, K+1,
@@ -271,9 +288,12 @@ def courses_unsafe(own, brake, targets, skip, eased, growing, margin, tie):
     every clearance counts ``margin`` more. A ``growing`` (T,) target (a walker's region that
     grows with time) counts only until the course stands (its footprint no longer moves): a
     standing robot cannot run into anyone. Pairs whose circumscribed discs stay ``margin`` apart
-    at every stage k >= 1 are not measured."""
+    at every stage k >= 1 are not measured, nor (checked first) pairs whose whole courses' discs
+    (:func:`_course_discs`) do."""
     m, t_count, stages = own.shape[0], targets.shape[0], own.shape[1]
     out = np.zeros(m, dtype=np.bool_)
+    reach_t = _course_discs(targets)
+    reach_own = _course_discs(own)
     for i in range(m):
         r_own = 0.5 * math.hypot(own[i, 0, 2], own[i, 0, 3])
         moving = 1  # the stages before it stands for good: after the last one whose footprint moved
@@ -284,6 +304,9 @@ def courses_unsafe(own, brake, targets, skip, eased, growing, margin, tie):
         for t in range(t_count):
             if skip[i, t]:
                 continue
+            if (math.hypot(reach_own[i, 0] - reach_t[t, 0], reach_own[i, 1] - reach_t[t, 1])
+                    - reach_own[i, 2] - reach_t[t, 2] >= margin):
+                continue  # the whole courses stay apart: so does every stage
             last = moving if growing[t] else stages
             bound = np.inf
             for k in range(1, stages):
