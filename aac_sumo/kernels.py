@@ -425,6 +425,34 @@ def project_points(points, seg_len, cum, t_max, queries, chunk_centre, chunk_rad
     return s, d
 
 
+@numba.njit(cache=True)
+def ramped_speeds(s0, v0, steps, dt, decel, accel, stops, speed, path_s, limits, stop_at_end, path_decel, length):
+    """Arc lengths and speeds (steps+1,) of a reference that starts at ``s0`` [m] and ``v0``
+    [m/s] and changes speed by at most ``accel`` / ``decel`` [m/s^2] per second towards the
+    path's speed at each stage (``speed``, below ``limits`` over ``path_s`` when it has any,
+    and its stopping profile at ``path_decel`` before ``length`` when ``stop_at_end``), capped
+    by braking at ``decel`` to every stop row ``[s_stop, v_lead, grow]`` (K, 3) of ``stops``
+    (as :func:`aac_sumo.coordination.anticipation.speed_cap`)."""
+    s = np.empty(steps + 1)
+    v = np.empty(steps + 1)
+    s[0], v[0] = s0, max(v0, 0.0)
+    for k in range(steps + 1):
+        if k:
+            target = speed
+            if limits.shape[0]:
+                target = min(target, np.interp(s[k], path_s, limits))
+            if stop_at_end:
+                target = min(target, math.sqrt(2.0 * path_decel * max(length - s[k], 0.0)))
+            for r in range(stops.shape[0]):
+                room = max(stops[r, 0] - s[k], 0.0)
+                bk = decel * stops[r, 2]
+                target = min(target, math.sqrt(bk * bk + stops[r, 1] ** 2 + 2.0 * decel * room) - bk)
+            v[k] = max(min(max(target, v[k - 1] - decel * dt), v[k - 1] + accel * dt), 0.0)
+        if k < steps:
+            s[k + 1] = s[k] + v[k] * dt
+    return s, v
+
+
 def polyline_chunks(points: np.ndarray, chunk: int) -> tuple[np.ndarray, np.ndarray]:
     """Centres (C, 2) and radii (C,) [m] of circles holding the segments of ``points`` (M, 2),
     ``chunk`` segments each (the last chunk may be shorter): the bounds of :func:`closest_on_polyline`."""

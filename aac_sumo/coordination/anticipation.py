@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from aac_sumo.geometry import wrap_angle
+from aac_sumo.kernels import ramped_speeds
 from aac_sumo.references import PathReference
 from aac_sumo.world import WorldState
 
@@ -63,6 +64,27 @@ def _along_extent(length, width, relative_heading) -> np.ndarray:
     return 0.5 * np.abs(length * np.cos(relative_heading)) + 0.5 * np.abs(width * np.sin(relative_heading))
 
 
+def agents(world: WorldState) -> tuple[np.ndarray, ...]:
+    """Every agent on the road but the robots off it, as arrays over them: the robot index
+    (-1 for an obstacle), footprint centre (K, 2) [m], heading [rad], length and width [m],
+    velocity (K, 2) [m/s], and whether it is a walker. Computed once per world (a snapshot)."""
+    cached = world.__dict__.get("_agents")
+    if cached is None:
+        robots = np.flatnonzero(world.on_road)
+        obstacles = world.obstacles
+        heading = world.states[robots, 2]
+        cached = (np.r_[robots, np.full(len(obstacles), -1)],
+                  np.vstack([world.robot_centres()[robots]] + [o.centre[None, :] for o in obstacles]).reshape(-1, 2),
+                  np.r_[heading, [o.heading for o in obstacles]],
+                  np.r_[[world.robots[j].length for j in robots], [o.length for o in obstacles]],
+                  np.r_[[world.robots[j].width for j in robots], [o.width for o in obstacles]],
+                  np.vstack([world.states[robots, 3:4] * np.column_stack([np.cos(heading), np.sin(heading)])]
+                            + [np.asarray(o.velocity, dtype=float)[None, :] for o in obstacles]).reshape(-1, 2),
+                  np.r_[np.zeros(len(robots), dtype=bool), [o.kind == "pedestrian" for o in obstacles]])
+        world.__dict__["_agents"] = cached
+    return cached
+
+
 def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipation) -> np.ndarray:
     """Rows ``[s_stop, v_lead, grow]`` (K, 3) of what robot ``i`` must stay behind on ``task``'s
     path: the arc length [m] where its rear axle must be able to come down to the speed
@@ -72,16 +94,9 @@ def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipa
     robot, state = world.robots[i], world.states[i]
     s0, off0 = task.project(state[:2])
     front = robot.centre_offset + 0.5 * robot.length  # rear axle to front bumper [m]
-    others = [j for j in np.flatnonzero(world.on_road) if j != i]
-    centres = np.vstack([world.robot_centres()[others]] + [o.centre[None, :] for o in world.obstacles]).reshape(-1, 2)
+    _, centres, headings, lengths, widths, velocity, walker = (a[agents(world)[0] != i] for a in agents(world))
     if len(centres) == 0:
         return np.zeros((0, 3))
-    headings = np.r_[world.states[others, 2], [o.heading for o in world.obstacles]]
-    lengths = np.r_[[world.robots[j].length for j in others], [o.length for o in world.obstacles]]
-    widths = np.r_[[world.robots[j].width for j in others], [o.width for o in world.obstacles]]
-    velocity = np.vstack([world.states[others, 3:4] * np.column_stack([np.cos(world.states[others, 2]), np.sin(world.states[others, 2])])]
-                         + [np.asarray(o.velocity, dtype=float)[None, :] for o in world.obstacles]).reshape(-1, 2)
-    walker = np.r_[np.zeros(len(others), dtype=bool), [o.kind == "pedestrian" for o in world.obstacles]]
     # what lies farther from the robot than its path's look-ahead plus the most the agent could
     # reach across cannot count (below), and is not projected at all
     speed = np.hypot(velocity[:, 0], velocity[:, 1])
@@ -136,17 +151,10 @@ def anticipated_reference(world: WorldState, i: int, task: PathReference, steps:
     towards the path's speed, capped by :func:`speed_cap` of :func:`stop_points`; its
     positions follow them."""
     state = world.states[i]
-    stops = stop_points(world, i, task, params)
-    s = np.empty(steps + 1)
-    v = np.empty(steps + 1)
-    s[0], _ = task.project(state[:2])
-    v[0] = max(float(state[3]), 0.0)
-    for k in range(steps + 1):
-        if k:
-            target = min(float(task.speed_at(s[k])), float(speed_cap(stops, s[k], params.decel)[0]))
-            v[k] = max(min(max(target, v[k - 1] - params.decel * dt), v[k - 1] + params.accel * dt), 0.0)
-        if k < steps:
-            s[k + 1] = s[k] + v[k] * dt
+    stops = np.ascontiguousarray(stop_points(world, i, task, params), dtype=float).reshape(-1, 3)
+    limits = task.limits if task.limits is not None else np.zeros(0)
+    s, v = ramped_speeds(task.project(state[:2])[0], float(state[3]), steps, dt, params.decel, params.accel, stops, task.speed,
+                         task.s, limits, task.stop_at_end, task.decel, task.length)  # speed_cap, stage by stage, compiled
     poses = task.pose_at(s)
     heading = state[2] + wrap_angle(poses[:, 2] - state[2])
     return np.column_stack([poses[:, :2], heading, v])
