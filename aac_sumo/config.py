@@ -286,6 +286,8 @@ KIND_SECTIONS["lane_change"] = {
                       "car lane), drawn by the seed per car; empty: it keeps its lane",
                       check=lambda v: all(isinstance(x, int) and not isinstance(x, bool) and 0 <= x < 16 for x in v),
                       expect="a list of lane indices 0..15"),
+    "exit_spread": Key(float, 0.0, "cars from SUMO's routes begin the change to their exit lane at a point drawn by the seed "
+                       "within this far beyond finish_margin past the last cone, so that they do not all weave at once [m]", **NN),
 }
 SUMO_SECTION: dict[str, Key] = {
     "config": Key(str, "", "a SUMO configuration (.sumocfg): its net-file, route-files, additional files and options are used "

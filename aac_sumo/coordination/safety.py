@@ -38,12 +38,10 @@ from aac_sumo.world import WorldState
 
 #: Gap difference [m] below which a course counts as no closer than braking at once.
 BRAKING_TIE = 1e-6
-#: A vehicle behind a robot follows it when their headings differ by less than this [rad] and
-#: it has the room to: its time gap [s], and the deceleration [m/s^2] it may use to come down to
-#: the robot's speed (a comfortable one; SUMO's cars brake up to 4.5 m/s^2 by default).
+#: A vehicle behind a robot follows it when their headings differ by less than this [rad] and,
+#: in another lane, it is at least this time gap [s] behind at its speed.
 FOLLOW_ANGLE = np.pi / 4
 FOLLOW_TIME_GAP = 1.0
-FOLLOW_DECEL = 3.0
 #: Obstacle kinds that drive as vehicles on their own (SUMO's traffic, scripted agents).
 VEHICLE_KINDS = ("scripted", "robot")
 
@@ -54,8 +52,8 @@ def following(world: WorldState) -> np.ndarray:
     behind it (centre more than half the two lengths behind its centre, along its heading)
     that drive its way (headings within ``FOLLOW_ANGLE``), straight behind it (less than half
     the two widths aside) or, in another lane, with the room to keep their distance should the
-    robot move in front of them: a gap of at least ``FOLLOW_TIME_GAP`` at their speed plus what
-    they need to come down to the robot's speed at ``FOLLOW_DECEL``. As on a road, a follower
+    robot move in front of them: a gap of at least ``FOLLOW_TIME_GAP`` at their speed. As on a
+    road, a follower
     keeps its distance: predicting it at constant velocity into a braking robot made the robot
     brake the harder, which is no answer to a car closing from behind. A car close behind in
     the lane the robot moves into still counts: the robot lets it pass rather than cut in."""
@@ -74,7 +72,7 @@ def following(world: WorldState) -> np.ndarray:
         across = np.abs(-rel[:, 0] * np.sin(heading) + rel[:, 1] * np.cos(heading))
         same_way = np.abs(np.angle(np.exp(1j * (o.heading - heading)))) < FOLLOW_ANGLE
         speed = float(np.hypot(*o.velocity))
-        room = FOLLOW_TIME_GAP * speed + np.maximum(speed**2 - world.states[:, 3] ** 2, 0.0) / (2.0 * FOLLOW_DECEL)
+        room = FOLLOW_TIME_GAP * speed
         in_line = across < 0.5 * (width + o.width)
         out[:, 2 * n + j] = (gap > 0.0) & same_way & (in_line | (gap >= room))
     return out

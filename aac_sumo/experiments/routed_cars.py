@@ -13,9 +13,10 @@ through the network's connections) and the lane SUMO put it on:
 - a lane that cones close ahead (a lane most of a cone cluster stands on) is left for the
   nearest lane open along the closure (the left one on a tie), the change ending
   ``lane_change.closure_lead`` metres before the first cone;
-- beyond the last cones (``lane_change.finish_margin`` past them; without cones, right after
-  its start) it changes to its exit lane, drawn per car by the seed from
-  ``lane_change.exit_lanes`` (empty: it keeps its lane);
+- beyond the last cones (``lane_change.finish_margin`` past them, plus a distance drawn per car
+  by the seed within ``lane_change.exit_spread``; without cones, right after its start) it
+  changes to its exit lane, drawn per car by the seed from ``lane_change.exit_lanes`` (empty:
+  it keeps its lane);
 - each change takes ``lane_change.change_length`` metres per lane crossed.
 
 Its lateral band spans the lanes it uses until its last change has ended, then its exit lane.
@@ -154,6 +155,7 @@ class RoutedCars:
         rng = np.random.default_rng(scenario["scenario.seed"])
         exits = lc["exit_lanes"]
         self.exit = [int(rng.choice(exits)) if exits else None for _ in vehicles]
+        self.exit_at = lc["finish_margin"] + rng.uniform(0.0, lc["exit_spread"], len(vehicles))
         for k, v in enumerate(vehicles):
             lanes = self.road(self.edges[k], v).n_lanes
             if self.exit[k] is not None and self.exit[k] >= lanes:
@@ -220,7 +222,7 @@ class RoutedCars:
         start = int(np.argmin([PathReference(line, 1.0, stop_at_end=False).project(state[:2])[1] for line in rd.lanes]))
         s0 = PathReference(rd.lanes[start], 1.0, stop_at_end=False).project(state[:2])[0]
         changes = lane_plan(rd, start, s0, closed, self.exit[k], lc["change_start"], lc["change_length"], lc["closure_lead"],
-                            lc["finish_margin"])
+                            self.exit_at[k])
         final = changes[-1][0] if changes else start
         a_lat = min(lc["curve_lat_accel"], self.scenario["robot.a_lat_max"])
         task = smooth_reference(planned_path(rd, start, s0, changes), lc["speed"], a_lat)
