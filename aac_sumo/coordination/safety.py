@@ -38,10 +38,8 @@ from aac_sumo.world import WorldState
 
 #: Gap difference [m] below which a course counts as no closer than braking at once.
 BRAKING_TIE = 1e-6
-#: A vehicle behind a robot follows it when their headings differ by less than this [rad] and,
-#: in another lane, it is at least this time gap [s] behind at its speed.
+#: A vehicle behind a robot follows it when their headings differ by less than this [rad].
 FOLLOW_ANGLE = np.pi / 4
-FOLLOW_TIME_GAP = 1.0
 #: Obstacle kinds that drive as vehicles on their own (SUMO's traffic, scripted agents).
 VEHICLE_KINDS = ("scripted", "robot")
 
@@ -50,31 +48,25 @@ def following(world: WorldState) -> np.ndarray:
     """Which targets of the check (n, 2 n + obstacles: the robots' courses, their braking, then
     the obstacles) each robot leaves out as its followers: the uncontrolled vehicles wholly
     behind it (centre more than half the two lengths behind its centre, along its heading)
-    that drive its way (headings within ``FOLLOW_ANGLE``), straight behind it (less than half
-    the two widths aside) or, in another lane, with the room to keep their distance should the
-    robot move in front of them: a gap of at least ``FOLLOW_TIME_GAP`` at their speed. As on a
-    road, a follower
-    keeps its distance: predicting it at constant velocity into a braking robot made the robot
-    brake the harder, which is no answer to a car closing from behind. A car close behind in
-    the lane the robot moves into still counts: the robot lets it pass rather than cut in."""
+    that drive its way (headings within ``FOLLOW_ANGLE``), in its lane or the next. As on a
+    road, a follower keeps its distance: predicting it at constant velocity into a braking
+    robot made the robot brake the harder, which is no answer to a car closing from behind.
+    (Counting the cars close behind in the next lane, so that a robot lets them pass rather
+    than cut in, made the robots brake for most of them, with more collisions on the highway:
+    docs/coordination.md.)"""
     n, obstacles = len(world.robots), world.obstacles
     out = np.zeros((n, 2 * n + len(obstacles)), dtype=bool)
     if not obstacles:
         return out
     centres, heading = world.robot_centres(), world.states[:, 2]
     length = np.array([r.length for r in world.robots])
-    width = np.array([r.width for r in world.robots])
     for j, o in enumerate(obstacles):
         if o.kind not in VEHICLE_KINDS or not np.any(o.velocity):
             continue
         rel = o.centre[None, :] - centres
-        gap = -(rel[:, 0] * np.cos(heading) + rel[:, 1] * np.sin(heading)) - 0.5 * (length + o.length)
-        across = np.abs(-rel[:, 0] * np.sin(heading) + rel[:, 1] * np.cos(heading))
+        behind = rel[:, 0] * np.cos(heading) + rel[:, 1] * np.sin(heading) < -0.5 * (length + o.length)
         same_way = np.abs(np.angle(np.exp(1j * (o.heading - heading)))) < FOLLOW_ANGLE
-        speed = float(np.hypot(*o.velocity))
-        room = FOLLOW_TIME_GAP * speed
-        in_line = across < 0.5 * (width + o.width)
-        out[:, 2 * n + j] = (gap > 0.0) & same_way & (in_line | (gap >= room))
+        out[:, 2 * n + j] = behind & same_way
     return out
 
 
