@@ -378,6 +378,17 @@ def cmd_table(args) -> int:
     return _report_failures(runs)
 
 
+def _names(text: str | None, flag: str, known: tuple[str, ...]) -> tuple[str, ...]:
+    """The comma-separated names of a bench ``flag`` (all of ``known`` without it); a one-line
+    usage error for a name not among them."""
+    if text is None:
+        return known
+    names = tuple(s.strip() for s in text.split(","))
+    if not names or any(s not in known for s in names):
+        raise UsageError(f"bench: {flag} {text!r}: expected names among {', '.join(known)}")
+    return names
+
+
 def cmd_bench(args) -> int:
     from aac_sumo import bench
 
@@ -388,22 +399,12 @@ def cmd_bench(args) -> int:
         print(tune.benchmark(args.samples, args.out), end="")
         print(f"outputs: {args.out / 'tune_bench.json'}, {args.out / 'tune_bench.md'}, {args.out / 'tune_bench.png'}")
         return 0
-    solvers = bench.SOLVERS
-    if args.solvers is not None:
-        solvers = tuple(s.strip() for s in args.solvers.split(","))
-        unknown = [s for s in solvers if s not in bench.SOLVERS]
-        if unknown or not solvers:
-            raise UsageError(f"bench: --solvers {args.solvers!r}: expected names among {', '.join(bench.SOLVERS)}")
+    solvers = _names(args.solvers, "--solvers", bench.SOLVERS)
     horizons = tuple(args.horizons) if args.horizons else bench.HORIZONS
     _check_out(args.out)
     progress = lambda what: print(f"timing {what} ...", file=sys.stderr, flush=True)  # noqa: E731
     mpc = bench.bench_mpc(args.samples, horizons, solvers, progress=progress) if args.target in ("mpc", "all") else None
-    scenarios = bench.AAC_SCENARIOS
-    if args.scenarios is not None:
-        scenarios = tuple(s.strip() for s in args.scenarios.split(","))
-        unknown = [s for s in scenarios if s not in bench.AAC_SCENARIOS]
-        if unknown or not scenarios:
-            raise UsageError(f"bench: --scenarios {args.scenarios!r}: expected names among {', '.join(bench.AAC_SCENARIOS)}")
+    scenarios = _names(args.scenarios, "--scenarios", bench.AAC_SCENARIOS)
     aac = bench.bench_aac(horizons, scenarios, repeats=args.repeats, progress=progress) if args.target in ("aac", "all") else None
     print(bench.write(args.out, mpc, aac), end="")
     print(f"outputs: {args.out / 'bench.json'}, {args.out / 'bench.md'}")
