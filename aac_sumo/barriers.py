@@ -113,6 +113,35 @@ def barrier_value(px, py, cx, cy, cos_phi, sin_phi, inv_a2, inv_b2):
     return xl * xl * inv_a2 + yl * yl * inv_b2 - 1.0
 
 
+#: Per-slot layout of the MPC's terminal stopping condition: the stage fields, then ``along`` (1:
+#: the region lies across the ego's line of travel) and ``give`` [m] (how far the along form may be
+#: broken, where even braking at once breaks it).
+TERMINAL_FIELDS = STAGE_FIELDS + ("along", "give")
+N_TERMINAL_FIELDS = len(TERMINAL_FIELDS)
+
+
+def support(params: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """Support [m] in the unit world ``direction`` (2,) of regions given as MPC stage parameters
+    (..., >= 6): the largest extent of each ellipse from its centre along that direction."""
+    ul = params[..., 2] * direction[0] + params[..., 3] * direction[1]
+    vl = -params[..., 3] * direction[0] + params[..., 2] * direction[1]
+    return np.sqrt(ul**2 / params[..., 4] + vl**2 / params[..., 5])
+
+
+def stopping_barrier(px, py, ux, uy, stop, cx, cy, cos_phi, sin_phi, inv_a2, inv_b2, along, give, xp=np):
+    """Terminal stopping condition (>= 0) of an ego disc at ``(px, py)`` that stops ``stop`` [m]
+    further on in the unit direction ``(ux, uy)``, against a region given as in :func:`barrier_value`.
+
+    ``along = 0``: the algebraic barrier of the stopping point. ``along = 1`` (a region on the
+    line of travel, where the stopping point could jump past it): the distance [m] by which the
+    stopping point stays short of the region's near edge, its support ``sqrt((u'A)^2 + (v'B)^2)``
+    in the direction of travel, plus ``give``. ``xp`` is numpy or casadi."""
+    end = barrier_value(px + stop * ux, py + stop * uy, cx, cy, cos_phi, sin_phi, inv_a2, inv_b2)
+    ul, vl = cos_phi * ux + sin_phi * uy, -sin_phi * ux + cos_phi * uy
+    short = (cx - px) * ux + (cy - py) * uy - stop - xp.sqrt(ul * ul / inv_a2 + vl * vl / inv_b2) + give
+    return along * short + (1 - along) * end
+
+
 @dataclass(frozen=True)
 class ObstaclePrediction:
     """Predicted obstacle over the horizon: centres (N+1, 2) [m], velocities (N+1, 2) [m/s],

@@ -136,6 +136,10 @@ COMMON: dict[str, dict[str, Key]] = {
         "prediction_window": Key(int, 2, "observed speeds (one per control period) whose least-squares slope is an "
                                  "obstacle's estimated acceleration; 2 = the backward difference",
                                  check=lambda n: 2 <= n <= 50, expect="in 2..50"),
+        "terminal_stop": Key(bool, False, "terminal stopping condition: braking at its strongest after the horizon, the robot stops short of "
+                             "where each obstacle ahead of it could stop at the earliest (the car-following stopping-distance rule; "
+                             "docs/braking.md)"),
+        "obstacle_decel": Key(float, 0.0, "strongest braking assumed of obstacles for terminal_stop [m/s^2]; 0 = as hard as the robot itself can", **NN),
         "obstacle_slots": Key(int, 8, "obstacles the MPC considers (nearest first)", check=lambda n: 1 <= n <= 64, expect="in 1..64"),
         "ego_discs": Key(int, 1, "discs covering the ego footprint", check=lambda n: 1 <= n <= 5, expect="in 1..5"),
         "q_pos": Key(float, 1.0, "Q weight on position error [1/m^2]", **NN),

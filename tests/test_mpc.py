@@ -469,7 +469,8 @@ def test_a_compiled_problem_is_reused_without_building_it_again(tmp_path, monkey
     again = problem.MpcProblem(shape)
     params = first.parameters(wheelbase=0.8, gamma=0.3, disc_offsets=[0.4], weights=np.ones(12),
                               x_ref=np.column_stack([np.arange(4.0), np.zeros((4, 2)), np.ones(4)]),
-                              obstacles=inactive_slot(3)[:, None, :], band=np.zeros(0), limits=np.full(2, problem.NO_LIMIT))
+                              obstacles=inactive_slot(3)[:, None, :], band=np.zeros(0), limits=np.full(2, problem.NO_LIMIT),
+                              terminal=np.zeros(0), stop_decel=np.zeros(0))
     x0 = np.array([0.0, 0.1, 0.0, 1.0])
     lbx, ubx = first.bounds(x0, np.zeros(2), [-np.inf, -np.inf, -np.inf, 0.0], [np.inf, np.inf, np.inf, 5.0], [-3.0, -0.5], [3.0, 0.5])
     w0 = first.pack(np.tile(x0, (4, 1)), np.zeros((3, 2)), np.zeros(2))

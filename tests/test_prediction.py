@@ -140,7 +140,7 @@ def test_cbf_and_fcbf_get_the_same_predicted_centres(prediction):
         setup = build(config.load("braking", [f"controller.barrier={barrier}", f"controller.prediction={prediction}"]))
         worlds = _worlds_seen(setup, 16)  # the lead brakes from about t = 1 s
         accels[barrier] = [w.obstacles[0].accel for w in worlds]
-        regions[barrier], _ = setup.coordinator.planner.nearest_regions(worlds[-1].states[0], worlds[-1].obstacles)
+        regions[barrier], _, _ = setup.coordinator.planner.nearest_regions(worlds[-1].states[0], worlds[-1].obstacles)
     assert accels["cbf"] == accels["fcbf"]
     assert accels["fcbf"][0] == 0.0
     assert accels["fcbf"][-1] == pytest.approx(-6.0 if prediction == "constant_acceleration" else 0.0)

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aac_sumo.barriers import (N_STAGE_FIELDS, FcbfParams, ObstaclePrediction, RegionTrack, barrier_value, inactive_slot,
-                               safety_ellipses, stack_predictions, stage_parameters)
+from aac_sumo.barriers import (N_STAGE_FIELDS, N_TERMINAL_FIELDS, FcbfParams, ObstaclePrediction, RegionTrack, barrier_value, cbf_axes,
+                               inactive_slot, safety_ellipses, stack_predictions, stage_parameters, stopping_barrier, support)
 from aac_sumo.dynamics import heading_hold_steer
 from aac_sumo.geometry import wrap_angle
 from aac_sumo.kernels import rollouts
@@ -24,7 +24,8 @@ from aac_sumo.references import LateralBand
 from aac_sumo.world import Obstacle, RobotSpec
 
 STATUSES = ("solved", "infeasible", "failed")
-#: Relative margin kept outside a region the ego already intrudes on (see MpcPlanner.hold_intrusions).
+#: Relative margin kept outside a region the ego already intrudes on (see MpcPlanner.hold_intrusions);
+#: also the room [m] an eased terminal stopping condition leaves braking at once.
 INTRUSION_EPS = 1e-3
 #: Room [m] a lateral band always leaves the rear axle beyond its stage-1 position: a band edge
 #: exactly there leaves a standing car's solve no interior, and interior-point solvers fail on it.
@@ -51,6 +52,10 @@ class MpcConfig:
     ``prediction`` is how obstacles move over the horizon (see :mod:`aac_sumo.prediction`);
     with ``constant_acceleration`` the coordinator estimates each one's acceleration from its
     last ``prediction_window`` observed speeds.
+    ``terminal_stop`` adds the terminal stopping condition (see :meth:`MpcPlanner.stopping_parameters`):
+    braking at its strongest from the horizon's end, the ego stops short of where each obstacle
+    ahead could stop at the earliest, braking at ``obstacle_decel`` [m/s^2] from now (0: as
+    hard as the ego can).
     """
 
     horizon: int = 10
@@ -80,6 +85,8 @@ class MpcConfig:
     pedestrian_margin: float = 0.0
     prediction: str = "constant_velocity"
     prediction_window: int = 2
+    terminal_stop: bool = False
+    obstacle_decel: float = 0.0
 
     def weights(self) -> np.ndarray:
         q = np.array([self.q_pos, self.q_pos, self.q_heading, self.q_speed])
@@ -88,7 +95,8 @@ class MpcConfig:
     def shape(self, solver: str) -> ProblemShape:
         """Problem shape for ``solver``; only the fast path is compiled to C when ``codegen``."""
         codegen = self.codegen and solver == self.solver
-        return ProblemShape(self.horizon, self.slots, self.discs, solver, self.dt, self.max_iter, self.max_cpu_time, codegen, self.band)
+        return ProblemShape(self.horizon, self.slots, self.discs, solver, self.dt, self.max_iter, self.max_cpu_time, codegen, self.band,
+                            self.terminal_stop)
 
 
 @dataclass
@@ -134,28 +142,40 @@ class MpcPlanner:
         retry = config.retry_with_ipopt and config.solver != "ipopt"
         self.retry_problem = get_problem(config.shape("ipopt")) if retry else None
 
-    def nearest_regions(self, state: np.ndarray, obstacles: list[Obstacle | ObstaclePrediction | RegionTrack]) -> tuple[np.ndarray, np.ndarray]:
+    def nearest_regions(self, state: np.ndarray, obstacles: list[Obstacle | ObstaclePrediction | RegionTrack],
+                        ego_decel: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Safety ellipses (N+1, k, 5) per stage of the k <= ``slots`` obstacles nearest to
         ``state`` (by the stage-0 distance [m] from its rear axle to the ellipse's centre less the
-        larger semi-axis; ties keep the given order), and whether each is a robot's swept region (k,)."""
+        larger semi-axis; ties keep the given order), whether each is a robot's swept region (k,),
+        and each one's stopping region (k, 5): its footprint ellipse (whatever the barrier: it
+        stands there) where it stops at the earliest, braking from now at ``obstacle_decel`` (or
+        ``ego_decel`` [m/s^2] when that is 0), grown like the stages for a walker; NaN for swept
+        regions (committed courses stop by themselves)."""
         cfg = self.config
         swept = np.array([isinstance(o, RegionTrack) for o in obstacles], dtype=bool)
         ellipses = np.empty((len(obstacles), cfg.horizon + 1, 5))
+        stops = np.full((len(obstacles), 5), np.nan)
         if swept.any():
             ellipses[swept] = [o.ellipses[: cfg.horizon + 1] for o in obstacles if isinstance(o, RegionTrack)]
         if not swept.all():
-            preds = [o if isinstance(o, ObstaclePrediction) else predict_obstacle(o, cfg.horizon, cfg.dt, cfg.prediction)
-                     for o in obstacles if not isinstance(o, RegionTrack)]
-            ellipses[~swept] = safety_ellipses(stack_predictions(preds), cfg.barrier, cfg.fcbf)
+            preds = stack_predictions([o if isinstance(o, ObstaclePrediction) else predict_obstacle(o, cfg.horizon, cfg.dt, cfg.prediction)
+                                       for o in obstacles if not isinstance(o, RegionTrack)])
+            ellipses[~swept] = safety_ellipses(preds, cfg.barrier, cfg.fcbf)
+            velocity = preds.velocities[:, 0]
+            decel = cfg.obstacle_decel or ego_decel
+            stops[~swept, :2] = preds.centres[:, 0] + velocity * np.hypot(*velocity.T)[:, None] / (2.0 * decel)
+            stops[~swept, 2:] = np.column_stack(cbf_axes(preds.length[:, 0], preds.width[:, 0], preds.headings[:, 0]))
         if cfg.pedestrian_reach > 0.0 or cfg.pedestrian_margin > 0.0:
             walker = np.array([isinstance(o, Obstacle) and o.kind == "pedestrian" for o in obstacles], dtype=bool)
-            ellipses[walker, :, 2:4] += cfg.pedestrian_margin + cfg.pedestrian_reach * cfg.dt * np.arange(cfg.horizon + 1)[:, None]
+            growth = cfg.pedestrian_margin + cfg.pedestrian_reach * cfg.dt * np.arange(cfg.horizon + 1)
+            ellipses[walker, :, 2:4] += growth[:, None]
+            stops[walker, 2:4] += growth[-1]
         if len(obstacles) > cfg.slots:
             now = ellipses[:, 0]
             gaps = np.hypot(now[:, 0] - state[0], now[:, 1] - state[1]) - np.maximum(now[:, 2], now[:, 3])
             nearest = np.argsort(gaps, kind="stable")[: cfg.slots]
-            ellipses, swept = ellipses[nearest], swept[nearest]
-        return ellipses.transpose(1, 0, 2), swept
+            ellipses, swept, stops = ellipses[nearest], swept[nearest], stops[nearest]
+        return ellipses.transpose(1, 0, 2), swept, stops
 
     def slot_parameters(self, robot: RobotSpec, state: np.ndarray, regions: np.ndarray, d) -> np.ndarray:
         """Stage parameters (..., N+1, slots, 7) of ``regions`` (N+1, k, 5), k <= slots, grown for
@@ -173,21 +193,73 @@ class MpcPlanner:
         """Stage parameters (N+1, slots, 7) of the nearest obstacles around ``state``, each
         region grown by the ego's disc radius plus ``d_safe``."""
         _, radius = ego_discs(robot, self.config.discs)
-        regions, _ = self.nearest_regions(state, obstacles)
+        regions, _, _ = self.nearest_regions(state, obstacles)
         return self.slot_parameters(robot, state, regions, radius + self.config.d_safe)
 
     def barrier_parameters(self, robot: RobotSpec, state: np.ndarray, u_prev: np.ndarray,
-                           obstacles: list[Obstacle | ObstaclePrediction | RegionTrack]) -> np.ndarray:
+                           obstacles: list[Obstacle | ObstaclePrediction | RegionTrack]) -> tuple[np.ndarray, np.ndarray]:
         """The MPC's obstacle parameters (N+1, slots, 7): the nearest regions, grown for the ego's
-        discs, with intrusions held (see :meth:`hold_intrusions`)."""
+        discs, with intrusions held (see :meth:`hold_intrusions`); and the terminal stopping
+        parameters (slots, 7) of the same slots (see :meth:`stopping_parameters`)."""
         _, radius = ego_discs(robot, self.config.discs)
-        regions, swept = self.nearest_regions(state, obstacles)
+        decel = abs(robot.model.limits.a_min)
+        regions, swept, stops = self.nearest_regions(state, obstacles, decel)
         # floor: contact, grown by the disc alone
         params, floor = self.slot_parameters(robot, state, regions, radius + np.array([self.config.d_safe, 0.0]))
         swept = np.flatnonzero(swept)  # a robot's swept region already contains its footprint with room to spare
         floor[:, swept, 4:6] = regions[:, swept, 2:4] ** -2.0
         room = np.minimum(floor[:, :, 4] / params[:, :, 4], floor[:, :, 5] / params[:, :, 5]).min(axis=0)
-        return self.hold_intrusions(self.drop_out_of_reach(params, robot, state), robot, state, u_prev, room)
+        params = self.hold_intrusions(self.drop_out_of_reach(params, robot, state), robot, state, u_prev, room)
+        return params, self.stopping_parameters(robot, state, regions[0], stops, radius + self.config.d_safe, decel)
+
+    def stopping_parameters(self, robot: RobotSpec, state: np.ndarray, now: np.ndarray, stops: np.ndarray, d: float,
+                            decel: float) -> np.ndarray:
+        """Terminal stopping parameters (slots, ``N_TERMINAL_FIELDS``) of the slots whose regions
+        are ``now`` (k, 5) at stage 0 and ``stops`` (k, 5) where they could stop, grown for ego
+        clearance ``d`` [m].
+
+        With ``terminal_stop``, a slot's condition is on when its obstacle's centre lies ahead of
+        the ego's (in its direction of travel) and it is no swept region: braking at ``decel``
+        [m/s^2] from stage N, the ego's discs stop short of the region where that obstacle would
+        stop if it braked at once. This is the stopping-distance rule of car following (the
+        leader may brake at any moment, the follower after the horizon); a short horizon's barrier
+        alone lets the ego close in until it cannot stop. A region across the ego's line of travel
+        (now) is kept ahead of the stopping point along that line (``along``); the stopping point
+        could otherwise jump past it. Where even braking now (the Euler model's rollout at
+        ``decel``, then its stopping distance) breaks a condition, the condition is eased to what
+        braking now achieves (``give``; a region shrinks as in :meth:`hold_intrusions`), so
+        braking now always satisfies it."""
+        cfg = self.config
+        params = np.zeros((cfg.slots, N_TERMINAL_FIELDS))
+        params[:, :N_STAGE_FIELDS] = inactive_slot(0)[0]
+        if not cfg.terminal_stop:
+            return params
+        offsets, _ = ego_discs(robot, cfg.discs)
+        x, y, heading, v = state
+        unit = np.array([np.cos(heading), np.sin(heading)])
+        forward = unit * (-1.0 if v < 0 else 1.0)
+        centre = state[:2] + robot.centre_offset * unit
+        ahead = np.flatnonzero(~np.isnan(stops[:, 0]) & ((now[:, :2] - centre) @ forward > 0.0))
+        if ahead.size == 0:
+            return params
+        region = stage_parameters(stops[ahead], d, centre)
+        params[ahead, :N_STAGE_FIELDS] = region
+        normal = np.array([-forward[1], forward[0]])
+        across = np.abs((region[:, :2] - centre) @ normal)
+        params[ahead, 7] = across < support(region, normal)
+        # braking now: the discs at stage N and their stopping distance
+        speeds = np.maximum(abs(v) - decel * cfg.dt * np.arange(cfg.horizon + 1), 0.0)
+        discs = state[:2] + (np.sign(v) * cfg.dt * speeds[:-1].sum() + offsets)[:, None] * unit  # (D, 2)
+        stop = np.sign(v) * (speeds[-1] + 0.5 * decel * cfg.dt) ** 2 / (2.0 * decel)
+        fields = params[None, ahead, :6].transpose(2, 0, 1)
+        along = params[ahead, 7]
+        end = 1.0 + stopping_barrier(discs[:, None, 0], discs[:, None, 1], *unit, stop, *fields, 0.0, 0.0)
+        short = stopping_barrier(discs[:, None, 0], discs[:, None, 1], *unit, stop, *fields, 1.0, 0.0)
+        factor = np.where(along > 0, 1.0, (1.0 + INTRUSION_EPS) / np.maximum(end.min(axis=0), 1e-9))
+        params[ahead, 4:6] *= np.maximum(factor, 1.0)[:, None]
+        lacking = -short.min(axis=0)
+        params[ahead, 8] = np.where((along > 0) & (lacking > 0.0), lacking + INTRUSION_EPS, 0.0)
+        return params
 
     def drop_out_of_reach(self, params: np.ndarray, robot: RobotSpec, state: np.ndarray) -> np.ndarray:
         """Switch off the barrier conditions of a stage k >= 1 whose region lies farther from the
@@ -303,13 +375,16 @@ class MpcPlanner:
             weights[np.flatnonzero(free)] = 0.0
             weights[8 + np.flatnonzero(free)] = 0.0
         offsets, _ = ego_discs(robot, cfg.discs)
+        barriers, terminal = self.barrier_parameters(robot, state, u_prev, obstacles)
         params = dict(
             wheelbase=robot.model.wheelbase,
             gamma=cfg.gamma,
             disc_offsets=offsets,
             weights=weights,
             x_ref=reference,
-            obstacles=self.barrier_parameters(robot, state, u_prev, obstacles),
+            obstacles=barriers,
+            terminal=terminal if cfg.terminal_stop else np.zeros(0),
+            stop_decel=abs(lim.a_min) if cfg.terminal_stop else np.zeros(0),
             band=self.band_rows(robot, corridor, reference, state) if cfg.band else np.zeros(0),
             limits=np.minimum([lim.a_lat_max, lim.steer_rate_max * cfg.dt], NO_LIMIT),
         )

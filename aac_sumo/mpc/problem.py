@@ -9,7 +9,14 @@ lose its cross terms (the solver then crawled to its iteration cap). The measure
 and the previous input pin ``Z0`` through the variable bounds. Everything else that changes between
 solves (reference, weights, wheelbase,
 gamma, ego disc offsets, obstacle ellipses per stage, the lateral band of the rear axle per
-stage, the vehicle's lateral-acceleration and steering-rate limits) is a parameter.
+stage, the vehicle's lateral-acceleration and steering-rate limits, the terminal stopping
+regions and the ego's braking for them) is a parameter.
+
+The terminal stopping condition: from its stage-N state the ego brakes at ``stop_decel`` = b along
+its heading, which takes at most ``(v + b dt / 2)^2 / (2 b)`` metres in the explicit Euler model
+(for v >= 0; the bound is attained where ``v / (b dt) + 1/2`` is a whole number). Each covering
+disc must stop short of every slot's terminal region, the region an obstacle occupies where it
+could stop at the earliest (see :func:`~aac_sumo.barriers.stopping_barrier`).
 """
 
 from __future__ import annotations
@@ -26,7 +33,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from aac_sumo.barriers import N_STAGE_FIELDS, barrier_value
+from aac_sumo.barriers import N_STAGE_FIELDS, N_TERMINAL_FIELDS, barrier_value, stopping_barrier
 from aac_sumo.dynamics import NU, NX, bicycle_step
 
 SOLVERS = ("fatrop", "sqp", "ipopt")
@@ -47,6 +54,7 @@ class ProblemShape:
     max_cpu_time: float = 1.0
     codegen: bool = False
     band: bool = False  # with the lateral band rows (two inequalities per stage)
+    terminal: bool = False  # with the terminal stopping rows (one per slot and disc)
 
 
 @dataclass
@@ -74,6 +82,8 @@ N_LIMITS = 2
 LIMIT_ROWS = 4
 #: What stands for "no limit" in those parameters (the solvers want finite constraint values).
 NO_LIMIT = 1e6
+#: Smoothing [m^2/s^2] of |v| in the terminal stopping distance ``v (sqrt(v^2 + eps) / (2 b) + dt / 2) + b dt^2 / 8``.
+STOP_EPS = 1e-4
 
 
 class MpcProblem:
@@ -98,6 +108,8 @@ class MpcProblem:
             "obstacles": (n + 1) * slots * N_STAGE_FIELDS,
             "band": n * BAND_FIELDS if shape.band else 0,
             "limits": N_LIMITS,
+            "terminal": slots * N_TERMINAL_FIELDS if shape.terminal else 0,
+            "stop_decel": 1 if shape.terminal else 0,
         }
         self.equality = constraint_kinds(shape)
         self.n_g = len(self.equality)
@@ -162,6 +174,21 @@ class MpcProblem:
             g += [lateral - turn, lateral + turn, rate - du[1], rate + du[1]]
         err = xs[n] - x_ref[:, n]
         cost += ca.dot(pw, err**2)
+        if shape.terminal:
+            # terminal stopping condition: braking at stop_decel from stage N, each disc stops short of
+            # each slot's terminal region (where that obstacle could stop at the earliest)
+            terminal = ca.reshape(par["terminal"], N_TERMINAL_FIELDS, slots)
+            v_n = xs[n][3]
+            speed_n = ca.sqrt(v_n**2 + STOP_EPS)
+            stop = v_n * (0.5 * speed_n / par["stop_decel"] + 0.5 * shape.dt) + par["stop_decel"] * shape.dt**2 / 8
+            ux, uy = ca.cos(xs[n][2]), ca.sin(xs[n][2])
+            for slot in range(slots):
+                ob = terminal[:, slot]
+                for disc in range(discs):
+                    offset = par["disc_offsets"][disc]
+                    h = stopping_barrier(xs[n][0] + offset * ux, xs[n][1] + offset * uy, ux, uy, stop,
+                                         *(ob[i] for i in range(6)), ob[7], ob[8], xp=ca)
+                    g.append(ob[6] * h + (1 - ob[6]))
         g = ca.cse(ca.vertcat(*g))
         assert g.shape[0] == self.n_g, "constraints out of step with constraint_kinds"
         return w, p, cost, g
@@ -277,9 +304,10 @@ def cache_dir() -> Path:
 def constraint_kinds(shape: ProblemShape) -> list[bool]:
     """Whether each constraint row is an equality, stage by stage: the NZ dynamics rows, then
     one barrier condition per slot and ego disc, then the two lateral-band rows if any, then
-    the ``LIMIT_ROWS`` vehicle-limit rows."""
+    the ``LIMIT_ROWS`` vehicle-limit rows; after the last stage, if the shape has them, one
+    terminal stopping condition per slot and ego disc."""
     stage = [True] * NZ + [False] * (shape.slots * shape.discs) + ([False, False] if shape.band else []) + [False] * LIMIT_ROWS
-    return stage * shape.horizon
+    return stage * shape.horizon + [False] * (shape.slots * shape.discs if shape.terminal else 0)
 
 
 #: The modules whose code defines the symbolic problem: a compiled library is reused only while
