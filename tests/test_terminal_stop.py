@@ -51,9 +51,10 @@ def plan_towards_standing_obstacle(terminal_stop: bool, obstacle_x: float, speed
 def test_a_plan_stops_short_of_a_standing_obstacle_beyond_its_horizon(obstacle_x):
     """At 10 m/s a 0.5 s horizon ends 5 m ahead, far from a cone 12 or 16 m ahead, so the barrier
     alone lets the car cruise on; with the condition the plan's end can still stop short of
-    the cone's region (semi-axis 0.5 m grown by the disc radius and d_safe: exact along the axis)."""
+    the cone's region (semi-axis 0.5 m grown by the disc radius, d_safe and the settling margin
+    b dt^2 / (2 gamma^2): exact along the axis)."""
     offset, radius = ego_discs(ROBOT, 1)
-    limit = obstacle_x - 0.5 - (radius + MpcConfig().d_safe)
+    limit = obstacle_x - 0.5 - (radius + MpcConfig().d_safe + DECEL * DT**2 / (2 * MpcConfig().gamma ** 2))
     stops = {}
     for on in (False, True):
         planner, plan = plan_towards_standing_obstacle(on, obstacle_x)
