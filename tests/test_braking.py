@@ -1,4 +1,7 @@
-"""Emergency braking (S3): seeded closed-loop runs and the simulator's own collision check."""
+"""Emergency braking (S3): seeded closed-loop runs and the simulator's own collision check.
+
+The scenario keeps the terminal stopping condition (``controller.terminal_stop``); the runs marked
+PAPER switch it off to specify the paper's formulation."""
 
 import numpy as np
 import pytest
@@ -32,21 +35,34 @@ def test_fcbf_with_the_default_prediction_never_fails_a_solve(speed):
     assert m["collisions"] == 0 and m["min_clearance_m"] > 0
 
 
+PAPER = "controller.terminal_stop=false"
+
+
 def test_fcbf_keeps_more_distance_than_cbf_at_15_mps():
-    """Where CBF runs into the braking lead, F-CBF keeps its distance and a larger mean TTC."""
-    fcbf = runner.run(config.load("braking", ["braking.speed=15", "controller.barrier=fcbf"])).metrics
-    cbf = runner.run(config.load("braking", ["braking.speed=15", "controller.barrier=cbf"])).metrics
+    """PAPER: where CBF runs into the braking lead, F-CBF keeps its distance and a larger mean TTC."""
+    fcbf = runner.run(config.load("braking", ["braking.speed=15", "controller.barrier=fcbf", PAPER])).metrics
+    cbf = runner.run(config.load("braking", ["braking.speed=15", "controller.barrier=cbf", PAPER])).metrics
     assert cbf["collisions"] == 1 and fcbf["collisions"] == 0
     assert fcbf["min_distance_m"] > cbf["min_distance_m"] and fcbf["ttc_mean_s"] > cbf["ttc_mean_s"]
 
 
 def test_both_barriers_stop_at_the_same_standstill_region_at_10_mps():
-    """Neither barrier fails at 10 m/s; the lead then stands, both regions are its footprint
+    """PAPER: neither barrier fails at 10 m/s; the lead then stands, both regions are its footprint
     ellipse, and both egos stop at its edge (docs/braking.md: within millimetres)."""
-    fcbf = runner.run(config.load("braking", ["braking.speed=10", "controller.barrier=fcbf"])).metrics
-    cbf = runner.run(config.load("braking", ["braking.speed=10", "controller.barrier=cbf"])).metrics
+    fcbf = runner.run(config.load("braking", ["braking.speed=10", "controller.barrier=fcbf", PAPER])).metrics
+    cbf = runner.run(config.load("braking", ["braking.speed=10", "controller.barrier=cbf", PAPER])).metrics
     assert fcbf["infeasible_solves"] == cbf["infeasible_solves"] == 0
     assert fcbf["min_distance_m"] == pytest.approx(cbf["min_distance_m"], abs=0.01)
+
+
+@pytest.mark.parametrize("speed", [15, pytest.param(25, marks=pytest.mark.slow)])
+def test_with_the_terminal_condition_neither_barrier_fails_or_collides(speed):
+    """The scenario's own MPC: CBF, where the paper's runs into the lead from 15 m/s, stops behind
+    it as F-CBF does, and neither fails a solve."""
+    for barrier in ("cbf", "fcbf"):
+        m = runner.run(config.load("braking", [f"braking.speed={speed}", f"controller.barrier={barrier}"])).metrics
+        assert m["collisions"] == 0 and m["min_clearance_m"] > 0.3
+        assert m["infeasible_solves"] == 0
 
 
 def test_simulator_counts_collisions_without_the_controller():
