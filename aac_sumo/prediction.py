@@ -62,6 +62,30 @@ def predict_obstacle(obstacle: Obstacle, horizon: int, dt: float, model: str = "
     return predict_constant_velocity(obstacle.centre, obstacle.velocity, obstacle.heading, obstacle.length, obstacle.width, horizon, dt)
 
 
+def stage_zero(obstacles: list[Obstacle], horizon: int, dt: float, model: str = "constant_velocity") -> ObstaclePrediction:
+    """Stage 0 of :func:`predict_obstacle` for a batch of M obstacles at once, bit for bit:
+    centres (M, 1, 2), velocities (M, 1, 2), headings (M, 1), length and width (M, 1). Cheap,
+    for ranking obstacles before predicting the few that count."""
+    centres = np.array([o.centre for o in obstacles], dtype=float).reshape(-1, 2)
+    velocity = np.array([o.velocity for o in obstacles], dtype=float).reshape(-1, 2)
+    headings = np.array([o.heading for o in obstacles], dtype=float)
+    given = np.array([o.predicted is not None and len(o.predicted) >= horizon + 1 for o in obstacles], dtype=bool)
+    if model == "constant_acceleration":
+        speed = np.hypot(velocity[:, 0], velocity[:, 1])
+        moving = speed > 0.0
+        direction = np.column_stack([np.cos(headings), np.sin(headings)])
+        direction[moving] = velocity[moving] / speed[moving, None]
+        velocity = speed[:, None] * direction
+    elif model != "constant_velocity":
+        raise ValueError(f"unknown prediction {model!r}; expected one of {PREDICTIONS}")
+    for i in np.flatnonzero(given):  # given centres: their first difference (the whole prediction's row 0)
+        pred = predict_obstacle(obstacles[i], horizon, dt, model)
+        centres[i], velocity[i] = pred.centres[0], pred.velocities[0]
+    return ObstaclePrediction(centres[:, None], velocity[:, None], headings[:, None],
+                              np.array([[o.length] for o in obstacles], dtype=float).reshape(-1, 1),
+                              np.array([[o.width] for o in obstacles], dtype=float).reshape(-1, 1))
+
+
 def speed_slope(times, speeds) -> float:
     """Least-squares slope [m/s^2] of ``speeds`` [m/s] over ``times`` [s]; 0 with fewer than two."""
     times, speeds = np.asarray(times, dtype=float), np.asarray(speeds, dtype=float)

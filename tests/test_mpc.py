@@ -124,6 +124,36 @@ def test_nearest_obstacles_fill_the_slots():
     assert np.all(one[:, 0, 6] == 1.0) and np.all(one[:, 1, 6] == 0.0)
 
 
+obstacle_strategy = st.builds(
+    lambda kind, x, y, vx, vy, heading, accel, length: Obstacle(f"{kind}{x}", kind, np.array([x, y]), np.array([vx, vy]), heading,
+                                                                length, 0.6 * length, accel=accel),
+    st.sampled_from(["vehicle", "pedestrian", "cone"]), st.floats(-30, 30), st.floats(-30, 30), st.floats(-12, 12),
+    st.floats(-12, 12), st.floats(-np.pi, np.pi), st.floats(-6, 2), st.floats(0.3, 5.0))
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(obstacle_strategy, min_size=0, max_size=14), st.sampled_from(["cbf", "fcbf"]),
+       st.sampled_from(["constant_velocity", "constant_acceleration"]), st.floats(0.0, 1.5), st.floats(0.0, 1.0))
+def test_nearest_regions_equal_a_full_scan(obstacles, barrier, prediction, margin, reach):
+    """Ranking on stage 0 alone and predicting only the nearest gives, bit for bit, the regions of
+    predicting every obstacle, growing the walkers' and keeping the ``slots`` nearest."""
+    cfg = MpcConfig(horizon=HORIZON, dt=DT, barrier=barrier, slots=4, prediction=prediction, pedestrian_margin=margin,
+                    pedestrian_reach=reach)
+    pl = MpcPlanner.__new__(MpcPlanner)  # the ranking needs no compiled problem
+    pl.config = cfg
+    state = np.array([0.5, -1.0, 0.3, 4.0])
+    got, _, _ = pl.nearest_regions(state, obstacles)
+    if not obstacles:
+        assert got.shape[1] == 0
+        return
+    full = np.stack([safety_ellipses(predict_obstacle(o, HORIZON, DT, prediction), barrier, cfg.fcbf) for o in obstacles])
+    walker = np.array([o.kind == "pedestrian" for o in obstacles])
+    full[walker, :, 2:4] += margin + reach * DT * np.arange(HORIZON + 1)[:, None]
+    gaps = np.hypot(full[:, 0, 0] - state[0], full[:, 0, 1] - state[1]) - np.maximum(full[:, 0, 2], full[:, 0, 3])
+    keep = np.argsort(gaps, kind="stable")[: cfg.slots] if len(obstacles) > cfg.slots else np.arange(len(obstacles))
+    np.testing.assert_array_equal(got, full[keep].transpose(1, 0, 2))
+
+
 def test_plan_shifted_warm_start():
     states = np.arange(3 * 4, dtype=float).reshape(3, 4)
     inputs = np.arange(2 * 2, dtype=float).reshape(2, 2) + 100

@@ -19,7 +19,7 @@ from aac_sumo.dynamics import heading_hold_steer
 from aac_sumo.geometry import wrap_angle
 from aac_sumo.kernels import rollouts
 from aac_sumo.mpc.problem import NO_LIMIT, OPEN_BAND, ProblemShape, get_problem
-from aac_sumo.prediction import predict_obstacle
+from aac_sumo.prediction import predict_obstacle, stage_zero
 from aac_sumo.references import LateralBand
 from aac_sumo.world import Obstacle, RobotSpec
 
@@ -152,6 +152,8 @@ class MpcPlanner:
         ``ego_decel`` [m/s^2] when that is 0), grown like the stages for a walker; NaN for swept
         regions (committed courses stop by themselves)."""
         cfg = self.config
+        if len(obstacles) > cfg.slots:
+            obstacles = [obstacles[i] for i in self.nearest(state, obstacles)]
         swept = np.array([isinstance(o, RegionTrack) for o in obstacles], dtype=bool)
         ellipses = np.empty((len(obstacles), cfg.horizon + 1, 5))
         stops = np.full((len(obstacles), 5), np.nan)
@@ -170,12 +172,28 @@ class MpcPlanner:
             growth = cfg.pedestrian_margin + cfg.pedestrian_reach * cfg.dt * np.arange(cfg.horizon + 1)
             ellipses[walker, :, 2:4] += growth[:, None]
             stops[walker, 2:4] += growth[-1]
-        if len(obstacles) > cfg.slots:
-            now = ellipses[:, 0]
-            gaps = np.hypot(now[:, 0] - state[0], now[:, 1] - state[1]) - np.maximum(now[:, 2], now[:, 3])
-            nearest = np.argsort(gaps, kind="stable")[: cfg.slots]
-            ellipses, swept, stops = ellipses[nearest], swept[nearest], stops[nearest]
         return ellipses.transpose(1, 0, 2), swept, stops
+
+    def nearest(self, state: np.ndarray, obstacles: list[Obstacle | ObstaclePrediction | RegionTrack]) -> np.ndarray:
+        """Indices of the ``slots`` obstacles nearest to ``state``, nearest first: by the distance
+        [m] from its rear axle to the centre of each one's stage-0 safety ellipse less its larger
+        semi-axis (ties keep the given order). Only stage 0 is predicted, in one batch."""
+        cfg = self.config
+        now = np.empty((len(obstacles), 5))
+        kinds = np.array([0 if isinstance(o, RegionTrack) else 1 if isinstance(o, ObstaclePrediction) else 2 for o in obstacles])
+        for i in np.flatnonzero(kinds == 0):
+            now[i] = obstacles[i].ellipses[0]
+        for i in np.flatnonzero(kinds == 1):
+            p = obstacles[i]
+            now[i] = safety_ellipses(ObstaclePrediction(p.centres[:1], p.velocities[:1], p.headings[:1], p.length, p.width), cfg.barrier, cfg.fcbf)[0]
+        plain = np.flatnonzero(kinds == 2)
+        if plain.size:
+            now[plain] = safety_ellipses(stage_zero([obstacles[i] for i in plain], cfg.horizon, cfg.dt, cfg.prediction), cfg.barrier, cfg.fcbf)[:, 0]
+            if cfg.pedestrian_reach > 0.0 or cfg.pedestrian_margin > 0.0:
+                walker = plain[[obstacles[i].kind == "pedestrian" for i in plain]]
+                now[walker, 2:4] += cfg.pedestrian_margin
+        gaps = np.hypot(now[:, 0] - state[0], now[:, 1] - state[1]) - np.maximum(now[:, 2], now[:, 3])
+        return np.argsort(gaps, kind="stable")[: cfg.slots]
 
     def slot_parameters(self, robot: RobotSpec, state: np.ndarray, regions: np.ndarray, d) -> np.ndarray:
         """Stage parameters (..., N+1, slots, 7) of ``regions`` (N+1, k, 5), k <= slots, grown for
