@@ -468,6 +468,9 @@ class AacCoordinator(Coordinator):
         extended = 0
         movers = [o for o in world.obstacles if o.kind not in ("static", "cone")]
         reach = reach_radii(self.fleet, world.states, cfg.horizon, cfg.dt, self.tail_decel()) if movers else None
+        mover_centres = np.array([o.centre for o in movers]).reshape(-1, 2)
+        mover_extent = np.array([0.5 * np.hypot(o.length, o.width) + cfg.pedestrian_margin for o in movers])
+        mover_speed = np.array([cfg.pedestrian_reach + np.hypot(*o.velocity) for o in movers])
         centres = world.robot_centres()
         for j in range(len(world.robots)):
             c = book.items[j]
@@ -475,14 +478,12 @@ class AacCoordinator(Coordinator):
                 continue
             if self.room is not None and j in self.room.targets:
                 continue  # making room: it moves aside on its turns, not back onto its path
-            if np.isnan(self.tasks[j].horizon(world.states[j], 0, cfg.dt)[0, 2]):
-                continue  # approaching its goal off its path: a manoeuvre for its MPC, not for the forward-only law
-            if movers and any(np.hypot(*(o.centre - centres[j])) < reach[j] + 0.5 * np.hypot(o.length, o.width)
-                              + cfg.pedestrian_margin + (cfg.pedestrian_reach + np.hypot(*o.velocity)) * len(c.inputs) * cfg.dt
-                              for o in movers):
-                continue  # an uncontrolled agent (walker, scripted or SUMO-driven car) may meet it: only the MPC drives it on
             if c.stage(period) == "plan" and c.start + c.planned - period > 1:
                 continue
+            if np.isnan(self.tasks[j].horizon(world.states[j], 0, cfg.dt)[0, 2]):
+                continue  # approaching its goal off its path: a manoeuvre for its MPC, not for the forward-only law
+            if movers and np.any(np.hypot(*(mover_centres - centres[j]).T) < reach[j] + mover_extent + mover_speed * len(c.inputs) * cfg.dt):
+                continue  # an uncontrolled agent (walker, scripted or SUMO-driven car) may meet it: only the MPC drives it on
             head = self.tracking_inputs(world, j, cfg.horizon)
             candidate = self.commitment(world, j, period, head)
             if book.clearance(j, candidate, period, statics) >= book.margin:
