@@ -145,6 +145,11 @@ class Coordinator(ABC):
         self.last_inputs[i] = 0.0
         self.held[i] = {}
 
+    def retask(self, i: int) -> None:
+        """Robot ``i``'s task has changed ahead of it (a lane change put off, say): it drops its
+        stored plan, made for the old task, and follows the new one from its next input on."""
+        self.plans[i] = None
+
     def reference(self, world: WorldState, i: int) -> np.ndarray:
         """Robot ``i``'s reference over the horizon (N+1, 4): its task's, with speeds that
         anticipate what lies ahead on its path when ``anticipation`` is set."""
