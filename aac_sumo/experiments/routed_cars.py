@@ -26,15 +26,16 @@ With ``lane_change.gap_acceptance`` a change begins only into a safe gap
 plan or tracking law of the car has used it yet). Without one the car keeps its lane: the change
 moves ahead (``POSTPONE_STEP`` beyond the preview), and the car slows to
 ``lane_change.gap_speed`` of its cruise speed until it has changed, so that the traffic beside it
-moves on. What holds it up may be a controlled car behind it (or beside it, a little behind)
-in the target lane: the car then keeps its speed and that one lets it in, slowing to ``gap_speed``
+moves on. What holds it up may be a controlled car behind it (or beside it, a little behind) in
+the target lane: the car then keeps its speed and that one lets it in, slowing to ``gap_speed``
 for ``COURTESY`` metres or until the car has begun its change (as a driver who opens a gap; two
-controlled cars that wait for each other's place do not ride side by side for good). Out of a closed lane it also slows to stand at the latest begin (braking at
-``CURVE_DECEL``) and waits there for a gap. A change under way turns back to the lane it left
-when its gap is no longer safe without the time gaps, while it has not reached its new lane and
-there is room to try again before its latest begin. An exit change that reaches its latest
-begin without a safe gap is given up, the last resort: the car finishes in the lane it is in
-(counted as ``exits_missed``).
+controlled cars that wait for each other's place do not ride side by side for good). Out of a
+closed lane a car without a gap also slows to stand the tracking law's look-ahead before its
+latest begin (braking at ``CURVE_DECEL``) and waits there for one. A change under way turns back
+to the lane it left when its gap is no longer safe without the time gaps, while it has not
+reached its new lane and there is room to try again before its latest begin. An exit change that
+reaches its latest begin without a safe gap is given up, the last resort: the car finishes in
+the lane it is in (counted as ``exits_missed``).
 
 Its reference is its path: each change a quintic smoothstep from one smoothed lane line onto the
 next. Its lateral band is the lane it is in, opening onto the next lane ``BAND_SETTLE`` metres
@@ -363,11 +364,12 @@ class RoutedCars:
         self.coordinator.admit(world, k)
 
     def rebuild(self, k: int) -> None:
-        """Car ``k``'s reference, band and finish line from its lane plan: while it waits for a
-        gap (and slows), or lets another car in, its speed is capped at ``gap_speed`` of the cruise
-        speed until its next change has ended (up to its ``courtesy`` arc length) and, out of a closed lane and without an accepted gap, by standing ``lookahead``
-        before the change's latest begin (or its begin, when it has moved beyond; braking at
-        ``CURVE_DECEL``)."""
+        """Car ``k``'s reference, band and finish line from its lane plan. While it waits for a
+        gap (and slows), its speed is capped at ``gap_speed`` of the cruise speed until its next
+        change has ended, and out of a closed lane without an accepted gap also by standing
+        ``lookahead`` before the change's latest begin (or its begin, once that has moved
+        beyond; braking at ``CURVE_DECEL``); while it lets a car in, at ``gap_speed`` up to its
+        ``courtesy`` arc length."""
         lc, p = self.lc, self.plans[k]
         changes = p.done + p.ahead
         points, s = planned_path(p.road, p.start, p.s0, changes)
