@@ -113,6 +113,9 @@ COMMON: dict[str, dict[str, Key]] = {
         "anticipate": Key(bool, False, "reference speeds that slow a robot in its lane, early and gently, for what lies ahead on its path "
                           "(cars, walkers near it), and lanes kept near walkers (docs/lane_change.md)"),
         "anticipate_decel": Key(float, 1.5, "comfortable deceleration of the anticipated reference speed [m/s^2]", **P),
+        "anticipate_brake": Key(float, 0.0, "towards a stop it sees too late for anticipate_decel (a walker stepping towards its "
+                                "path), the anticipated reference brakes as hard as it needs up to this, at most robot.a_comfort "
+                                "(0: never harder than anticipate_decel) [m/s^2]", **NN),
         "anticipate_accel": Key(float, 1.5, "comfortable acceleration of the anticipated reference speed [m/s^2]", **P),
         "anticipate_gap": Key(float, 2.0, "standstill gap kept behind what lies ahead [m]", **NN),
         "anticipate_time_gap": Key(float, 1.0, "time gap kept behind a moving leader [s]", **NN),

@@ -143,7 +143,7 @@ def test_the_reference_slows_for_what_stands_on_the_path_within_comfort(distance
     world, task = one_lane_world(distance)
     stops = stop_points(world, 0, task, params)
     front = CAR.centre_offset + 0.5 * CAR.length
-    np.testing.assert_allclose(stops, [[distance - 0.2 - front - params.gap, 0.0, 0.0, 0.0]])
+    np.testing.assert_allclose(stops, [[distance - 0.2 - front - params.gap, 0.0, 0.0]])
     ref = anticipated_reference(world, 0, task, 10, DT, params)
     s = ref[:, 0]
     cap = speed_cap(stops, s, params.decel)
@@ -153,14 +153,13 @@ def test_the_reference_slows_for_what_stands_on_the_path_within_comfort(distance
 
 @settings(max_examples=50, deadline=None)
 @given(distance=st.floats(8.0, 70.0))
-def test_a_walker_seen_late_is_met_braking_harder_within_comfort(distance):
-    """A walker standing on the path ``distance`` m ahead (a firm stop): the reference slows at
-    the comfortable rate when that stops the car in time; one seen closer it meets braking
-    harder (v^2 / 2 room), never beyond the car's comfort deceleration."""
-    params = Anticipation(pedestrian_margin=1.0, pedestrian_reach=0.0)
-    world, task = one_lane_world(distance, kind="pedestrian")
+def test_with_brake_a_stop_seen_late_is_met_braking_harder_within_comfort(distance):
+    """With ``brake`` = 4 m/s^2 (controller.anticipate_brake): the reference slows at the
+    comfortable rate when that stops the car in time; a cone seen closer it meets braking
+    harder (v^2 / 2 room), never beyond the car's comfort deceleration (3 m/s^2)."""
+    params = Anticipation(brake=4.0)
+    world, task = one_lane_world(distance)
     stops = stop_points(world, 0, task, params)
-    assert stops[0, 3] == 1.0
     slowing = np.diff(anticipated_reference(world, 0, task, 10, DT, params)[:, 3])
     comfort = CAR.model.limits.comfort_decel
     room = stops[0, 0] - 10.0 * DT  # from where the first stage begins (the rear axle stands at 0, at 10 m/s)
@@ -174,17 +173,17 @@ def test_a_walker_seen_late_is_met_braking_harder_within_comfort(distance):
 
 def test_a_braking_car_ahead_counts_also_where_it_will_stop():
     """A car 30 m ahead at 15 m/s braking at 4.5 m/s^2 (as SUMO's cars brake for a walker):
-    besides the time-gap row at its speed, a standing row 15^2 / 9 = 25 m further on, firm; a
-    car keeping its speed gives the first row only."""
+    besides the time-gap row at its speed, a standing row 15^2 / 9 = 25 m further on; a car
+    keeping its speed gives the first row only."""
     params = Anticipation()
     front = CAR.centre_offset + 0.5 * CAR.length
     behind = 30.0 - 2.25 - front - params.gap
     braking, task = one_lane_world(30.0, velocity=(15.0, 0.0), kind="scripted")
     braking.obstacles[0] = dataclasses.replace(braking.obstacles[0], length=4.5, accel=-4.5)
-    np.testing.assert_allclose(stop_points(braking, 0, task, params), [[behind - 15.0, 15.0, 0.0, 0.0], [behind + 25.0, 0.0, 0.0, 1.0]])
+    np.testing.assert_allclose(stop_points(braking, 0, task, params), [[behind - 15.0, 15.0, 0.0], [behind + 25.0, 0.0, 0.0]])
     steady, _ = one_lane_world(30.0, velocity=(15.0, 0.0), kind="scripted")
     steady.obstacles[0] = dataclasses.replace(steady.obstacles[0], length=4.5)
-    np.testing.assert_allclose(stop_points(steady, 0, task, params), [[behind - 15.0, 15.0, 0.0, 0.0]])
+    np.testing.assert_allclose(stop_points(steady, 0, task, params), [[behind - 15.0, 15.0, 0.0]])
 
 
 def test_a_walker_who_pauses_on_the_crossing_is_still_yielded_to_for_a_moment():

@@ -24,9 +24,9 @@ A walker that counted goes on counting for ``hold`` seconds unless it walks away
 (one who pauses on the crossing for a moment is still yielded to).
 
 The reference speed over the horizon then ramps from the robot's speed towards that cap by at
-most ``accel`` / ``decel`` [m/s^2] per second (harder, up to the robot's comfort deceleration,
-only towards a walker or a braking vehicle's stopping point that it can no longer meet at
-``decel``: one seen late), and its positions follow these speeds along the path. Within ``yield_distance`` [m] of a pedestrian a robot on a lateral band keeps within
+most ``accel`` / ``decel`` [m/s^2] per second (with ``brake``, harder, up to it and the robot's
+comfort deceleration, towards a stop it can no longer meet at ``decel``: one seen late, such as a
+walker stepping towards the path), and its positions follow these speeds along the path. Within ``yield_distance`` [m] of a pedestrian a robot on a lateral band keeps within
 ``yield_band`` [m] of its reference: it slows, it does not swerve.
 """
 
@@ -44,12 +44,14 @@ from aac_sumo.world import WorldState
 
 @dataclass(frozen=True)
 class Anticipation:
-    """Comfortable rates [m/s^2], gaps [m], time gap [s], how far ahead it looks [m], the
+    """Comfortable rates [m/s^2] (and ``brake``, towards a stop seen late: see
+    :func:`anticipated_reference`), gaps [m], time gap [s], how far ahead it looks [m], the
     lateral reach of the path [m], and the pedestrian rules (see the module; ``hold`` [s]: how
     long a walker who counted goes on counting, see :func:`stop_points`)."""
 
     decel: float = 1.5
     accel: float = 1.5
+    brake: float = 0.0
     gap: float = 2.0
     time_gap: float = 1.0
     look: float = 80.0
@@ -97,12 +99,11 @@ def agents(world: WorldState) -> tuple[np.ndarray, ...]:
 
 
 def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipation, held: dict | None = None) -> np.ndarray:
-    """Rows ``[s_stop, v_lead, grow, firm]`` (K, 4) of what robot ``i`` must stay behind on
-    ``task``'s path: the arc length [m] where its rear axle must be able to come down to the
-    speed ``v_lead`` [m/s] (>= 0) of what lies ahead, how much room [m] per m/s of the robot's
+    """Rows ``[s_stop, v_lead, grow]`` (K, 3) of what robot ``i`` must stay behind on ``task``'s
+    path: the arc length [m] where its rear axle must be able to come down to the speed
+    ``v_lead`` [m/s] (>= 0) of what lies ahead, and how much room [m] per m/s of the robot's
     speed it keeps on top (a walker's reach while the robot brakes: ``pedestrian_reach / decel``
-    [s]), and whether the stop is firm (1: a walker, or where a braking vehicle stops; a robot
-    that sees it too late for ``decel`` brakes harder rather than overshoot it; 0 otherwise). ``held`` (walker name -> the time [s] it last counted, updated here) keeps a walker
+    [s]). ``held`` (walker name -> the time [s] it last counted, updated here) keeps a walker
     counting for ``hold`` seconds after it last did, while it is still ahead on the path and not
     walking away from it: a walker who pauses on the crossing for a moment is yielded to still."""
     robot, state = world.robots[i], world.states[i]
@@ -112,7 +113,7 @@ def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipa
     others = np.flatnonzero(index != i)
     _, centres, headings, lengths, widths, velocity, walker, accel = (a[others] for a in agents(world))
     if len(centres) == 0:
-        return np.zeros((0, 4))
+        return np.zeros((0, 3))
     # what lies farther from the robot than its path's look-ahead plus the most the agent could
     # reach across cannot count (below), and is not projected at all
     speed = np.hypot(velocity[:, 0], velocity[:, 1])
@@ -127,7 +128,7 @@ def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipa
     near = np.zeros(len(centres), dtype=bool)
     near[candidate[near_c]] = True
     if not near.any():
-        return np.zeros((0, 4))
+        return np.zeros((0, 3))
     s, off, ahead = s[near_c], off[near_c], ahead[near_c]
     c, vel, walker = centres[near], velocity[near], walker[near]
     poses = task.pose_at(s)
@@ -157,15 +158,15 @@ def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipa
     keep = np.where(walker, params.pedestrian_margin, 0.0)
     grow = np.where(walker, params.pedestrian_reach / params.decel, 0.0)
     behind_it = s - _along_extent(lengths[near], widths[near], rel) - front - params.gap
-    rows = np.column_stack([behind_it - keep - params.time_gap * lead, lead, grow, walker])[counts]
+    rows = np.column_stack([behind_it - keep - params.time_gap * lead, lead, grow])[counts]
     braking = counts & ~walker & (accel[near] < 0.0) & (lead > 0.0)  # a vehicle braking: also where it stops at its rate
     stopped_at = behind_it[braking] + lead[braking] ** 2 / (-2.0 * accel[near][braking])
-    return np.vstack([rows, np.column_stack([stopped_at, np.zeros((len(stopped_at), 2)), np.ones(len(stopped_at))])])
+    return np.vstack([rows, np.column_stack([stopped_at, np.zeros((len(stopped_at), 2))])])
 
 
 def speed_cap(stops: np.ndarray, s, decel: float) -> np.ndarray:
     """The highest speed ``v`` [m/s] at arc lengths ``s`` from which braking at ``decel``
-    [m/s^2] reaches every stop row ``[s_stop, v_lead, grow, firm]`` at its speed with ``grow * v``
+    [m/s^2] reaches every stop row ``[s_stop, v_lead, grow]`` at its speed with ``grow * v``
     [m] to spare: ``(v^2 - v_lead^2) / (2 decel) + grow v <= s_stop - s``; inf without any."""
     s = np.atleast_1d(np.asarray(s, dtype=float))
     if len(stops) == 0:
@@ -179,14 +180,15 @@ def anticipated_reference(world: WorldState, i: int, task: PathReference, steps:
                           held: dict | None = None) -> np.ndarray:
     """Robot ``i``'s reference (steps+1, 4) along ``task``'s path: its speeds start at the
     robot's speed and change by at most ``accel`` / ``decel`` [m/s^2] from stage to stage
-    towards the path's speed, capped by :func:`speed_cap` of :func:`stop_points`; a firm stop
-    it can no longer meet at ``decel`` (seen late) it meets braking harder, as hard as it needs
-    up to the robot's comfort deceleration (``robot.a_comfort``). Its positions follow the speeds.
+    towards the path's speed, capped by :func:`speed_cap` of :func:`stop_points`; with ``brake``
+    above ``decel``, a stop it can no longer meet at ``decel`` (seen late) it meets braking
+    harder, as hard as it needs up to ``brake`` and the robot's comfort deceleration
+    (``robot.a_comfort``). Its positions follow the speeds.
     ``held``: the walkers it yields to, as in :func:`stop_points`."""
     state = world.states[i]
-    stops = np.ascontiguousarray(stop_points(world, i, task, params, held), dtype=float).reshape(-1, 4)
+    stops = np.ascontiguousarray(stop_points(world, i, task, params, held), dtype=float).reshape(-1, 3)
     limits = task.limits if task.limits is not None else np.zeros(0)
-    brake = max(params.decel, world.robots[i].model.limits.comfort_decel)
+    brake = max(params.decel, min(params.brake, world.robots[i].model.limits.comfort_decel))
     s, v = ramped_speeds(task.project(state[:2])[0], float(state[3]), steps, dt, params.decel, params.accel, brake, stops, task.speed,
                          task.s, limits, task.stop_at_end, task.decel, task.length)  # speed_cap, stage by stage, compiled
     poses = task.pose_at(s)

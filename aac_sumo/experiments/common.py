@@ -140,7 +140,8 @@ def anticipation(scenario: Scenario) -> Anticipation | None:
     c = scenario.data["controller"]
     if not c["anticipate"]:
         return None
-    return Anticipation(decel=c["anticipate_decel"], accel=c["anticipate_accel"], gap=c["anticipate_gap"], time_gap=c["anticipate_time_gap"],
+    return Anticipation(decel=c["anticipate_decel"], accel=c["anticipate_accel"], brake=c["anticipate_brake"], gap=c["anticipate_gap"],
+                        time_gap=c["anticipate_time_gap"],
                         pedestrian_margin=c["pedestrian_margin"], pedestrian_reach=c["pedestrian_reach"], yield_distance=c["yield_distance"],
                         yield_band=c["yield_band"])
 
