@@ -204,6 +204,22 @@ def test_a_walker_who_pauses_on_the_crossing_is_still_yielded_to_for_a_moment():
     assert len(stop_points(leaving, 0, task, params, {"o": 0.0})) == 0  # walking away
 
 
+def test_past_the_point_of_no_return_a_car_goes_on_before_a_walker_who_cannot_reach_its_path():
+    """A walker 8 m beside the path, 30 m ahead, walking towards it at 1.25 m/s (it may reach
+    the path within the car's time there at its speed plus pedestrian_reach: it counts). At
+    13 m/s the car can no longer stop before it at its comfort deceleration (13^2 / 6 = 28 m >
+    23.5 m) and the walker needs 5.5 s to the path at its own speed against the 2.5 s the car
+    needs to pass: it goes on. At 8 m/s it can still stop: it yields. A walker within the margin
+    of the path always counts."""
+    params = Anticipation(pedestrian_margin=1.0, pedestrian_reach=1.5)
+    counted = []
+    for speed, y in ((13.0, -8.0), (8.0, -8.0), (13.0, -1.5)):
+        world, task = one_lane_world(30.0, y, kind="pedestrian", velocity=(0.0, 1.25))
+        world.states[0, 3] = speed
+        counted.append(len(stop_points(world, 0, task, params)))
+    assert counted == [0, 1, 1]
+
+
 def test_walkers_count_when_near_or_heading_for_the_path_and_not_when_walking_away():
     params = Anticipation(pedestrian_margin=1.0, pedestrian_reach=0.0)
     on_path, _ = one_lane_world(30.0, 0.5, kind="pedestrian")

@@ -21,7 +21,12 @@ speed with a comfortable stopping profile, as a driver's car following does:
   good).
 
 A walker that counted goes on counting for ``hold`` seconds unless it walks away from the path
-(one who pauses on the crossing for a moment is still yielded to).
+(one who pauses on the crossing for a moment is still yielded to). Past the point of no return,
+a walker not yet within ``pedestrian_margin`` of the path whom the robot can no longer stop for
+at its comfort deceleration does not count when it cannot reach the path at its own speed before
+the robot has passed it: the robot goes on, rather than brake into the walker's way (a walker who
+appeared on the footpath 8 m from a car's lane when the car was 30 m from the crossing at 13 m/s
+made it stop with its nose on the crossing).
 
 The reference speed over the horizon then ramps from the robot's speed towards that cap by at
 most ``accel`` / ``decel`` [m/s^2] per second (with ``brake``, harder, up to it and the robot's
@@ -157,8 +162,17 @@ def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipa
     lead = np.where(walker, 0.0, np.maximum(np.einsum("ij,ij->i", vel, tangent), 0.0))
     keep = np.where(walker, params.pedestrian_margin, 0.0)
     grow = np.where(walker, params.pedestrian_reach / params.decel, 0.0)
-    behind_it = s - _along_extent(lengths[near], widths[near], rel) - front - params.gap
-    rows = np.column_stack([behind_it - keep - params.time_gap * lead, lead, grow])[counts]
+    along = _along_extent(lengths[near], widths[near], rel)
+    behind_it = s - along - front - params.gap
+    s_stop = behind_it - keep - params.time_gap * lead
+    # past the point of no return: a walker not yet near the path whom the robot can no longer
+    # stop for at its comfort deceleration, and who cannot reach the path at its own speed before
+    # the robot's rear has passed it, does not count (the robot goes on rather than stop in its way)
+    v = abs(state[3])
+    late = walker & (gap_across > params.pedestrian_margin) & (v * v > 2.0 * robot.model.limits.comfort_decel * np.maximum(s_stop - s0, 0.0))
+    clear = (ahead + along + 0.5 * robot.length - robot.centre_offset + params.pedestrian_margin) / max(v, 1.0)
+    counts &= ~(late & (gap_across - toward * clear > params.pedestrian_margin))
+    rows = np.column_stack([s_stop, lead, grow])[counts]
     braking = counts & ~walker & (accel[near] < 0.0) & (lead > 0.0)  # a vehicle braking: also where it stops at its rate
     stopped_at = behind_it[braking] + lead[braking] ** 2 / (-2.0 * accel[near][braking])
     return np.vstack([rows, np.column_stack([stopped_at, np.zeros((len(stopped_at), 2))])])
