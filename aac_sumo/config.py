@@ -113,6 +113,9 @@ COMMON: dict[str, dict[str, Key]] = {
         "anticipate": Key(bool, False, "reference speeds that slow a robot in its lane, early and gently, for what lies ahead on its path "
                           "(cars, walkers near it), and lanes kept near walkers (docs/lane_change.md)"),
         "anticipate_decel": Key(float, 1.5, "comfortable deceleration of the anticipated reference speed [m/s^2]", **P),
+        "anticipate_brake": Key(float, 0.0, "towards a stop it sees too late for anticipate_decel (a walker stepping towards its "
+                                "path), the anticipated reference brakes as hard as it needs up to this, at most robot.a_comfort "
+                                "(0: never harder than anticipate_decel) [m/s^2]", **NN),
         "anticipate_accel": Key(float, 1.5, "comfortable acceleration of the anticipated reference speed [m/s^2]", **P),
         "anticipate_gap": Key(float, 2.0, "standstill gap kept behind what lies ahead [m]", **NN),
         "anticipate_time_gap": Key(float, 1.0, "time gap kept behind a moving leader [s]", **NN),
@@ -292,6 +295,20 @@ KIND_SECTIONS["lane_change"] = {
                       expect="a list of lane indices 0..15"),
     "exit_spread": Key(float, 0.0, "cars from SUMO's routes begin the change to their exit lane at a point drawn by the seed "
                        "within this far beyond finish_margin past the last cone, so that they do not all weave at once [m]", **NN),
+    "closure_window": Key(float, 100.0, "cars from SUMO's routes begin to leave a lane that cones close this far before their latest "
+                          "begin (the one that ends closure_lead before the first cone), so that a car without a gap can slow down "
+                          "and wait for one before it [m]", **NN),
+    "gap_acceptance": Key(bool, True, "cars from SUMO's routes begin (and go on with) a lane change only into a safe gap "
+                          "(gap_time, gap_decel, gap_min; docs/highway_work_zone.md); otherwise they keep their lane, slow down "
+                          "(gap_speed) and try again further on"),
+    "gap_time": Key(float, 1.0, "gap acceptance: the time gap a lane change keeps to the leader in the target lane (at its own speed) "
+                    "and leaves the follower there (at the follower's speed) [s]", **NN),
+    "gap_decel": Key(float, 3.0, "gap acceptance: the safe deceleration: the car must be able to come down to its new leader's "
+                     "speed, and its new follower to its speed, braking at most this hard [m/s^2]", **P),
+    "gap_min": Key(float, 2.0, "gap acceptance: the standstill gap, bumper to bumper, on top [m]", **NN),
+    "gap_speed": Key(float, 0.75, "gap acceptance: a car whose lane change waits for a gap slows to this share of lane_change.speed "
+                     "until it has changed, so that the traffic beside it moves on",
+                     check=lambda f: 0 < f <= 1, expect="in (0, 1]"),
 }
 SUMO_SECTION: dict[str, Key] = {
     "config": Key(str, "", "a SUMO configuration (.sumocfg): its net-file, route-files, additional files and options are used "

@@ -426,13 +426,16 @@ def project_points(points, seg_len, cum, t_max, queries, chunk_centre, chunk_rad
 
 
 @numba.njit(cache=True)
-def ramped_speeds(s0, v0, steps, dt, decel, accel, stops, speed, path_s, limits, stop_at_end, path_decel, length):
+def ramped_speeds(s0, v0, steps, dt, decel, accel, brake, stops, speed, path_s, limits, stop_at_end, path_decel, length):
     """Arc lengths and speeds (steps+1,) of a reference that starts at ``s0`` [m] and ``v0``
     [m/s] and changes speed by at most ``accel`` / ``decel`` [m/s^2] per second towards the
     path's speed at each stage (``speed``, below ``limits`` over ``path_s`` when it has any,
     and its stopping profile at ``path_decel`` before ``length`` when ``stop_at_end``), capped
     by braking at ``decel`` to every stop row ``[s_stop, v_lead, grow]`` (K, 3) of ``stops``
-    (as :func:`aac_sumo.coordination.anticipation.speed_cap`)."""
+    (as :func:`aac_sumo.coordination.anticipation.speed_cap`). A row that braking at ``decel``
+    can no longer meet (seen late: a walker who stepped towards the path) is met braking as
+    hard as it needs to come down to its ``v_lead`` within its room (the closing speed squared
+    over twice the room), up to ``brake`` [m/s^2] (``brake <= decel``: never harder than ``decel``)."""
     s = np.empty(steps + 1)
     v = np.empty(steps + 1)
     s[0], v[0] = s0, max(v0, 0.0)
@@ -443,11 +446,16 @@ def ramped_speeds(s0, v0, steps, dt, decel, accel, stops, speed, path_s, limits,
                 target = min(target, np.interp(s[k], path_s, limits))
             if stop_at_end:
                 target = min(target, math.sqrt(2.0 * path_decel * max(length - s[k], 0.0)))
+            rate = decel
             for r in range(stops.shape[0]):
                 room = max(stops[r, 0] - s[k], 0.0)
                 bk = decel * stops[r, 2]
                 target = min(target, math.sqrt(bk * bk + stops[r, 1] ** 2 + 2.0 * decel * room) - bk)
-            v[k] = max(min(max(target, v[k - 1] - decel * dt), v[k - 1] + accel * dt), 0.0)
+                closing = v[k - 1] - stops[r, 1]
+                if brake > decel and closing > 0.0:  # the rate that comes down to v_lead (going on at its speed) within the room left, grow v kept
+                    left = room - stops[r, 2] * v[k - 1]
+                    rate = max(rate, min(brake, closing * closing / (2.0 * left)) if left > 0.0 else brake)
+            v[k] = max(min(max(target, v[k - 1] - rate * dt), v[k - 1] + accel * dt), 0.0)
         if k < steps:
             s[k + 1] = s[k] + v[k] * dt
     return s, v

@@ -53,6 +53,8 @@ def run(scenario: Scenario) -> RunResult:
     periods = pd.DataFrame(rec.periods) if rec.periods else pd.DataFrame(columns=["t", "compute_ms"])
     metrics = assemble_metrics(setup.scenario, rec, steps, periods, robots=first.robots, free_flow_s=setup.free_flow_s,
                                wall_s=time.perf_counter() - wall_start, setup_s=setup_s)
+    if setup.figures is not None:
+        metrics.update(setup.figures())
     goals = np.array([task.points[-1] for task in setup.tasks])
     delays = None if setup.free_flow_s is None else rec.arrival - setup.free_flow_s
     result = RunResult(metrics, steps, periods, pd.DataFrame(rec.traj), setup.scenario, goals, delays)

@@ -3,6 +3,7 @@ yielding to walkers (docs/lane_change.md, "How the cars are driven")."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -148,6 +149,75 @@ def test_the_reference_slows_for_what_stands_on_the_path_within_comfort(distance
     cap = speed_cap(stops, s, params.decel)
     assert np.all((ref[1:, 3] <= cap[1:] + 1e-9) | np.isclose(np.diff(ref[:, 3]), -params.decel * DT))
     assert np.all(np.diff(ref[:, 3]) >= -params.decel * DT - 1e-9)
+
+
+@settings(max_examples=50, deadline=None)
+@given(distance=st.floats(8.0, 70.0))
+def test_with_brake_a_stop_seen_late_is_met_braking_harder_within_comfort(distance):
+    """With ``brake`` = 4 m/s^2 (controller.anticipate_brake): the reference slows at the
+    comfortable rate when that stops the car in time; a cone seen closer it meets braking
+    harder (v^2 / 2 room), never beyond the car's comfort deceleration (3 m/s^2)."""
+    params = Anticipation(brake=4.0)
+    world, task = one_lane_world(distance)
+    stops = stop_points(world, 0, task, params)
+    slowing = np.diff(anticipated_reference(world, 0, task, 10, DT, params)[:, 3])
+    comfort = CAR.model.limits.comfort_decel
+    room = stops[0, 0] - 10.0 * DT  # from where the first stage begins (the rear axle stands at 0, at 10 m/s)
+    need = 10.0**2 / (2.0 * room) if room > 0 else np.inf
+    assert np.all(slowing >= -comfort * DT - 1e-9)
+    if need <= params.decel:  # (stage by stage the ramp lags the continuous profile: the need creeps up by ~1 %)
+        assert np.all(slowing >= -1.02 * params.decel * DT)
+    elif need >= comfort:  # seen too late for even that: it brakes at the comfort deceleration at once
+        assert slowing[0] == pytest.approx(-comfort * DT)
+
+
+def test_a_braking_car_ahead_counts_also_where_it_will_stop():
+    """A car 30 m ahead at 15 m/s braking at 4.5 m/s^2 (as SUMO's cars brake for a walker):
+    besides the time-gap row at its speed, a standing row 15^2 / 9 = 25 m further on; a car
+    keeping its speed gives the first row only."""
+    params = Anticipation()
+    front = CAR.centre_offset + 0.5 * CAR.length
+    behind = 30.0 - 2.25 - front - params.gap
+    braking, task = one_lane_world(30.0, velocity=(15.0, 0.0), kind="scripted")
+    braking.obstacles[0] = dataclasses.replace(braking.obstacles[0], length=4.5, accel=-4.5)
+    np.testing.assert_allclose(stop_points(braking, 0, task, params), [[behind - 15.0, 15.0, 0.0], [behind + 25.0, 0.0, 0.0]])
+    steady, _ = one_lane_world(30.0, velocity=(15.0, 0.0), kind="scripted")
+    steady.obstacles[0] = dataclasses.replace(steady.obstacles[0], length=4.5)
+    np.testing.assert_allclose(stop_points(steady, 0, task, params), [[behind - 15.0, 15.0, 0.0]])
+
+
+def test_a_walker_who_pauses_on_the_crossing_is_still_yielded_to_for_a_moment():
+    """Walking towards the path 5 m beside it, the walker counts; standing still a second later
+    it would not (the car may creep past someone who stands), but one who counted goes on
+    counting for ``hold`` seconds, unless it walks away from the path."""
+    params = Anticipation(pedestrian_margin=1.0, pedestrian_reach=0.0, hold=2.0)
+    coming, task = one_lane_world(30.0, 5.0, kind="pedestrian", velocity=(0.0, -1.5))
+    held: dict = {}
+    assert len(stop_points(coming, 0, task, params, held)) == 1 and held == {"o": 0.0}
+    paused, _ = one_lane_world(30.0, 4.0, kind="pedestrian")
+    assert len(stop_points(paused, 0, task, params)) == 0
+    for t, count in ((1.0, 1), (2.0, 1), (2.5, 0)):
+        paused.t = t
+        assert len(stop_points(paused, 0, task, params, held)) == count
+    leaving, _ = one_lane_world(30.0, 4.0, kind="pedestrian", velocity=(0.0, 1.5))
+    leaving.t = 1.0
+    assert len(stop_points(leaving, 0, task, params, {"o": 0.0})) == 0  # walking away
+
+
+def test_past_the_point_of_no_return_a_car_goes_on_before_a_walker_who_cannot_reach_its_path():
+    """A walker 8 m beside the path, 30 m ahead, walking towards it at 1.25 m/s (it may reach
+    the path within the car's time there at its speed plus pedestrian_reach: it counts). At
+    13 m/s the car can no longer stop before it at its comfort deceleration (13^2 / 6 = 28 m >
+    23.5 m) and the walker needs 5.5 s to the path at its own speed against the 2.5 s the car
+    needs to pass: it goes on. At 8 m/s it can still stop: it yields. A walker within the margin
+    of the path always counts."""
+    params = Anticipation(pedestrian_margin=1.0, pedestrian_reach=1.5)
+    counted = []
+    for speed, y in ((13.0, -8.0), (8.0, -8.0), (13.0, -1.5)):
+        world, task = one_lane_world(30.0, y, kind="pedestrian", velocity=(0.0, 1.25))
+        world.states[0, 3] = speed
+        counted.append(len(stop_points(world, 0, task, params)))
+    assert counted == [0, 1, 1]
 
 
 def test_walkers_count_when_near_or_heading_for_the_path_and_not_when_walking_away():

@@ -60,8 +60,10 @@ def test_a_car_leaves_a_closed_lane_before_the_cones_then_takes_its_exit_lane():
     closed = closures(rd, [np.array([s, 0.0]) for s in (200.0, 215.0, 240.0)])
     assert closed == {0: [(200.0, 240.0)]}
     changes = lane_plan(rd, 0, 10.0, closed, 2, change_start=5.0, change_length=40.0, lead=30.0, margin=20.0)
-    assert changes == [(1, 130.0, 40.0), (2, 260.0, 40.0)]  # the first change ends 30 m before the first cone
-    path = planned_path(rd, 0, 10.0, changes)
+    assert changes == [(1, 130.0, 40.0, 130.0, "closure"), (2, 260.0, 40.0, 445.0, "exit")]  # the first change ends 30 m before the first cone
+    assert lane_plan(rd, 0, 10.0, closed, 2, 5.0, 40.0, 30.0, 20.0, window=100.0)[0] == (1, 30.0, 40.0, 130.0, "closure")  # tried from 100 m sooner
+    path, s = planned_path(rd, 0, 10.0, changes)
+    assert s[0] == 10.0 and s[-1] == 500.0 and np.allclose(path[:, 0], s)
     y = np.interp([100.0, 170.0, 200.0, 240.0, 299.0, 310.0], path[:, 0], path[:, 1])
     assert y[0] == pytest.approx(0.0) and y[1] == pytest.approx(3.2) and y[2] == pytest.approx(3.2)  # beside the cones: lane 1
     assert y[3] == pytest.approx(3.2) and y[4] < 6.4 and y[5] == pytest.approx(6.4)
@@ -71,7 +73,8 @@ def test_a_car_on_an_open_lane_keeps_it_and_a_car_past_the_cones_only_takes_its_
     rd = straight_road()
     closed = {0: [(200.0, 240.0)]}
     assert lane_plan(rd, 1, 10.0, closed, None, 5.0, 40.0, 30.0, 20.0) == []
-    assert lane_plan(rd, 0, 250.0, closed, 2, 5.0, 40.0, 30.0, 20.0) == [(2, 255.0, 80.0)]  # right after its start; two lanes: twice the length
+    # right after its start, one lane at a time; the last ends 15 m before the road's end at the latest
+    assert lane_plan(rd, 0, 250.0, closed, 2, 5.0, 40.0, 30.0, 20.0) == [(1, 255.0, 40.0, 405.0, "exit"), (2, 295.0, 40.0, 445.0, "exit")]
 
 
 def user_config(tmp_path, flows: str, net=NET) -> str:
@@ -159,3 +162,133 @@ def test_the_highway_work_zone_first_minute(tmp_path):
     closed = steps[(steps.x > 790.0) & (steps.x < 950.0)]
     assert len(closed) and closed.y.min() > -12.25 + 1.75  # nobody's rear axle in the closed lane's half beside the cones
     assert steps.x.max() > 955.0  # the leader is past the last cone (x = 950 m)
+
+
+# --- gap acceptance of the routed cars' lane changes (no SUMO run: the lane plans on synthetic worlds) ---
+
+
+def routed_cars(*sets: str):
+    """RoutedCars for three controlled cars on the bundled 3-lane road (lanes at y = -8, -4.8,
+    -1.6 m, x from 0 to 420 m), each changing to lane 1, and an AAC coordinator over them."""
+    from aac_sumo import config
+    from aac_sumo.experiments.common import coordinator
+    from aac_sumo.experiments.routed_cars import RoutedCars
+    from aac_sumo.sim.sumo_routes import RoutedVehicle
+
+    scenario = config.load("lane_change", ["sumo.controlled_types=mine", "lane_change.exit_lanes=[1]", "lane_change.speed=16",
+                                           "lane_change.finish_margin=0", *sets])
+    vehicles = [RoutedVehicle(f"car{k}", "mine", 0.0, 4.0, 1.8, ("E0", "E1")) for k in range(3)]
+    from aac_sumo.experiments.common import robot_spec
+    robots = [robot_spec(scenario, v.id, v.length, v.width) for v in vehicles]
+    cars = RoutedCars(scenario, network.read(NET, "sumo.net", "test"), vehicles, robots, None)
+    cars.coordinator = coordinator(scenario, cars.tasks, cars.bands, None, band=True)
+    return cars, robots
+
+
+def highway_world(cars, robots, rows, t=0.0, obstacles=()):
+    """The cars ``rows`` ``{k: (x, y, v)}`` (rear axles, heading +x) on the road, the others parked."""
+    from aac_sumo.world import WorldState, parking_spot
+
+    states = np.array([parking_spot(k) for k in range(len(robots))])
+    present = np.zeros(len(robots), dtype=bool)
+    for k, (x, y, v) in rows.items():
+        states[k], present[k] = [x, y, 0.0, v], True
+    return WorldState(t, states, robots, list(obstacles), present)
+
+
+def car_at(name, x, y, v):
+    from aac_sumo.world import Obstacle
+
+    return Obstacle(name, "scripted", np.array([x, y]), np.array([v, 0.0]), 0.0, 4.5, 1.8)
+
+
+def test_a_change_waits_for_a_safe_gap_then_begins():
+    cars, robots = routed_cars()
+    world = highway_world(cars, robots, {0: (20.0, -8.0, 16.0)}, obstacles=[car_at("bg", 21.3, -4.8, 16.0)])
+    cars.admit(world, 0)
+    cars.judge(world)
+    plan = cars.plans[0]
+    assert plan.waiting and plan.ahead[0].begin > 20.0 + cars.preview  # beside it: it keeps its lane ...
+    ref = cars.tasks[0]
+    assert ref.speed_at(ref.project([30.0, -8.0])[0]) == pytest.approx(0.75 * 16.0)  # ... and slows to gap_speed
+    assert np.abs(ref.points[ref.points[:, 0] < plan.ahead[0].begin][:, 1] + 8.0).max() < 1e-9
+    assert cars.counts["lane_change_waits"] == 1
+    clear = highway_world(cars, robots, {0: (40.0, -8.0, 12.0)}, t=2.0, obstacles=[car_at("bg", 120.0, -4.8, 16.0)])
+    cars.judge(clear)
+    assert plan.accepted and not plan.done  # accepted ahead of its begin ...
+    begin = plan.ahead[0].begin
+    cars.judge(highway_world(cars, robots, {0: (begin + 0.5, -8.0, 12.0)}, t=4.0, obstacles=[car_at("bg", 200.0, -4.8, 16.0)]))
+    assert [c.lane for c in plan.done] == [1] and cars.counts["lane_changes"] == 1  # ... begun once past it
+    assert cars.tasks[0].pose_at(cars.tasks[0].project([begin + 45.0, -4.8])[0])[0, 1] == pytest.approx(-4.8, abs=1e-6)
+
+
+def test_a_controlled_car_behind_lets_the_waiting_car_in_and_one_change_turns_back():
+    cars, robots = routed_cars()
+    world = highway_world(cars, robots, {0: (20.0, -8.0, 16.0), 1: (14.0, -4.8, 16.0)})
+    cars.admit(world, 0)
+    cars.admit(world, 1)  # car 1 starts in lane 1, its exit: nothing to change
+    cars.judge(world)
+    assert cars.plans[0].waiting and not cars.plans[0].slow  # held up by car 1 behind it: it keeps its speed ...
+    assert cars.plans[1].courtesy_for == 0  # ... and car 1 lets it in, slowing
+    one = cars.tasks[1]
+    assert one.speed_at(one.project([20.0, -4.8])[0]) == pytest.approx(12.0)
+    # car 0 begins its change into a free lane; a fast car appears close behind before it is across: it turns back
+    begin = cars.plans[0].ahead[0].begin
+    free = highway_world(cars, robots, {0: (begin - 1.0, -8.0, 16.0), 1: (-200.0, -4.8, 16.0)}, t=3.0)
+    cars.judge(free)
+    cars.judge(highway_world(cars, robots, {0: (begin + 1.0, -8.0, 16.0), 1: (-200.0, -4.8, 16.0)}, t=3.1))
+    assert cars.plans[0].done and not cars.plans[0].crossed and cars.plans[1].courtesy_for == -1
+    cut = highway_world(cars, robots, {0: (begin + 5.0, -7.9, 16.0), 1: (begin - 3.0, -4.8, 22.0)}, t=3.4)
+    cars.judge(cut)
+    plan = cars.plans[0]
+    assert [c.kind for c in plan.done] == ["exit", "back"] and plan.ahead[0].lane == 1 and cars.counts["lane_change_aborts"] == 1
+    back = cars.tasks[0]
+    assert back.pose_at(back.project([begin + 50.0, -8.0])[0])[0, 1] == pytest.approx(-8.0, abs=1e-6)  # back in its lane (until it tries again)
+
+
+@pytest.mark.slow
+def test_on_the_highway_no_lane_change_begins_into_an_unsafe_gap(tmp_path):
+    """The bundled highway's first 100 s (real libsumo). Every lane change whose reference leaves
+    its lane on the straight road (x < 1400 m: out of the closed lane, onto the exit lanes) is
+    found in steps.csv: where the reference's smoothstep begins follows from how far it is off
+    its lane (3.5 m apart, 40 m per change), and the change began in the period whose rear axle
+    was there first. In the world recorded then (trajectories.csv) every car reaching into the
+    target lane left the rule's gaps, checked here by hand: bumper gaps and speeds along x,
+    tau = 1 s, b = 3 m/s^2, g0 = 2 m. Some changes had to wait for their gap."""
+    from aac_sumo.experiments.lane_gaps import GapRule
+    from aac_sumo.experiments.lane_geometry import smooth_road, smoothstep
+    from aac_sumo.references import PathReference
+
+    out = tmp_path / "out"
+    assert cli.main(["run", "highway_work_zone", "--set", "scenario.duration=100", "--out", str(out)]) in (0, 1)
+    metrics = pd.read_json(out / "metrics.json", typ="series")
+    assert metrics["collisions"] == 0 and metrics["lane_change_waits"] > 0
+    net = network.read(BUNDLED_NET_DIR.parent / "highway_work_zone" / "highway_work_zone.net.xml", "sumo.net", "test")
+    road = smooth_road(network.chain_road(network.chain_of(net, ["entry", "approach", "work", "after", "exit"])))
+    lines = [PathReference(line, 1.0, stop_at_end=False) for line in road.lanes]  # the lines the references are made of
+    centre_y = [-12.25, -8.75, -5.25, -1.75]
+    steps = pd.read_csv(out / "steps.csv").sort_values(["robot", "t"])
+    off = np.array([line.project_many(steps[["ref_x", "ref_y"]].to_numpy())[1] for line in lines])  # (lanes, rows)
+    steps["lane"], steps["off"] = off.argmin(axis=0), off.min(axis=0)
+    traj = pd.read_csv(out / "trajectories.csv")
+    rule, u = GapRule(1.0, 3.0, 2.0), np.linspace(0.0, 0.5, 5001)
+    begins = 0
+    for robot, rows in steps.groupby("robot"):
+        leaving = (rows["off"].shift() < 1e-3) & (rows["off"] >= 1e-3) & (rows["ref_x"] < 1400.0)
+        for k in np.flatnonzero(leaving.to_numpy()):
+            row, lane = rows.iloc[k], int(rows.iloc[k - 1].lane)
+            pose = lines[lane].pose_at(lines[lane].project([row.ref_x, row.ref_y])[0])[0]
+            left = np.cos(pose[2]) * (row.ref_y - pose[1]) - np.sin(pose[2]) * (row.ref_x - pose[0]) > 0.0
+            target = lane + (1 if left else -1)
+            begin = row.ref_x - 40.0 * np.interp(row.off / 3.5, smoothstep(u), u)
+            t = rows[rows.x >= begin].iloc[0].t
+            world = traj[np.isclose(traj.t, t)]
+            ego = world[world["name"] == robot].iloc[0]
+            there = world[(world["name"] != robot) & (np.abs(world.y - centre_y[target]) < 1.75 + 0.5 * world.width)]
+            gap = np.abs(there.x - ego.x) - 0.5 * (there.length + ego.length)
+            v, v_other = ego.v * np.cos(ego.heading), there.v * np.cos(there.heading)
+            need = [rule.ahead(v, w) if x >= ego.x else rule.behind(w, v) for x, w in zip(there.x, v_other)]
+            margin = np.min(np.where(gap < 0.0, -np.inf, gap - need), initial=np.inf)
+            assert margin >= 0.0, f"{robot} began its change into lane {target} at t = {t} with a gap {margin:.2f} m short"
+            begins += 1
+    assert begins >= 10

@@ -9,7 +9,9 @@ speed with a comfortable stopping profile, as a driver's car following does:
   the path ahead of the robot, or will within ``cut_in`` [s] at its speed towards the path
   (a car cutting in, so that the robot behind makes room early): the robot may drive at ``sqrt(v_lead^2 + 2 b (s_stop - s))``
   at arc length ``s``, with ``v_lead`` its speed along the path and ``s_stop`` the point
-  ``gap + time_gap * v_lead`` [m] behind it;
+  ``gap + time_gap * v_lead`` [m] behind it; an obstacle that brakes (its estimated
+  acceleration ``a < 0``, :attr:`~aac_sumo.world.Obstacle.accel`) also counts as standing
+  ``v_lead^2 / 2|a|`` further on, where it stops at that rate (a SUMO car braking hard for a walker);
 - a pedestrian near or on the path counts with ``v_lead = 0``: the robot yields, it does not
   overtake. A walker counts when it is within ``pedestrian_margin`` of the path, or may be by
   the time the robot gets there at its current speed: its velocity towards the path times that
@@ -18,9 +20,18 @@ speed with a comfortable stopping profile, as a driver's car following does:
   shorter (so a robot creeps past a walker who stands beside its lane instead of waiting for
   good).
 
+A walker that counted goes on counting for ``hold`` seconds unless it walks away from the path
+(one who pauses on the crossing for a moment is still yielded to). Past the point of no return,
+a walker not yet within ``pedestrian_margin`` of the path whom the robot can no longer stop for
+at its comfort deceleration does not count when it cannot reach the path at its own speed before
+the robot has passed it: the robot goes on, rather than brake into the walker's way (a walker who
+appeared on the footpath 8 m from a car's lane when the car was 30 m from the crossing at 13 m/s
+made it stop with its nose on the crossing).
+
 The reference speed over the horizon then ramps from the robot's speed towards that cap by at
-most ``accel`` / ``decel`` [m/s^2] per second, and its positions follow these speeds along the
-path. Within ``yield_distance`` [m] of a pedestrian a robot on a lateral band keeps within
+most ``accel`` / ``decel`` [m/s^2] per second (with ``brake``, harder, up to it and the robot's
+comfort deceleration, towards a stop it can no longer meet at ``decel``: one seen late, such as a
+walker stepping towards the path), and its positions follow these speeds along the path. Within ``yield_distance`` [m] of a pedestrian a robot on a lateral band keeps within
 ``yield_band`` [m] of its reference: it slows, it does not swerve.
 """
 
@@ -38,11 +49,14 @@ from aac_sumo.world import WorldState
 
 @dataclass(frozen=True)
 class Anticipation:
-    """Comfortable rates [m/s^2], gaps [m], time gap [s], how far ahead it looks [m], the
-    lateral reach of the path [m], and the pedestrian rules (see the module)."""
+    """Comfortable rates [m/s^2] (and ``brake``, towards a stop seen late: see
+    :func:`anticipated_reference`), gaps [m], time gap [s], how far ahead it looks [m], the
+    lateral reach of the path [m], and the pedestrian rules (see the module; ``hold`` [s]: how
+    long a walker who counted goes on counting, see :func:`stop_points`)."""
 
     decel: float = 1.5
     accel: float = 1.5
+    brake: float = 0.0
     gap: float = 2.0
     time_gap: float = 1.0
     look: float = 80.0
@@ -52,6 +66,7 @@ class Anticipation:
     pedestrian_reach: float = 0.0
     yield_distance: float = 20.0
     yield_band: float = 0.25
+    hold: float = 2.0
 
 
 def _across_extent(length, width, relative_heading) -> np.ndarray:
@@ -67,7 +82,9 @@ def _along_extent(length, width, relative_heading) -> np.ndarray:
 def agents(world: WorldState) -> tuple[np.ndarray, ...]:
     """Every agent on the road but the robots off it, as arrays over them: the robot index
     (-1 for an obstacle), footprint centre (K, 2) [m], heading [rad], length and width [m],
-    velocity (K, 2) [m/s], and whether it is a walker. Computed once per world (a snapshot)."""
+    velocity (K, 2) [m/s], whether it is a walker, and its longitudinal acceleration [m/s^2]
+    (an obstacle's estimate, :attr:`~aac_sumo.world.Obstacle.accel`; 0 for a robot). Computed
+    once per world (a snapshot)."""
     cached = world.__dict__.get("_agents")
     if cached is None:
         robots = np.flatnonzero(world.on_road)
@@ -80,21 +97,26 @@ def agents(world: WorldState) -> tuple[np.ndarray, ...]:
                   np.r_[[world.robots[j].width for j in robots], [o.width for o in obstacles]],
                   np.vstack([world.states[robots, 3:4] * np.column_stack([np.cos(heading), np.sin(heading)])]
                             + [np.asarray(o.velocity, dtype=float)[None, :] for o in obstacles]).reshape(-1, 2),
-                  np.r_[np.zeros(len(robots), dtype=bool), [o.kind == "pedestrian" for o in obstacles]])
+                  np.r_[np.zeros(len(robots), dtype=bool), [o.kind == "pedestrian" for o in obstacles]],
+                  np.r_[np.zeros(len(robots)), [o.accel for o in obstacles]])
         world.__dict__["_agents"] = cached
     return cached
 
 
-def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipation) -> np.ndarray:
+def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipation, held: dict | None = None) -> np.ndarray:
     """Rows ``[s_stop, v_lead, grow]`` (K, 3) of what robot ``i`` must stay behind on ``task``'s
     path: the arc length [m] where its rear axle must be able to come down to the speed
     ``v_lead`` [m/s] (>= 0) of what lies ahead, and how much room [m] per m/s of the robot's
     speed it keeps on top (a walker's reach while the robot brakes: ``pedestrian_reach / decel``
-    [s])."""
+    [s]). ``held`` (walker name -> the time [s] it last counted, updated here) keeps a walker
+    counting for ``hold`` seconds after it last did, while it is still ahead on the path and not
+    walking away from it: a walker who pauses on the crossing for a moment is yielded to still."""
     robot, state = world.robots[i], world.states[i]
     s0, off0 = task.project(state[:2])
     front = robot.centre_offset + 0.5 * robot.length  # rear axle to front bumper [m]
-    _, centres, headings, lengths, widths, velocity, walker = (a[agents(world)[0] != i] for a in agents(world))
+    index = agents(world)[0]
+    others = np.flatnonzero(index != i)
+    _, centres, headings, lengths, widths, velocity, walker, accel = (a[others] for a in agents(world))
     if len(centres) == 0:
         return np.zeros((0, 3))
     # what lies farther from the robot than its path's look-ahead plus the most the agent could
@@ -121,16 +143,39 @@ def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipa
     normal = np.column_stack([-tangent[:, 1], tangent[:, 0]])
     side = np.where(np.einsum("ij,ij->i", normal, c - poses[:, :2]) < 0.0, -1.0, 1.0)
     gap_across = off - _across_extent(lengths[near], widths[near], rel) - 0.5 * robot.width
-    toward = np.maximum(0.0, -side * np.einsum("ij,ij->i", vel, normal))  # walking towards the path, or cutting in
+    across = -side * np.einsum("ij,ij->i", vel, normal)  # speed towards the path (negative: away from it)
+    toward = np.maximum(0.0, across)  # walking towards the path, or cutting in
     arrive = ahead / max(abs(state[3]), 1.0)
     reach = np.where(walker, toward * arrive + params.pedestrian_reach * np.minimum(arrive, abs(state[3]) / params.decel),
                      toward * params.cut_in)
     counts = gap_across - reach <= np.where(walker, params.pedestrian_margin, params.lateral_margin)
+    if held is not None and walker.any():
+        first = int(np.sum(index >= 0))  # agents: the robots on the road, then the obstacles
+        names = [world.obstacles[a - first].name if w else "" for a, w in zip(others[near], walker)]
+        for k, name in enumerate(names):
+            if not name:
+                continue
+            if counts[k]:
+                held[name] = world.t
+            elif world.t - held.get(name, -np.inf) <= params.hold and across[k] >= 0.0:
+                counts[k] = True
     lead = np.where(walker, 0.0, np.maximum(np.einsum("ij,ij->i", vel, tangent), 0.0))
     keep = np.where(walker, params.pedestrian_margin, 0.0)
     grow = np.where(walker, params.pedestrian_reach / params.decel, 0.0)
-    s_stop = s - _along_extent(lengths[near], widths[near], rel) - front - params.gap - keep - params.time_gap * lead
-    return np.column_stack([s_stop, lead, grow])[counts]
+    along = _along_extent(lengths[near], widths[near], rel)
+    behind_it = s - along - front - params.gap
+    s_stop = behind_it - keep - params.time_gap * lead
+    # past the point of no return: a walker not yet near the path whom the robot can no longer
+    # stop for at its comfort deceleration, and who cannot reach the path at its own speed before
+    # the robot's rear has passed it, does not count (the robot goes on rather than stop in its way)
+    v = abs(state[3])
+    late = walker & (gap_across > params.pedestrian_margin) & (v * v > 2.0 * robot.model.limits.comfort_decel * np.maximum(s_stop - s0, 0.0))
+    clear = (ahead + along + 0.5 * robot.length - robot.centre_offset + params.pedestrian_margin) / max(v, 1.0)
+    counts &= ~(late & (gap_across - toward * clear > params.pedestrian_margin))
+    rows = np.column_stack([s_stop, lead, grow])[counts]
+    braking = counts & ~walker & (accel[near] < 0.0) & (lead > 0.0)  # a vehicle braking: also where it stops at its rate
+    stopped_at = behind_it[braking] + lead[braking] ** 2 / (-2.0 * accel[near][braking])
+    return np.vstack([rows, np.column_stack([stopped_at, np.zeros((len(stopped_at), 2))])])
 
 
 def speed_cap(stops: np.ndarray, s, decel: float) -> np.ndarray:
@@ -145,15 +190,20 @@ def speed_cap(stops: np.ndarray, s, decel: float) -> np.ndarray:
     return (np.sqrt(bk**2 + lead**2 + 2.0 * decel * room) - bk).min(axis=1)
 
 
-def anticipated_reference(world: WorldState, i: int, task: PathReference, steps: int, dt: float, params: Anticipation) -> np.ndarray:
+def anticipated_reference(world: WorldState, i: int, task: PathReference, steps: int, dt: float, params: Anticipation,
+                          held: dict | None = None) -> np.ndarray:
     """Robot ``i``'s reference (steps+1, 4) along ``task``'s path: its speeds start at the
     robot's speed and change by at most ``accel`` / ``decel`` [m/s^2] from stage to stage
-    towards the path's speed, capped by :func:`speed_cap` of :func:`stop_points`; its
-    positions follow them."""
+    towards the path's speed, capped by :func:`speed_cap` of :func:`stop_points`; with ``brake``
+    above ``decel``, a stop it can no longer meet at ``decel`` (seen late) it meets braking
+    harder, as hard as it needs up to ``brake`` and the robot's comfort deceleration
+    (``robot.a_comfort``). Its positions follow the speeds.
+    ``held``: the walkers it yields to, as in :func:`stop_points`."""
     state = world.states[i]
-    stops = np.ascontiguousarray(stop_points(world, i, task, params), dtype=float).reshape(-1, 3)
+    stops = np.ascontiguousarray(stop_points(world, i, task, params, held), dtype=float).reshape(-1, 3)
     limits = task.limits if task.limits is not None else np.zeros(0)
-    s, v = ramped_speeds(task.project(state[:2])[0], float(state[3]), steps, dt, params.decel, params.accel, stops, task.speed,
+    brake = max(params.decel, min(params.brake, world.robots[i].model.limits.comfort_decel))
+    s, v = ramped_speeds(task.project(state[:2])[0], float(state[3]), steps, dt, params.decel, params.accel, brake, stops, task.speed,
                          task.s, limits, task.stop_at_end, task.decel, task.length)  # speed_cap, stage by stage, compiled
     poses = task.pose_at(s)
     heading = state[2] + wrap_angle(poses[:, 2] - state[2])

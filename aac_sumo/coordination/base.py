@@ -89,8 +89,9 @@ class Coordinator(ABC):
     (``[x_min, x_max, y_min, y_max]``, see :meth:`MpcPlanner.plan`), last plan and last input.
     ``finished(world)`` tells which robots have finished their task (none, without it); a robot
     not on the road (:attr:`WorldState.present`) counts as finished and parked. With the
-    planner's ``constant_acceleration`` prediction it keeps every moving obstacle's observed
-    speeds and hands the obstacles on with their estimated acceleration."""
+    planner's ``constant_acceleration`` prediction, or with ``anticipation``, it keeps every
+    moving obstacle's observed speeds and hands the obstacles on with their estimated
+    acceleration (the planner's ``constant_velocity`` prediction does not use it)."""
 
     name = "base"
     #: Reference speeds and lanes that look beyond the horizon (:mod:`~aac_sumo.coordination.anticipation`); None: the task's.
@@ -107,6 +108,7 @@ class Coordinator(ABC):
         self.plans: list[Plan | None] = [None] * len(tasks)
         self.last_inputs = np.zeros((len(tasks), 2))
         self.fleet: Fleet | None = None
+        self.held: list[dict] = [{} for _ in tasks]  # per robot, the walkers it yields to (anticipation.stop_points)
         cfg = planner.config
         self.speeds = SpeedHistory(cfg.prediction_window, cfg.dt) if cfg.prediction == "constant_acceleration" else None
 
@@ -115,6 +117,9 @@ class Coordinator(ABC):
         start = time.perf_counter()
         if self.fleet is None:
             self.fleet = Fleet(world.robots)
+        if self.speeds is None and self.anticipation is not None:  # the anticipation sees braking vehicles (obstacles' accel)
+            cfg = self.planner.config
+            self.speeds = SpeedHistory(cfg.prediction_window, cfg.dt)
         if self.speeds is not None:
             world = self.speeds.annotate(world)
         decision = self._decide(world)
@@ -138,13 +143,19 @@ class Coordinator(ABC):
         """Robot ``i`` has just come onto the road (its task is set): forget what it did before."""
         self.plans[i] = None
         self.last_inputs[i] = 0.0
+        self.held[i] = {}
+
+    def retask(self, i: int) -> None:
+        """Robot ``i``'s task has changed ahead of it (a lane change put off, say): it drops its
+        stored plan, made for the old task, and follows the new one from its next input on."""
+        self.plans[i] = None
 
     def reference(self, world: WorldState, i: int) -> np.ndarray:
         """Robot ``i``'s reference over the horizon (N+1, 4): its task's, with speeds that
         anticipate what lies ahead on its path when ``anticipation`` is set."""
         cfg = self.planner.config
         if self.anticipation is not None and not np.isnan(self.tasks[i].horizon(world.states[i], 0, cfg.dt)[0, 2]):
-            return anticipated_reference(world, i, self.tasks[i], cfg.horizon, cfg.dt, self.anticipation)
+            return anticipated_reference(world, i, self.tasks[i], cfg.horizon, cfg.dt, self.anticipation, self.held[i])
         return self.tasks[i].horizon(world.states[i], cfg.horizon, cfg.dt)
 
     def corridor(self, world: WorldState, i: int):
@@ -172,7 +183,7 @@ class Coordinator(ABC):
             return None
         dt = self.planner.config.dt
         ahead = max(1, int(round(1.0 / (speed_gain * dt))))
-        return float(anticipated_reference(world, i, self.tasks[i], ahead, dt, self.anticipation)[-1, 3])
+        return float(anticipated_reference(world, i, self.tasks[i], ahead, dt, self.anticipation, self.held[i])[-1, 3])
 
     def safety_check(self, world: WorldState) -> SafetyCheck:
         """The safety stop of this period: robots brake turning towards their reference's heading

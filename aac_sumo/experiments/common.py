@@ -33,7 +33,8 @@ class Setup:
     arrival time without interaction [s] (its start time plus its path length at cruise
     speed), for the delay metrics. ``prepare(world)``, when given, runs on every observed world
     before anything else and returns the world to use: an experiment whose robots enter and
-    leave during the run (:attr:`WorldState.present`) gives the newcomers their tasks there."""
+    leave during the run (:attr:`WorldState.present`) gives the newcomers their tasks there.
+    ``figures()``, when given, returns the experiment's own metrics at the end of the run."""
 
     scenario: Scenario
     sim: Simulator
@@ -42,6 +43,7 @@ class Setup:
     finished: Callable[[WorldState], np.ndarray]
     free_flow_s: np.ndarray | None = None
     prepare: Callable[[WorldState], WorldState] | None = None
+    figures: Callable[[], dict] | None = None
 
 
 def robot_spec(scenario: Scenario, name: str, length: float | None = None, width: float | None = None) -> RobotSpec:
@@ -139,7 +141,8 @@ def anticipation(scenario: Scenario) -> Anticipation | None:
     c = scenario.data["controller"]
     if not c["anticipate"]:
         return None
-    return Anticipation(decel=c["anticipate_decel"], accel=c["anticipate_accel"], gap=c["anticipate_gap"], time_gap=c["anticipate_time_gap"],
+    return Anticipation(decel=c["anticipate_decel"], accel=c["anticipate_accel"], brake=c["anticipate_brake"], gap=c["anticipate_gap"],
+                        time_gap=c["anticipate_time_gap"],
                         pedestrian_margin=c["pedestrian_margin"], pedestrian_reach=c["pedestrian_reach"], yield_distance=c["yield_distance"],
                         yield_band=c["yield_band"])
 

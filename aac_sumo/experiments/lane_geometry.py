@@ -57,6 +57,37 @@ def smooth_reference(waypoints: np.ndarray, speed: float, a_lat: float) -> PathR
     return PathReference(points, speed, stop_at_end=False, limits=curve_speeds(curvature, SMOOTH_SPACING, speed, a_lat, CURVE_DECEL))
 
 
+def smooth_road(rd: network.Road) -> network.Road:
+    """``rd`` with every lane's centre line curvature-continuous (:func:`~aac_sumo.references.smooth_path`
+    of the line sampled every ``SAMPLE_STEP`` metres, so that long straight edges stay straight;
+    points every ``SMOOTH_SPACING`` metres): blends of its lines are then curvature-continuous too."""
+    lanes = []
+    for line in rd.lanes:
+        length = float(np.hypot(*np.diff(line, axis=0).T).sum())
+        lanes.append(smooth_path(along(line, np.r_[np.arange(0.0, length, SAMPLE_STEP), length])[0], SMOOTH_SPACING)[0])
+    return network.Road(rd.edges, lanes, rd.widths)
+
+
+def lane_reference(points: np.ndarray, speed: float, a_lat: float, caps=None) -> PathReference:
+    """The reference along ``points`` (M, 2) [m], a path already curvature-continuous and
+    sampled about ``SAMPLE_STEP`` apart (blends of :func:`smooth_road`'s lines), at ``speed``
+    [m/s], slower where its curvature would need more than ``a_lat`` [m/s^2] of lateral
+    acceleration, and at most ``caps`` (M,) [m/s] when given."""
+    seg = np.diff(points, axis=0)
+    seg_len = np.hypot(*seg.T)
+    keep = np.r_[True, seg_len > 1e-9]
+    points = points[keep]
+    caps = None if caps is None else np.asarray(caps, dtype=float)[keep]
+    seg = np.diff(points, axis=0)
+    seg_len, heading = np.hypot(*seg.T), np.arctan2(seg[:, 1], seg[:, 0])
+    turn = np.angle(np.exp(1j * np.diff(heading))) / (0.5 * (seg_len[1:] + seg_len[:-1]))
+    curvature = np.r_[turn[:1], turn, turn[-1:]] if len(turn) else np.zeros(len(points))
+    limits = curve_speeds(curvature, float(np.mean(seg_len)), speed, a_lat, CURVE_DECEL)
+    if caps is not None:
+        limits = np.minimum(limits, caps)
+    return PathReference(points, speed, stop_at_end=False, limits=limits)
+
+
 def offset_polyline(line: np.ndarray, offset: float) -> np.ndarray:
     """``line`` (M, 2) shifted ``offset`` [m] to its left (negative: right), vertex by vertex
     along the mean of the adjacent segments' normals."""

@@ -7,34 +7,58 @@ drives everything else (background traffic reaches the MPC as moving obstacles).
 the road until SUMO departs it (insertion as SUMO does it: its departLane, departSpeed, gaps),
 ours from then on, and off the road again once it has finished.
 
-Its reference is made when it departs, from its own route (a chain of edges, lanes followed
+Its lane plan is made when it departs, from its own route (a chain of edges, lanes followed
 through the network's connections) and the lane SUMO put it on:
 
 - a lane that cones close ahead (a lane most of a cone cluster stands on) is left for the
-  nearest lane open along the closure (the left one on a tie), the change ending
+  nearest lane open along the closure (the left one on a tie); the change begins
+  ``lane_change.closure_window`` metres before its latest begin, the point from which it ends
   ``lane_change.closure_lead`` metres before the first cone;
 - beyond the last cones (``lane_change.finish_margin`` past them, plus a distance drawn per car
   by the seed within ``lane_change.exit_spread``; without cones, right after its start) it
   changes to its exit lane, drawn per car by the seed from ``lane_change.exit_lanes`` (empty:
-  it keeps its lane);
+  it keeps its lane), one lane at a time, the last change ending ``END_MARGIN`` before the end
+  of its route at the latest;
 - each change takes ``lane_change.change_length`` metres per lane crossed.
 
-Its lateral band spans the lanes it uses until its last change has ended, then its exit lane.
-It has finished when it is within ``lane_tolerance`` of its exit lane's centre line, less
-than ``END_MARGIN`` before the end of its route; it is then taken off SUMO's road.
+With ``lane_change.gap_acceptance`` a change begins only into a safe gap
+(:mod:`~aac_sumo.experiments.lane_gaps`, judged from ``preview`` metres before it on, where no
+plan or tracking law of the car has used it yet). Without one the car keeps its lane: the change
+moves ahead (``POSTPONE_STEP`` beyond the preview), and the car slows to
+``lane_change.gap_speed`` of its cruise speed until it has changed, so that the traffic beside it
+moves on. What holds it up may be a controlled car behind it (or beside it, a little behind) in
+the target lane: the car then keeps its speed and that one lets it in, slowing to ``gap_speed``
+for ``COURTESY`` metres or until the car has begun its change (as a driver who opens a gap; two
+controlled cars that wait for each other's place do not ride side by side for good). Out of a
+closed lane a car without a gap also slows to stand the tracking law's look-ahead before its
+latest begin (braking at ``CURVE_DECEL``) and waits there for one. A change under way turns back
+to the lane it left when its gap is no longer safe without the time gaps, while it has not
+reached its new lane and there is room to try again before its latest begin. An exit change that
+reaches its latest begin without a safe gap is given up, the last resort: the car finishes in
+the lane it is in (counted as ``exits_missed``).
+
+Its reference is its path: each change a quintic smoothstep from one smoothed lane line onto the
+next. Its lateral band is the lane it is in, opening onto the next lane ``BAND_SETTLE`` metres
+before a change begins and closing onto it as far beyond its end: a car waiting for a gap does
+not swerve into the next lane. It has finished when it is within ``lane_tolerance`` of its last
+lane's centre line, less than ``END_MARGIN`` before the end of its route; it is then taken off
+SUMO's road.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
 from aac_sumo import network
 from aac_sumo.config import Scenario, ScenarioError
 from aac_sumo.experiments.common import Setup, coordinator, robot_spec
+from aac_sumo.experiments.lane_gaps import GapRule, GapVerdict, judge_gap
 from aac_sumo.experiments.lane_geometry import (
-    BAND_SETTLE, MIN_LANES, ROAD_MARGIN, SAMPLE_STEP, along, blend, lane_edges, smooth_reference, smoothstep,
+    BAND_SETTLE, CURVE_DECEL, MIN_LANES, ROAD_MARGIN, SAMPLE_STEP, along, lane_reference, offset_polyline, smooth_road, smoothstep,
 )
 from aac_sumo.references import LateralBand, PathReference
 from aac_sumo.sim.sumo import SumoOptions, sumo_simulator
@@ -44,7 +68,23 @@ from aac_sumo.world import WorldState, parking_spot
 
 END_MARGIN = 15.0  # a car has finished this far before the end of its route [m]
 CLUSTER_GAP = 60.0  # cones of one lane closer than this along it close one stretch [m]
+POSTPONE_STEP = 10.0  # a change without a safe gap moves this far beyond the preview [m]
+COURTESY = 100.0  # a controlled car asked to let another one in ahead of it slows for this far (or until it is in) [m]
 KEYS = "sumo.controlled_types"
+
+
+class Change(NamedTuple):
+    """One lane change of a car's plan: onto road lane ``lane``, beginning at arc length
+    ``begin`` [m of the car's start lane] over ``length`` [m], and beginning at ``latest`` [m]
+    at the latest. ``kind``: ``closure`` (out of a lane the cones close: it must happen),
+    ``exit`` (towards the exit lane: given up as a last resort) or ``back`` (turning back from a
+    change whose gap closed: not judged)."""
+
+    lane: int
+    begin: float
+    length: float
+    latest: float
+    kind: str
 
 
 def closures(rd: network.Road, centres: list[np.ndarray]) -> dict[int, list[tuple[float, float]]]:
@@ -72,13 +112,13 @@ def closures(rd: network.Road, centres: list[np.ndarray]) -> dict[int, list[tupl
 
 
 def lane_plan(rd: network.Road, start: int, s0: float, closed: dict[int, list[tuple[float, float]]], exit_lane: int | None,
-              change_start: float, change_length: float, lead: float, margin: float) -> list[tuple[int, float, float]]:
-    """The lane changes ``(lane, begin, length)`` [m of arc length along lane ``start``] of a car
-    at arc length ``s0`` of lane ``start`` (see the module's rules)."""
+              change_start: float, change_length: float, lead: float, margin: float, window: float = 0.0) -> list[Change]:
+    """The lane changes of a car at arc length ``s0`` of lane ``start`` (see the module's rules;
+    arc lengths along lane ``start``)."""
     def scale(lane: int) -> float:  # arc length on lane ``start`` per metre of ``lane``
         return rd.length(start) / rd.length(lane)
 
-    changes: list[tuple[int, float, float]] = []
+    changes: list[Change] = []
     lane, free_from = start, s0 + change_start
     ahead = [(a * scale(start), b * scale(start)) for a, b in closed.get(start, []) if b * scale(start) > s0]
     if ahead:
@@ -89,40 +129,115 @@ def lane_plan(rd: network.Road, start: int, s0: float, closed: dict[int, list[tu
         if options:
             lane = options[0]
             length = change_length * abs(lane - start)
-            begin = max(free_from, first - lead - length)
-            changes.append((lane, begin, length))
-            free_from = begin + length
+            latest = max(free_from, first - lead - length)
+            changes.append(Change(lane, max(free_from, latest - window), length, latest, "closure"))
+            free_from = changes[-1].begin + length
     ends = [b * scale(j) for j, stretches in closed.items() for a, b in stretches if b * scale(j) > s0]
     if exit_lane is not None and exit_lane != lane:
-        length = change_length * abs(exit_lane - lane)
-        changes.append((exit_lane, max(free_from, max(ends, default=-np.inf) + margin), length))
+        begin = max(free_from, max(ends, default=-np.inf) + margin)
+        steps = abs(exit_lane - lane)
+        for k in range(steps):
+            latest = rd.length(start) - END_MARGIN - (steps - k) * change_length
+            changes.append(Change(lane + (k + 1) * (1 if exit_lane > lane else -1), begin + k * change_length, change_length,
+                                  max(latest, begin + k * change_length), "exit"))
     return changes
 
 
-def planned_path(rd: network.Road, start: int, s0: float, changes: list[tuple[int, float, float]]) -> np.ndarray:
+def planned_path(rd: network.Road, start: int, s0: float, changes: list[Change]) -> tuple[np.ndarray, np.ndarray]:
     """Rear-axle waypoints (M, 2) [m] from arc length ``s0`` of lane ``start`` to the road's end,
     moving onto each change's lane with a quintic smoothstep (lane positions matched by their
-    share of the lane's length, so curved roads work)."""
+    share of the lane's length, so curved roads work), and the arc length (M,) [m] of lane
+    ``start`` of each."""
     la = rd.length(start)
     s = np.r_[np.arange(s0, la, SAMPLE_STEP), la]
     points = along(rd.lanes[start], s)[0]
-    for lane, begin, length in changes:
-        there = along(rd.lanes[lane], s * rd.length(lane) / la)[0]
-        w = smoothstep((s - begin) / length)[:, None]
+    for c in changes:
+        there = along(rd.lanes[c.lane], s * rd.length(c.lane) / la)[0]
+        w = smoothstep((s - c.begin) / c.length)[:, None]
         points = (1.0 - w) * points + w * there
-    return points
+    return points, s
 
 
-def planned_band(rd: network.Road, lanes: list[int], final: int, settle_at: float, margin: float) -> LateralBand:
-    """The band across lanes ``lanes`` until arc length ``settle_at``, then over ``BAND_SETTLE``
-    metres onto lane ``final`` alone; ``margin`` [m] inside the edges."""
-    right, left = lane_edges(rd, min(lanes), max(lanes))
-    final_right, final_left = lane_edges(rd, final, final)
-    if final > min(lanes):
-        right = blend(right, final_right, 0.0, settle_at, BAND_SETTLE)
-    if final < max(lanes):
-        left = blend(left, final_left, 0.0, settle_at, BAND_SETTLE)
+def planned_band(rd: network.Road, start: int, changes: list[Change], margin: float) -> LateralBand:
+    """The band over the lane the car is in at each arc length of lane ``start``: it opens onto
+    a change's lane over ``BAND_SETTLE`` metres before the change begins, and closes onto it over
+    as many beyond its end; ``margin`` [m] inside the edges."""
+    la = rd.length(start)
+    s = np.r_[np.arange(0.0, la, SAMPLE_STEP), la]
+
+    def edge(lane: int, side: float) -> np.ndarray:  # side -1: its right edge, +1: its left edge
+        line = offset_polyline(rd.lanes[lane], 0.5 * side * rd.widths[lane])
+        return along(line, s * float(np.hypot(*np.diff(line, axis=0).T).sum()) / la)[0]
+
+    right, left, lane = edge(start, -1.0), edge(start, 1.0), start
+    for c in changes:
+        opening = smoothstep((s - c.begin + BAND_SETTLE) / BAND_SETTLE)[:, None]
+        closing = smoothstep((s - c.begin - c.length) / BAND_SETTLE)[:, None]
+        w_right, w_left = (closing, opening) if c.lane > lane else (opening, closing)
+        right = (1.0 - w_right) * right + w_right * edge(c.lane, -1.0)
+        left = (1.0 - w_left) * left + w_left * edge(c.lane, 1.0)
+        lane = c.lane
     return LateralBand(right, left, margin)
+
+
+@dataclass
+class LanePlan:
+    """A car's lanes as they stand: its (smoothed) road, start lane and arc length at its
+    departure, the changes begun (``done``, they shape its path so far; the last may be under
+    way) and those ahead. ``accepted``: the next change's gap was safe at the last judgement;
+    ``waiting``: a change was postponed, and the car slows until it has changed when ``slow``;
+    ``crossed``: the last change begun has reached its lane (no turning back); ``courtesy_for``:
+    the car it lets in ahead of it (-1: none), slowing up to arc length ``courtesy`` [m]."""
+
+    road: network.Road
+    start: int
+    s0: float
+    done: list[Change] = field(default_factory=list)
+    ahead: list[Change] = field(default_factory=list)
+    accepted: bool = False
+    waiting: bool = False
+    slow: bool = True
+    crossed: bool = True
+    courtesy_for: int = -1
+    courtesy: float = -np.inf
+
+    def lane(self) -> int:
+        """The lane of the last change begun (the start lane before any)."""
+        return self.done[-1].lane if self.done else self.start
+
+    def origin(self) -> int:
+        """The lane the last change begun leaves."""
+        return self.done[-2].lane if len(self.done) > 1 else self.start
+
+    def final(self) -> int:
+        """The lane of the last change planned."""
+        return (self.done + self.ahead)[-1].lane if self.done or self.ahead else self.start
+
+    def moving(self) -> bool:
+        """Whether a change is under way or the next one's gap was accepted (:meth:`intents` may hold lanes)."""
+        return not self.crossed or (bool(self.ahead) and self.accepted)
+
+    def intents(self, s: float, preview: float) -> set[int]:
+        """The lanes the car is moving into at arc length ``s`` [m]: those a change under way
+        crosses, or those of the next change when its gap was accepted within ``preview`` [m]."""
+        if self.done and not self.crossed and s < self.done[-1].begin + self.done[-1].length:
+            return crossed_lanes(self.origin(), self.done[-1].lane)
+        if self.ahead and self.accepted and s + preview >= self.ahead[0].begin:
+            return crossed_lanes(self.lane(), self.ahead[0].lane)
+        return set()
+
+    def postpone(self, begin: float) -> None:
+        """The next change begins at ``begin`` [m], those after it no sooner than their
+        predecessor ends."""
+        self.ahead[0] = self.ahead[0]._replace(begin=begin)
+        for k in range(1, len(self.ahead)):
+            prev = self.ahead[k - 1]
+            self.ahead[k] = self.ahead[k]._replace(begin=max(self.ahead[k].begin, prev.begin + prev.length))
+
+
+def crossed_lanes(a: int, b: int) -> set[int]:
+    """The lanes a change from lane ``a`` to lane ``b`` moves into."""
+    return set(range(min(a, b), max(a, b) + 1)) - {a}
 
 
 def routed_vehicles(scenario: Scenario, routes: list) -> list[RoutedVehicle]:
@@ -143,14 +258,15 @@ def routed_vehicles(scenario: Scenario, routes: list) -> list[RoutedVehicle]:
 
 
 class RoutedCars:
-    """The roads, references and bands of the controlled cars from SUMO's routes, made as they
-    depart; ``prepare`` is the run's :attr:`Setup.prepare`."""
+    """The roads, lane plans, references and bands of the controlled cars from SUMO's routes,
+    made as they depart and remade as their lane changes wait for gaps (see the module);
+    ``prepare`` is the run's :attr:`Setup.prepare`, ``counts`` its figures of lane changes."""
 
     def __init__(self, scenario: Scenario, net, vehicles: list[RoutedVehicle], robots, sim: Simulator | None):
         self.scenario, self.net, self.vehicles, self.robots, self.sim = scenario, net, vehicles, robots, sim
         lc = scenario.data["lane_change"]
         self.lc = lc
-        self.roads: dict[tuple[str, ...], network.Road] = {}
+        self.roads: dict[tuple[str, ...], tuple[network.Road, list[PathReference]]] = {}
         self.edges = [self.route(v) for v in vehicles]
         rng = np.random.default_rng(scenario["scenario.seed"])
         exits = lc["exit_lanes"]
@@ -166,11 +282,19 @@ class RoutedCars:
                       for k in range(n)]
         self.bands: list = [None] * n
         self.finish: list[tuple[PathReference, float] | None] = [None] * n
+        self.plans: list[LanePlan | None] = [None] * n
         self.free_flow = np.full(n, np.nan)
         self.done = np.zeros(n, dtype=bool)
         self.admitted = np.zeros(n, dtype=bool)
         self.cone_centres: list[np.ndarray] | None = None
         self.coordinator = None
+        self.rule = GapRule(lc["gap_time"], lc["gap_decel"], lc["gap_min"]) if lc["gap_acceptance"] else None
+        #: how far the tracking law looks ahead [m], and from how far before a change its gap is judged [m]:
+        #: beyond where the MPC's reference (the horizon at the cruise speed) and that law reach
+        self.lookahead = max(scenario["aac.lookahead"], scenario["lfc.lookahead"])
+        self.preview = lc["speed"] * scenario["controller.horizon"] * scenario["scenario.dt"] + self.lookahead
+        self.counts = dict(lane_changes=0, lane_change_waits=0, lane_change_aborts=0, exits_missed=0)
+        self._s: dict[int, float] = {}  # arc lengths of this period's cars along their start lanes
 
     def route(self, v: RoutedVehicle) -> tuple[str, ...]:
         """Vehicle ``v``'s edges (a trip routed on the network's shortest path through its ``via``)."""
@@ -188,6 +312,7 @@ class RoutedCars:
         return tuple(e.getID() for e in edges)
 
     def road(self, edges: tuple[str, ...], v: RoutedVehicle) -> network.Road:
+        """The (smoothed) road of route ``edges``; its lanes' centre lines as paths in :meth:`lines`."""
         if edges not in self.roads:
             unknown = next((e for e in edges if not self.net.hasEdge(e)), None)
             if unknown is not None or not edges:
@@ -199,14 +324,21 @@ class RoutedCars:
             if chain.n_lanes < MIN_LANES:
                 raise ScenarioError(self.scenario.source, KEYS, f"routes with {MIN_LANES} car lanes through every edge, room for a lane "
                                     f"change ({v.id}: {chain.describe()})")
-            self.roads[edges] = network.chain_road(chain)
-        return self.roads[edges]
+            rd = smooth_road(network.chain_road(chain))
+            self.roads[edges] = rd, [PathReference(line, 1.0, stop_at_end=False) for line in rd.lanes]
+        return self.roads[edges][0]
+
+    def lines(self, k: int) -> list[PathReference]:
+        """The centre lines of car ``k``'s road, as paths."""
+        return self.roads[self.edges[k]][1]
 
     def prepare(self, world: WorldState) -> WorldState:
-        """Give the cars SUMO departed since the last period their references (and the
-        coordinator a fresh start for them); take the finished ones off the road."""
+        """Give the cars SUMO departed since the last period their lane plans (and the
+        coordinator a fresh start for them), judge the gaps of the lane changes at hand, and
+        take the finished cars off the road."""
         for k in np.flatnonzero(world.on_road & ~self.admitted):
             self.admit(world, int(k))
+        self.judge(world)
         leaving = np.flatnonzero(self.done & world.on_road)
         for k in leaving:
             self.sim.retire(int(k))
@@ -219,24 +351,149 @@ class RoutedCars:
             self.cone_centres = [o.centre for o in world.obstacles if o.kind == "cone"]
         closed = closures(rd, self.cone_centres)
         state = world.states[k]
-        start = int(np.argmin([PathReference(line, 1.0, stop_at_end=False).project(state[:2])[1] for line in rd.lanes]))
-        s0 = PathReference(rd.lanes[start], 1.0, stop_at_end=False).project(state[:2])[0]
+        lines = self.lines(k)
+        start = int(np.argmin([line.project(state[:2])[1] for line in lines]))
+        s0 = lines[start].project(state[:2])[0]
         changes = lane_plan(rd, start, s0, closed, self.exit[k], lc["change_start"], lc["change_length"], lc["closure_lead"],
-                            self.exit_at[k])
-        final = changes[-1][0] if changes else start
-        a_lat = min(lc["curve_lat_accel"], self.scenario["robot.a_lat_max"])
-        task = smooth_reference(planned_path(rd, start, s0, changes), lc["speed"], a_lat)
-        settle = max((b + length for _, b, length in changes), default=s0)
-        band = planned_band(rd, [start] + [lane for lane, _, _ in changes], final, settle, 0.5 * self.robots[k].width + ROAD_MARGIN)
-        line = PathReference(rd.lanes[final], 1.0, stop_at_end=False)
-        end_s = max(line.length - END_MARGIN, line.project(state[:2])[0])
-        self.tasks[k], self.bands[k], self.finish[k] = task, band, (line, end_s)
+                            self.exit_at[k], lc["closure_window"])
+        self.plans[k] = LanePlan(rd, start, s0, ahead=changes)
+        self.rebuild(k)
         self.admitted[k] = True
-        self.free_flow[k] = world.t + task.project(along(rd.lanes[final], end_s)[0][0])[0] / lc["speed"]
+        line, end_s = self.finish[k]
+        self.free_flow[k] = world.t + self.tasks[k].project(line.pose_at(end_s)[0, :2])[0] / lc["speed"]
         self.coordinator.admit(world, k)
 
+    def rebuild(self, k: int) -> None:
+        """Car ``k``'s reference, band and finish line from its lane plan. While it waits for a
+        gap (and slows), its speed is capped at ``gap_speed`` of the cruise speed until its next
+        change has ended, and out of a closed lane without an accepted gap also by standing
+        ``lookahead`` before the change's latest begin (or its begin, once that has moved
+        beyond; braking at ``CURVE_DECEL``); while it lets a car in, at ``gap_speed`` up to its
+        ``courtesy`` arc length."""
+        lc, p = self.lc, self.plans[k]
+        changes = p.done + p.ahead
+        points, s = planned_path(p.road, p.start, p.s0, changes)
+        caps = None
+        if p.waiting and p.ahead:
+            c = p.ahead[0]
+            caps = np.where(s <= c.begin + c.length, lc["gap_speed"] * lc["speed"] if p.slow else np.inf, np.inf)
+            if c.kind == "closure" and not p.accepted:
+                stand = max(c.begin, c.latest) - self.lookahead
+                caps = np.minimum(caps, np.sqrt(2.0 * CURVE_DECEL * np.clip(stand - s, 0.0, None)))
+        if p.courtesy_for >= 0:
+            caps = np.minimum(np.inf if caps is None else caps, np.where(s <= p.courtesy, lc["gap_speed"] * lc["speed"], np.inf))
+        self.tasks[k] = lane_reference(points, lc["speed"], min(lc["curve_lat_accel"], self.scenario["robot.a_lat_max"]), caps)
+        self.bands[k] = planned_band(p.road, p.start, changes, 0.5 * self.robots[k].width + ROAD_MARGIN)
+        line = self.lines(k)[p.final()]
+        self.finish[k] = line, max(line.length - END_MARGIN, line.project(points[0])[0])
+
+    def arc(self, world: WorldState, k: int) -> float:
+        """Car ``k``'s arc length [m] along its start lane now (once per period)."""
+        if k not in self._s:
+            self._s[k] = self.lines(k)[self.plans[k].start].project(world.states[k, :2])[0]
+        return self._s[k]
+
+    def judge(self, world: WorldState) -> None:
+        """Every car's lane changes at hand this period (see the module): begin, wait, turn
+        back or give up; a car whose plan changed gets its new reference, and its coordinator
+        drops its stored plan."""
+        self._s = {}
+        for k in np.flatnonzero(self.admitted & world.on_road & ~self.done):
+            k, p = int(k), self.plans[k]
+            changed = False
+            if p.courtesy_for >= 0 and not self.courteous(world, k):
+                p.courtesy_for, p.courtesy, changed = -1, -np.inf, True
+            if p.ahead or not p.crossed:
+                changed |= self.step(world, k, p)
+            if changed:
+                self.rebuild(k)
+                self.coordinator.retask(k)
+
+    def courteous(self, world: WorldState, j: int) -> bool:
+        """Whether car ``j`` still lets its car in: that one is on the road, still waits, and
+        ``j`` has not passed its ``courtesy`` arc length."""
+        p, k = self.plans[j], self.plans[j].courtesy_for
+        return bool(world.on_road[k] and not self.done[k] and self.plans[k].waiting and self.arc(world, j) <= p.courtesy)
+
+    def let_in(self, world: WorldState, j: int, k: int) -> None:
+        """Car ``j`` lets car ``k`` in ahead of it (see the module)."""
+        p, s = self.plans[j], self.arc(world, j)
+        if p.courtesy_for == k and p.courtesy - s > 0.5 * COURTESY:
+            return
+        p.courtesy_for, p.courtesy = k, s + COURTESY
+        self.rebuild(j)
+        self.coordinator.retask(j)
+
+    def step(self, world: WorldState, k: int, p: LanePlan) -> bool:
+        """One period of car ``k``'s lane plan ``p``; whether the plan changed."""
+        s, lines = self.arc(world, k), self.lines(k)
+        if not p.crossed:
+            c, origin = p.done[-1], p.origin()
+            here = world.states[k, :2]
+            if s >= c.begin + c.length or lines[c.lane].project(here)[1] < lines[origin].project(here)[1]:
+                p.crossed = True
+            elif c.kind != "back" and s + c.length <= c.latest and not self.safe(world, k, origin, c.lane, headway=False).safe:
+                p.done.append(Change(origin, s, c.length, s, "back"))
+                p.ahead.insert(0, c._replace(begin=min(c.latest, s + c.length + POSTPONE_STEP)))
+                p.postpone(p.ahead[0].begin)
+                p.crossed, p.accepted, p.waiting = True, False, True
+                self.counts["lane_change_aborts"] += 1
+                return True
+            else:
+                return False
+        if not p.ahead:
+            return False
+        c = p.ahead[0]
+        if s + self.preview < c.begin:
+            return False
+        verdict = self.safe(world, k, p.lane(), c.lane, headway=True)
+        if verdict.safe:
+            changed = p.waiting and c.kind == "closure" and not p.accepted  # the stop before it is lifted
+            p.accepted = True
+            if s >= c.begin:
+                p.done.append(p.ahead.pop(0))
+                p.crossed, p.accepted, p.waiting = False, False, False
+                self.counts["lane_changes"] += 1
+            return changed
+        was = p.accepted
+        p.accepted = False
+        if s + self.preview >= c.latest and c.kind == "exit":  # the last resort: it finishes in its lane
+            p.ahead = []
+            p.waiting = False
+            self.counts["exits_missed"] += 1
+            return True
+        begin = min(s + self.preview + POSTPONE_STEP, c.latest)
+        if c.kind == "closure":
+            begin = max(begin, s + self.lookahead)  # beyond its latest begin: it stands where it is
+        slow = True
+        if verdict.robot >= 0 and verdict.along < 0.0 and not self.done[verdict.robot]:  # a controlled car behind: it lets this one in
+            slow = False
+            self.let_in(world, verdict.robot, k)
+        if begin <= c.begin and p.waiting and was == p.accepted and slow == p.slow:
+            return False
+        self.counts["lane_change_waits"] += not p.waiting
+        p.waiting, p.slow = True, slow
+        p.postpone(max(begin, c.begin))
+        return True
+
+    def safe(self, world: WorldState, k: int, a: int, b: int, headway: bool) -> GapVerdict:
+        """Whether car ``k`` may move from lane ``a`` into lane ``b`` now: every lane it moves
+        into leaves it a safe gap (always, without ``lane_change.gap_acceptance``); the first
+        unsafe lane's verdict."""
+        if self.rule is None:
+            return GapVerdict(True, np.inf)
+        p, lines = self.plans[k], self.lines(k)
+        for lane in crossed_lanes(a, b):
+            also = tuple(int(j) for j in np.flatnonzero(self.admitted & world.on_road & ~self.done)
+                         if j != k and self.plans[j].road is p.road and self.plans[j].moving()
+                         and lane in self.plans[j].intents(self.arc(world, int(j)), self.preview))
+            verdict = judge_gap(world, k, lines[lane], 0.5 * p.road.widths[lane], self.rule, headway, also)
+            if not verdict.safe:
+                return verdict
+        return verdict
+
     def finished(self, world: WorldState) -> np.ndarray:
-        """Cars that reached their exit lane near their route's end, or that SUMO took off."""
+        """Cars that reached their last lane near their route's end, or that SUMO took off."""
         for k in np.flatnonzero(~self.done & world.on_road):
             line, end_s = self.finish[k]
             s, lateral = line.project(world.states[k, :2])
@@ -269,7 +526,7 @@ def build_routed(scenario: Scenario, net_path: Path, routes: list[Path], options
 
         coord = coordinator(scenario, cars.tasks, cars.bands, finished, band=True)
         cars.coordinator = coord
-        return Setup(scenario, sim, coord, cars.tasks, finished, cars.free_flow, prepare=cars.prepare)
+        return Setup(scenario, sim, coord, cars.tasks, finished, cars.free_flow, prepare=cars.prepare, figures=lambda: dict(cars.counts))
     except BaseException:
         sim.close()
         raise
