@@ -224,14 +224,20 @@ def test_a_change_waits_for_a_safe_gap_then_begins():
 
 def test_a_controlled_car_behind_lets_the_waiting_car_in_and_one_change_turns_back():
     cars, robots = routed_cars()
-    world = highway_world(cars, robots, {0: (20.0, -8.0, 16.0), 1: (14.0, -4.8, 16.0)})
+    # car 0 at 8 m/s; car 1 in lane 1, 50 m behind at 16 m/s: 46 m bumper gap, the rule needs 2 + 16 + (16^2 - 8^2) / 6 = 50 m;
+    # the rule's gap behind car 0 begins at x = 80 - 3.3 - 0.7 - 2 - 8 = 66 m, 36 m ahead of car 1, and 16^2 - 8^2 = 192 <= 2 * 3 * 36
+    world = highway_world(cars, robots, {0: (80.0, -8.0, 8.0), 1: (30.0, -4.8, 16.0)})
     cars.admit(world, 0)
     cars.admit(world, 1)  # car 1 starts in lane 1, its exit: nothing to change
     cars.judge(world)
     assert cars.plans[0].waiting and not cars.plans[0].slow  # held up by car 1 behind it: it keeps its speed ...
-    assert cars.plans[1].courtesy_for == 0  # ... and car 1 lets it in, slowing
+    assert cars.plans[1].courtesy_for == 0 and cars.plans[1].courtesy == pytest.approx(66.0)  # ... and car 1 lets it in,
     one = cars.tasks[1]
-    assert one.speed_at(one.project([20.0, -4.8])[0]) == pytest.approx(12.0)
+    for x, v in ((30.0, np.sqrt(8.0**2 + 2 * 1.5 * 36.0)), (66.0, 8.0)):  # slowing to car 0's 8 m/s by 66 m
+        assert one.speed_at(one.project([x, -4.8])[0]) == pytest.approx(v, abs=0.05)
+    beside = highway_world(cars, robots, {0: (92.0, -8.0, 16.0), 1: (88.0, -4.8, 16.0)}, t=0.6)
+    cars.judge(beside)  # car 1 beside it, past where it could let it in: car 0 slows instead
+    assert cars.plans[0].slow and cars.plans[1].courtesy_for == -1
     # car 0 begins its change into a free lane; a fast car appears close behind before it is across: it turns back
     begin = cars.plans[0].ahead[0].begin
     free = highway_world(cars, robots, {0: (begin - 1.0, -8.0, 16.0), 1: (-200.0, -4.8, 16.0)}, t=3.0)
