@@ -225,7 +225,7 @@ def test_a_change_waits_for_a_safe_gap_then_begins():
 def test_a_controlled_car_behind_lets_the_waiting_car_in_and_one_change_turns_back():
     cars, robots = routed_cars()
     # car 0 at 8 m/s; car 1 in lane 1, 50 m behind at 16 m/s: 46 m bumper gap, the rule needs 2 + 16 + (16^2 - 8^2) / 6 = 50 m;
-    # the rule's gap behind car 0 begins at x = 80 - 3.3 - 0.7 - 2 - 8 = 66 m, 36 m ahead of car 1, and 16^2 - 8^2 = 192 <= 2 * 3 * 36
+    # the rule's gap behind car 0 begins at x = 80 - 3.3 - 0.7 - 2 - 8 = 66 m
     world = highway_world(cars, robots, {0: (80.0, -8.0, 8.0), 1: (30.0, -4.8, 16.0)})
     cars.admit(world, 0)
     cars.admit(world, 1)  # car 1 starts in lane 1, its exit: nothing to change
@@ -235,8 +235,9 @@ def test_a_controlled_car_behind_lets_the_waiting_car_in_and_one_change_turns_ba
     one = cars.tasks[1]
     for x, v in ((30.0, np.sqrt(8.0**2 + 2 * 1.5 * 36.0)), (66.0, 8.0)):  # slowing to car 0's 8 m/s by 66 m
         assert one.speed_at(one.project([x, -4.8])[0]) == pytest.approx(v, abs=0.05)
-    beside = highway_world(cars, robots, {0: (92.0, -8.0, 16.0), 1: (88.0, -4.8, 16.0)}, t=0.6)
-    cars.judge(beside)  # car 1 beside it, past where it could let it in: car 0 slows instead
+    # car 0 stands (at a closed lane, say): car 1, 2 m behind it at 16 m/s, can no longer stop before its gap: it passes
+    standing = highway_world(cars, robots, {0: (100.0, -8.0, 0.0), 1: (98.0, -4.8, 16.0)}, t=1.0)
+    cars.judge(standing)
     assert cars.plans[0].slow and cars.plans[1].courtesy_for == -1
     # car 0 begins its change into a free lane; a fast car appears close behind before it is across: it turns back
     begin = cars.plans[0].ahead[0].begin

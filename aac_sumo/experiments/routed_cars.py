@@ -27,11 +27,13 @@ plan or tracking law of the car has used it yet). Without one the car keeps its 
 moves ahead (``POSTPONE_STEP`` beyond the preview), and the car slows to
 ``lane_change.gap_speed`` of its cruise speed until it has changed, so that the traffic beside it
 moves on. What holds it up may be a controlled car behind it (or beside it, a little behind) in
-the target lane: when that one is still behind the rule's gap behind the car and can come down
-to the car's speed there at its comfort deceleration, it lets the car in, as at a zipper merge
-(it slows at ``CURVE_DECEL`` to the car's speed at that gap, until the car has begun its change),
-and the car keeps its speed; otherwise the car slows, and the other one passes (two controlled
-cars that wait for each other's place do not ride side by side for good). Out of a closed lane a car
+the target lane: that one lets the car in, as at a zipper merge (it slows at ``CURVE_DECEL`` to
+the car's speed, at most ``gap_speed`` of the cruise speed, where the rule's gap behind the car
+begins, until the car has begun its change), and the car keeps its speed (two controlled cars
+that wait for each other's place do not ride side by side for good). Only a car that waits
+standing (slower than ``STANDING``) is not let in by one that can no longer stop before its gap
+at its comfort deceleration: that one passes (rather than stop beside it), and the next one lets
+it in. Out of a closed lane a car
 without a gap also slows to stand the tracking law's look-ahead before its latest begin
 (braking at ``CURVE_DECEL``) and waits there for one. A change under way turns back
 to the lane it left when its gap is no longer safe without the time gaps, while it has not
@@ -71,7 +73,8 @@ from aac_sumo.world import WorldState, parking_spot
 END_MARGIN = 15.0  # a car has finished this far before the end of its route [m]
 CLUSTER_GAP = 60.0  # cones of one lane closer than this along it close one stretch [m]
 POSTPONE_STEP = 10.0  # a change without a safe gap moves this far beyond the preview [m]
-MERGE_MOVE = 2.0  # a car letting another one in follows where that one stands once it has moved this far [m]
+MERGE_MOVE = 10.0  # a car letting another one in follows where that one's gap begins once it has moved this far [m]
+STANDING = 1.0  # a car slower than this waits as standing: only a car that can still stop before its gap lets it in [m/s]
 KEYS = "sumo.controlled_types"
 
 
@@ -421,21 +424,22 @@ class RoutedCars:
 
     def let_in(self, world: WorldState, j: int, k: int) -> bool:
         """Whether car ``j`` lets car ``k`` in ahead of it (see the module): its rear axle comes
-        down to ``k``'s speed where the rule's gap behind ``k`` begins (along ``j``'s start lane),
-        when it is behind that point and can still do so braking at its comfort deceleration."""
+        down to ``k``'s speed (at most ``gap_speed`` of the cruise speed) where the rule's gap
+        behind ``k`` begins (along ``j``'s start lane); not when ``k`` stands and ``j`` can no
+        longer stop before that point at its comfort deceleration (it would stop beside it)."""
         p, rule = self.plans[j], self.rule
-        v = max(float(world.states[k, 3]), 0.0)
+        v = min(max(float(world.states[k, 3]), 0.0), self.lc["gap_speed"] * self.lc["speed"])
         ahead = self.lines(j)[p.start].project(world.states[k, :2])[0]  # k's rear axle along j's start lane
         robot_j, robot_k = self.robots[j], self.robots[k]
         merge = (ahead - (robot_j.centre_offset + 0.5 * robot_j.length) - (0.5 * robot_k.length - robot_k.centre_offset)
                  - rule.min_gap - rule.time_gap * v)
         s, v_j = self.arc(world, j), max(float(world.states[j, 3]), 0.0)
-        if s > merge or v_j**2 - v**2 > 2.0 * robot_j.model.limits.comfort_decel * (merge - s):
+        if v < STANDING and v_j**2 - v**2 > 2.0 * robot_j.model.limits.comfort_decel * max(merge - s, 0.0):
             if p.courtesy_for == k:  # it can no longer: it goes on
                 p.courtesy_for, p.courtesy, p.courtesy_v = -1, -np.inf, 0.0
                 self.rebuild(j)
                 self.coordinator.retask(j)
-            return False  # beside it, or too close to come down to its speed: it goes on (the one behind may let it in)
+            return False
         if p.courtesy_for != k or abs(p.courtesy - merge) >= MERGE_MOVE:
             p.courtesy_for, p.courtesy, p.courtesy_v = k, merge, v
             self.rebuild(j)
