@@ -145,7 +145,7 @@ def test_the_highway_work_zone_first_minute(tmp_path):
     """The bundled highway's first 65 s (real libsumo; the 100-car run itself is measured in
     docs/highway_work_zone.md): the flow's cars enter one every 2.4 s, each recorded only from
     its departure; those from the closed lane are out of it before the first cone (x = 800 m)
-    and the leaders pass the work zone; nothing collides, by our check or SUMO's own, whose
+    and the leaders drive along the work zone; nothing collides, by our check or SUMO's own, whose
     collision output holds exactly the pairs counted."""
     import xml.etree.ElementTree as ET
 
@@ -161,7 +161,7 @@ def test_the_highway_work_zone_first_minute(tmp_path):
     assert len(first) == 28 and np.all(np.diff(np.sort(first.to_numpy())) > 1.5)  # one every 2.4 s, as SUMO inserts them
     closed = steps[(steps.x > 790.0) & (steps.x < 950.0)]
     assert len(closed) and closed.y.min() > -12.25 + 1.75  # nobody's rear axle in the closed lane's half beside the cones
-    assert steps.x.max() > 955.0  # the leader is past the last cone (x = 950 m)
+    assert steps.x.max() > 900.0  # the leader drives along the cones (x = 800-950 m; waiting for gaps slows it below 16 m/s)
 
 
 # --- gap acceptance of the routed cars' lane changes (no SUMO run: the lane plans on synthetic worlds) ---
@@ -224,14 +224,21 @@ def test_a_change_waits_for_a_safe_gap_then_begins():
 
 def test_a_controlled_car_behind_lets_the_waiting_car_in_and_one_change_turns_back():
     cars, robots = routed_cars()
-    world = highway_world(cars, robots, {0: (20.0, -8.0, 16.0), 1: (14.0, -4.8, 16.0)})
+    # car 0 at 8 m/s; car 1 in lane 1, 50 m behind at 16 m/s: 46 m bumper gap, the rule needs 2 + 16 + (16^2 - 8^2) / 6 = 50 m;
+    # the rule's gap behind car 0 begins at x = 80 - 3.3 - 0.7 - 2 - 8 = 66 m
+    world = highway_world(cars, robots, {0: (80.0, -8.0, 8.0), 1: (30.0, -4.8, 16.0)})
     cars.admit(world, 0)
     cars.admit(world, 1)  # car 1 starts in lane 1, its exit: nothing to change
     cars.judge(world)
     assert cars.plans[0].waiting and not cars.plans[0].slow  # held up by car 1 behind it: it keeps its speed ...
-    assert cars.plans[1].courtesy_for == 0  # ... and car 1 lets it in, slowing
+    assert cars.plans[1].courtesy_for == 0 and cars.plans[1].courtesy == pytest.approx(66.0)  # ... and car 1 lets it in,
     one = cars.tasks[1]
-    assert one.speed_at(one.project([20.0, -4.8])[0]) == pytest.approx(12.0)
+    for x, v in ((30.0, np.sqrt(8.0**2 + 2 * 1.5 * 36.0)), (66.0, 8.0)):  # slowing to car 0's 8 m/s by 66 m
+        assert one.speed_at(one.project([x, -4.8])[0]) == pytest.approx(v, abs=0.05)
+    # car 0 stands (at a closed lane, say): car 1, 2 m behind it at 16 m/s, can no longer stop before its gap: it passes
+    standing = highway_world(cars, robots, {0: (100.0, -8.0, 0.0), 1: (98.0, -4.8, 16.0)}, t=1.0)
+    cars.judge(standing)
+    assert cars.plans[0].slow and cars.plans[1].courtesy_for == -1
     # car 0 begins its change into a free lane; a fast car appears close behind before it is across: it turns back
     begin = cars.plans[0].ahead[0].begin
     free = highway_world(cars, robots, {0: (begin - 1.0, -8.0, 16.0), 1: (-200.0, -4.8, 16.0)}, t=3.0)

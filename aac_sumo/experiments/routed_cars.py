@@ -27,11 +27,15 @@ plan or tracking law of the car has used it yet). Without one the car keeps its 
 moves ahead (``POSTPONE_STEP`` beyond the preview), and the car slows to
 ``lane_change.gap_speed`` of its cruise speed until it has changed, so that the traffic beside it
 moves on. What holds it up may be a controlled car behind it (or beside it, a little behind) in
-the target lane: the car then keeps its speed and that one lets it in, slowing to ``gap_speed``
-for ``COURTESY`` metres or until the car has begun its change (as a driver who opens a gap; two
-controlled cars that wait for each other's place do not ride side by side for good). Out of a
-closed lane a car without a gap also slows to stand the tracking law's look-ahead before its
-latest begin (braking at ``CURVE_DECEL``) and waits there for one. A change under way turns back
+the target lane: that one lets the car in, as at a zipper merge (it slows at ``CURVE_DECEL`` to
+the car's speed, at most ``gap_speed`` of the cruise speed, where the rule's gap behind the car
+begins, until the car has begun its change), and the car keeps its speed (two controlled cars
+that wait for each other's place do not ride side by side for good). Only a car that waits
+standing (slower than ``STANDING``) is not let in by one that can no longer stop before its gap
+at its comfort deceleration: that one passes (rather than stop beside it), and the next one lets
+it in. Out of a closed lane a car
+without a gap also slows to stand the tracking law's look-ahead before its latest begin
+(braking at ``CURVE_DECEL``) and waits there for one. A change under way turns back
 to the lane it left when its gap is no longer safe without the time gaps, while it has not
 reached its new lane and there is room to try again before its latest begin. An exit change that
 reaches its latest begin without a safe gap is given up, the last resort: the car finishes in
@@ -69,7 +73,8 @@ from aac_sumo.world import WorldState, parking_spot
 END_MARGIN = 15.0  # a car has finished this far before the end of its route [m]
 CLUSTER_GAP = 60.0  # cones of one lane closer than this along it close one stretch [m]
 POSTPONE_STEP = 10.0  # a change without a safe gap moves this far beyond the preview [m]
-COURTESY = 100.0  # a controlled car asked to let another one in ahead of it slows for this far (or until it is in) [m]
+MERGE_MOVE = 10.0  # a car letting another one in follows where that one's gap begins once it has moved this far [m]
+STANDING = 1.0  # a car slower than this waits as standing: only a car that can still stop before its gap lets it in [m/s]
 KEYS = "sumo.controlled_types"
 
 
@@ -187,7 +192,8 @@ class LanePlan:
     way) and those ahead. ``accepted``: the next change's gap was safe at the last judgement;
     ``waiting``: a change was postponed, and the car slows until it has changed when ``slow``;
     ``crossed``: the last change begun has reached its lane (no turning back); ``courtesy_for``:
-    the car it lets in ahead of it (-1: none), slowing up to arc length ``courtesy`` [m]."""
+    the car it lets in ahead of it (-1: none), coming down to that one's speed ``courtesy_v``
+    [m/s] at arc length ``courtesy`` [m] (of its start lane)."""
 
     road: network.Road
     start: int
@@ -200,6 +206,7 @@ class LanePlan:
     crossed: bool = True
     courtesy_for: int = -1
     courtesy: float = -np.inf
+    courtesy_v: float = 0.0
 
     def lane(self) -> int:
         """The lane of the last change begun (the start lane before any)."""
@@ -368,8 +375,8 @@ class RoutedCars:
         gap (and slows), its speed is capped at ``gap_speed`` of the cruise speed until its next
         change has ended, and out of a closed lane without an accepted gap also by standing
         ``lookahead`` before the change's latest begin (or its begin, once that has moved
-        beyond; braking at ``CURVE_DECEL``); while it lets a car in, at ``gap_speed`` up to its
-        ``courtesy`` arc length."""
+        beyond; braking at ``CURVE_DECEL``); while it lets a car in, by coming down to
+        ``courtesy_v`` at its ``courtesy`` arc length (braking at ``CURVE_DECEL``)."""
         lc, p = self.lc, self.plans[k]
         changes = p.done + p.ahead
         points, s = planned_path(p.road, p.start, p.s0, changes)
@@ -381,7 +388,8 @@ class RoutedCars:
                 stand = max(c.begin, c.latest) - self.lookahead
                 caps = np.minimum(caps, np.sqrt(2.0 * CURVE_DECEL * np.clip(stand - s, 0.0, None)))
         if p.courtesy_for >= 0:
-            caps = np.minimum(np.inf if caps is None else caps, np.where(s <= p.courtesy, lc["gap_speed"] * lc["speed"], np.inf))
+            merge = np.sqrt(p.courtesy_v**2 + 2.0 * CURVE_DECEL * np.clip(p.courtesy - s, 0.0, None))
+            caps = merge if caps is None else np.minimum(caps, merge)
         self.tasks[k] = lane_reference(points, lc["speed"], min(lc["curve_lat_accel"], self.scenario["robot.a_lat_max"]), caps)
         self.bands[k] = planned_band(p.road, p.start, changes, 0.5 * self.robots[k].width + ROAD_MARGIN)
         line = self.lines(k)[p.final()]
@@ -402,7 +410,7 @@ class RoutedCars:
             k, p = int(k), self.plans[k]
             changed = False
             if p.courtesy_for >= 0 and not self.courteous(world, k):
-                p.courtesy_for, p.courtesy, changed = -1, -np.inf, True
+                p.courtesy_for, p.courtesy, p.courtesy_v, changed = -1, -np.inf, 0.0, True
             if p.ahead or not p.crossed:
                 changed |= self.step(world, k, p)
             if changed:
@@ -410,19 +418,33 @@ class RoutedCars:
                 self.coordinator.retask(k)
 
     def courteous(self, world: WorldState, j: int) -> bool:
-        """Whether car ``j`` still lets its car in: that one is on the road, still waits, and
-        ``j`` has not passed its ``courtesy`` arc length."""
-        p, k = self.plans[j], self.plans[j].courtesy_for
-        return bool(world.on_road[k] and not self.done[k] and self.plans[k].waiting and self.arc(world, j) <= p.courtesy)
+        """Whether car ``j`` still lets its car in: that one is on the road and still waits."""
+        k = self.plans[j].courtesy_for
+        return bool(world.on_road[k] and not self.done[k] and self.plans[k].waiting)
 
-    def let_in(self, world: WorldState, j: int, k: int) -> None:
-        """Car ``j`` lets car ``k`` in ahead of it (see the module)."""
-        p, s = self.plans[j], self.arc(world, j)
-        if p.courtesy_for == k and p.courtesy - s > 0.5 * COURTESY:
-            return
-        p.courtesy_for, p.courtesy = k, s + COURTESY
-        self.rebuild(j)
-        self.coordinator.retask(j)
+    def let_in(self, world: WorldState, j: int, k: int) -> bool:
+        """Whether car ``j`` lets car ``k`` in ahead of it (see the module): its rear axle comes
+        down to ``k``'s speed (at most ``gap_speed`` of the cruise speed) where the rule's gap
+        behind ``k`` begins (along ``j``'s start lane); not when ``k`` stands and ``j`` can no
+        longer stop before that point at its comfort deceleration (it would stop beside it)."""
+        p, rule = self.plans[j], self.rule
+        v = min(max(float(world.states[k, 3]), 0.0), self.lc["gap_speed"] * self.lc["speed"])
+        ahead = self.lines(j)[p.start].project(world.states[k, :2])[0]  # k's rear axle along j's start lane
+        robot_j, robot_k = self.robots[j], self.robots[k]
+        merge = (ahead - (robot_j.centre_offset + 0.5 * robot_j.length) - (0.5 * robot_k.length - robot_k.centre_offset)
+                 - rule.min_gap - rule.time_gap * v)
+        s, v_j = self.arc(world, j), max(float(world.states[j, 3]), 0.0)
+        if v < STANDING and v_j**2 - v**2 > 2.0 * robot_j.model.limits.comfort_decel * max(merge - s, 0.0):
+            if p.courtesy_for == k:  # it can no longer: it goes on
+                p.courtesy_for, p.courtesy, p.courtesy_v = -1, -np.inf, 0.0
+                self.rebuild(j)
+                self.coordinator.retask(j)
+            return False
+        if p.courtesy_for != k or abs(p.courtesy - merge) >= MERGE_MOVE:
+            p.courtesy_for, p.courtesy, p.courtesy_v = k, merge, v
+            self.rebuild(j)
+            self.coordinator.retask(j)
+        return True
 
     def step(self, world: WorldState, k: int, p: LanePlan) -> bool:
         """One period of car ``k``'s lane plan ``p``; whether the plan changed."""
@@ -463,12 +485,10 @@ class RoutedCars:
             self.counts["exits_missed"] += 1
             return True
         begin = min(s + self.preview + POSTPONE_STEP, c.latest)
-        if c.kind == "closure":
-            begin = max(begin, s + self.lookahead)  # beyond its latest begin: it stands where it is
-        slow = True
-        if verdict.robot >= 0 and verdict.along < 0.0 and not self.done[verdict.robot]:  # a controlled car behind: it lets this one in
-            slow = False
-            self.let_in(world, verdict.robot, k)
+        if c.kind == "closure" and s + self.lookahead > c.begin + MERGE_MOVE:
+            begin = s + self.lookahead  # it went beyond where it was to stand: it stands where it is now
+        # a controlled car behind that lets this one in: it keeps its speed; otherwise it slows, and what holds it up moves on
+        slow = not (verdict.robot >= 0 and verdict.along < 0.0 and not self.done[verdict.robot] and self.let_in(world, verdict.robot, k))
         if begin <= c.begin and p.waiting and was == p.accepted and slow == p.slow:
             return False
         self.counts["lane_change_waits"] += not p.waiting
