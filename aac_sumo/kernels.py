@@ -21,6 +21,11 @@ import math
 import numba
 import numpy as np
 
+#: Gap [m] the safety stop keeps from obstacles that stand (cones) instead of its margin. SUMO
+#: measures a car's gap to a stopped vehicle along their lane, not between footprints; on a curve
+#: the two differ by millimetres, and a car stopped in exact contact is a collision to SUMO.
+STANDING_GAP = 0.05
+
 
 @numba.njit(cache=True)
 def limited_steer(steer, v, accel, previous, wheelbase, steer_limits, dt):
@@ -285,7 +290,8 @@ def courses_unsafe(own, brake, targets, skip, eased, growing, margin, tie):
     5) are what it must keep clear of, except where ``skip`` (m, T). Course i fails when at some
     stage k >= 1 its clearance [m] to some target is below ``margin`` and below both the stage-0
     clearance and braking's clearance at stage k by more than ``tie``; where ``eased`` (m, T),
-    every clearance counts ``margin`` more. A ``growing`` (T,) target (a walker's region that
+    every clearance counts ``margin - STANDING_GAP`` more (the target counts only within
+    :data:`STANDING_GAP`). A ``growing`` (T,) target (a walker's region that
     grows with time) counts only until the course stands (its footprint no longer moves): a
     standing robot cannot run into anyone. Pairs whose circumscribed discs stay ``margin`` apart
     at every stage k >= 1 are not measured, nor (checked first) pairs whose whole courses' discs
@@ -314,7 +320,7 @@ def courses_unsafe(own, brake, targets, skip, eased, growing, margin, tie):
                 bound = min(bound, apart - r_own - 0.5 * math.hypot(targets[t, k, 2], targets[t, k, 3]))
             if bound >= margin:
                 continue
-            extra = margin if eased[i, t] else 0.0
+            extra = max(margin - STANDING_GAP, 0.0) if eased[i, t] else 0.0
             now = rect_clearance(own[i, 0], targets[t, 0]) + extra
             for k in range(1, last):
                 later = rect_clearance(own[i, k], targets[t, k]) + extra

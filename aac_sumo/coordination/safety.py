@@ -8,8 +8,9 @@ within ``margin`` [m] of another robot's footprint at the same stage, or of an o
 at constant velocity, closer to it than it is now and than braking at once would bring it at
 that stage. (Compared stage by stage: a pedestrian's region grows with time, so late in both
 courses it swallows the car whatever it did, and a comparison of the two courses' closest
-approaches let a car creep into a walker.) Obstacles that surely stand (cones) count only on
-contact: they cannot come at the robot, and a car that has stopped within the margin of a
+approaches let a car creep into a walker.) Obstacles that surely stand (cones) count only within
+``STANDING_GAP`` (5 cm; SUMO's lane-wise gap to them differs from ours by millimetres on a curve):
+they cannot come at the robot, and a car that has stopped within the margin of a
 cone, pointing at it, could otherwise never leave (it does not reverse).
 Braking at once is always allowed: a robot standing beside a pedestrian who may start walking
 may drive away from them. The other robots are taken both on their own such course and braking
