@@ -83,7 +83,8 @@ def authority_strip(ax, steps: pd.DataFrame, robots: list[str], colours) -> None
 
 def plot_fairness(result, path: Path, delays: np.ndarray | None = None) -> None:
     """Bars per robot: authority received over its fair share, and its delay [s] (arrival time
-    minus free-flow time; ``delays`` in robot order, NaN for a robot that did not arrive)."""
+    minus free-flow time; ``delays`` by robot name, NaN for a robot that did not arrive). Only
+    robots with recorded steps are shown (a run stopped early misses those not yet departed)."""
     steps, m = result.steps, result.metrics
     order = list(dict.fromkeys(steps["robot"]))
     share = authority_share(steps).reindex(order)
@@ -98,6 +99,7 @@ def plot_fairness(result, path: Path, delays: np.ndarray | None = None) -> None:
         bottom.text(0.5, 0.5, "delays unknown: this scenario has no free-flow times", ha="center", va="center",
                     transform=bottom.transAxes)
     else:
+        delays = pd.Series(delays).reindex(robots).to_numpy(dtype=float)
         bottom.bar(robots, np.nan_to_num(delays, nan=0.0), color=["tab:orange" if np.isfinite(d) else "0.8" for d in delays])
         bottom.set_title(f"delay_jain {_fmt(m.get('delay_jain'))}, delay_max_s {_fmt(m.get('delay_max_s'))}"
                          + ("; grey: did not arrive" if np.isnan(delays).any() else ""), fontsize="small")

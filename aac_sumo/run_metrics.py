@@ -17,7 +17,7 @@ from aac_sumo.metrics import compute_metrics, jain
 class RunResult:
     """Metrics, the per-robot step table, the per-period table, every agent's trajectory,
     each robot's goal (the end of its reference path, rear axle [m]) and each robot's delay
-    (arrival time minus free-flow time [s], NaN if it did not arrive; None when the experiment
+    (arrival time minus free-flow time [s] by robot name, NaN if it did not arrive; None when the experiment
     has no free-flow times)."""
 
     metrics: dict
@@ -26,7 +26,7 @@ class RunResult:
     trajectories: pd.DataFrame
     scenario: Scenario
     goals: np.ndarray | None = None
-    delays: np.ndarray | None = None
+    delays: pd.Series | None = None
 
 
 @dataclass

@@ -56,7 +56,7 @@ def run(scenario: Scenario) -> RunResult:
     if setup.figures is not None:
         metrics.update(setup.figures())
     goals = np.array([task.points[-1] for task in setup.tasks])
-    delays = None if setup.free_flow_s is None else rec.arrival - setup.free_flow_s
+    delays = None if setup.free_flow_s is None else pd.Series(rec.arrival - setup.free_flow_s, index=[r.name for r in first.robots])
     result = RunResult(metrics, steps, periods, pd.DataFrame(rec.traj), setup.scenario, goals, delays)
     if interrupted:
         raise RunInterrupted(result)

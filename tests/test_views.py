@@ -55,6 +55,25 @@ def test_every_run_writes_its_timeline_and_fairness_pictures(swarm_run):
             assert picture.format == "PNG" and min(picture.size) > 300, name
 
 
+def test_the_fairness_picture_shows_only_the_robots_that_were_recorded(tmp_path):
+    """A run stopped before every car departed (the highway: cars enter over time) has delays
+    for all its robots but steps for those on the road; the picture is drawn for the latter (an
+    interrupted 100-car run lost its pictures to a shape mismatch)."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from aac_sumo.report_timeline import plot_fairness
+
+    steps = pd.DataFrame({"t": [0.0, 0.0, 0.1, 0.1], "robot": ["a", "b", "a", "b"], "authority": [True, False, False, True],
+                          "arrived": [False] * 4})
+    result = SimpleNamespace(steps=steps, metrics={"authority_jain": 1.0, "delay_jain": None, "delay_max_s": None,
+                                                   "scenario": "highway_work_zone", "coordinator": "aac", "horizon": 10, "seed": 0})
+    plot_fairness(result, tmp_path / "fairness.png", pd.Series([1.5, np.nan, np.nan], index=["a", "b", "c"]))
+    with Image.open(tmp_path / "fairness.png") as picture:
+        assert picture.format == "PNG"
+
+
 @pytest.mark.parametrize("argv, expected", [
     (["animate", "no/such/dir"], "no/such/dir: expected a run directory"),
     (["animate", ".", "--format", "avi"], "--format: invalid choice: 'avi'"),
