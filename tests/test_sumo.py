@@ -17,6 +17,7 @@ from aac_sumo.experiments import build
 from aac_sumo.experiments.common import robot_spec
 from aac_sumo.experiments.lane_change import BAND_SETTLE, BUNDLED_NET, BUNDLED_NET_DIR, lane_change_band, target_lane
 from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
+from aac_sumo.geometry import rect_clearance_rows
 from aac_sumo.sim.sumo import SumoOptions, SumoSimulator
 
 CONES = BUNDLED_NET_DIR / "cones.rou.xml"
@@ -258,3 +259,41 @@ def test_fifteen_vehicles_change_lanes_without_collision(name):
 def test_sumo_binaries_come_from_the_wheel():
     done = subprocess.run([network.sumo_binary("sumo"), "--version"], capture_output=True, text=True)
     assert done.returncode == 0 and "Eclipse SUMO" in done.stdout
+
+
+def test_sumo_counts_a_car_changing_lanes_by_its_box_along_the_lane_and_we_see_that_box():
+    """With SUMO's continuous lane change (``--lanechange.duration 2``) SUMO checks two cars on a
+    lane as boxes along the lane, each behind its front and at its front's lateral position. A
+    4.5 m SUMO car pulling out of lane 2 into lane 1 at 24 degrees (its front 1.4 m into lane 1)
+    ahead of our car standing in lane 1: their bodies stay 1.3 m apart, yet SUMO reports a
+    collision once our front is 0.3 m inside its box, and none 0.2 m behind it. The coordinators
+    see that car as its collision cover, which overlaps ours exactly then; the recorded body does
+    not."""
+    def place(front_x: float):
+        sim = SumoSimulator(cars("car0"), np.array([[55.8 - 3.3, LANE_Y[1], 0.0, 0.0]]), 0.1, ["E0", "E1"],
+                            SumoOptions(BUNDLED_NET, extra_args=("--lanechange.duration", "2")))
+        try:
+            api = sim.api
+            api.vehicletype.copy("DEFAULT_VEHTYPE", "bg")
+            api.vehicletype.setLength("bg", 4.5)
+            api.vehicletype.setWidth("bg", 1.8)
+            api.vehicle.add("bg", "aac_road", "bg", depart="now", departSpeed="0")
+            api.vehicle.setSpeedMode("bg", 0)
+            api.vehicle.setLaneChangeMode("bg", 0)
+            reports = []
+            for _ in range(3):
+                api.vehicle.moveToXY("bg", "", -1, front_x, LANE_Y[1] + 1.4, 114.0, keepRoute=2)
+                reports.append(sim.step(np.zeros((1, 2))))
+            seen = next(o for o in sim.observe().obstacles if o.name == "bg")
+            body = next(a for a in sim.agents() if a["name"] == "bg")
+            ours = sim.observe().robot_footprints()
+        finally:
+            sim.close()
+        covered = rect_clearance_rows(ours, seen.footprint()[None, :])[0]
+        apart = rect_clearance_rows(ours, np.array([[body["x"], body["y"], body["length"], body["width"], body["heading"]]]))[0]
+        return sum(r.sim_collisions for r in reports), covered, apart, reports[-1].overlaps
+
+    sumo, covered, apart, overlaps = place(60.0)  # SUMO's box from 55.5 m: our front (55.8 m) is 0.3 m inside
+    assert sumo == 1 and covered < 0.0 and apart > 1.0 and not overlaps
+    sumo, covered, apart, _ = place(60.5)  # from 56.0 m: 0.2 m ahead of our front
+    assert sumo == 0 and covered == pytest.approx(0.2, abs=1e-3) and apart > 1.0

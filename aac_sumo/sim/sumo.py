@@ -7,7 +7,9 @@ lane-change mode 0 and, every step, placed at the pose our bicycle model reached
 our model's: after ``moveToXY`` SUMO only knows the distance travelled in the step.
 
 Every step SUMO's own collision check (``simulation.getCollisions``) is read beside our footprint
-check. A controlled vehicle SUMO removes (say, it left the network at the road's end) drives on
+check. Our check measures the agents' bodies; the coordinators see each SUMO-driven car as the
+rectangle along its lane that covers its body and the box SUMO's check gives it (a car changing
+lanes counts there with its rear where its front is: :func:`~aac_sumo.sim.sumo_frames.collision_cover`). A controlled vehicle SUMO removes (say, it left the network at the road's end) drives on
 in our model alone, as its reference does beyond the road (a car frozen there stood in the way
 of the cars behind it as a ghost), counts as finished, is left out of the collision checks, and
 the event is reported on stderr and in :attr:`SumoSimulator.events`.
@@ -28,7 +30,7 @@ from aac_sumo.dynamics import FleetModel
 from aac_sumo.network import sumo_binary
 from aac_sumo.sim.base import ContactReport, Simulator, agent_rows, footprint_contacts
 from aac_sumo.sim.isolated import IsolatedSimulator
-from aac_sumo.sim.sumo_frames import state_from_sumo, sumo_from_state
+from aac_sumo.sim.sumo_frames import body_from_sumo, collision_cover, state_from_sumo, sumo_from_state
 from aac_sumo.world import Obstacle, RobotSpec, WorldState, parking_spot
 
 ROUTE_ID = "aac_road"
@@ -152,7 +154,7 @@ class SumoSimulator(Simulator):
                 if missing:
                     raise SumoError(f"SUMO did not insert {', '.join(missing)} at its start pose")
                 self._read_robots()
-                self._obstacles = self._read_obstacles()
+                self._bodies, self._obstacles = self._read_obstacles()
         except BaseException:
             self.close()
             raise
@@ -238,24 +240,35 @@ class SumoSimulator(Simulator):
             self._obstacle_dims[oid] = (domain.getLength(oid), domain.getWidth(oid), domain.getTypeID(oid))
         return self._obstacle_dims[oid]
 
-    def _read_obstacles(self) -> list[Obstacle]:
+    def _read_obstacles(self) -> tuple[list[Obstacle], list[Obstacle]]:
         """Every SUMO agent that is not ours: cones (vType in ``cone_types``), other vehicles
-        (kind ``scripted``) and pedestrians. Positions become footprint centres."""
-        out = []
+        (kind ``scripted``) and pedestrians, with their bodies (footprint centres from SUMO's
+        front positions), and as the coordinators see them: a vehicle as the rectangle along its
+        lane that also covers the box SUMO's collision check gives it
+        (:func:`~aac_sumo.sim.sumo_frames.collision_cover`: a car changing lanes is seen in both
+        lanes, as far as SUMO counts it in each)."""
+        bodies, seen = [], []
         ours = {r.name for r in self.robots}
-        for domain, kind in ((self.api.vehicle, None), (self.api.person, "pedestrian")):
+        v = self.api.vehicle
+        for domain, kind in ((v, None), (self.api.person, "pedestrian")):
             for oid in domain.getIDList():
                 if oid in ours:
                     continue
                 length, width, vtype = self._dims(domain, oid)
                 x, y = domain.getPosition(oid)
-                heading = math.radians(90.0 - domain.getAngle(oid))
-                speed = domain.getSpeed(oid)
-                direction = np.array([math.cos(heading), math.sin(heading)])
+                angle = domain.getAngle(oid)
+                centre, heading = body_from_sumo(x, y, angle, length)
+                velocity = domain.getSpeed(oid) * np.array([math.cos(heading), math.sin(heading)])
                 obstacle_kind = kind or ("cone" if vtype in self.options.cone_types else "scripted")
-                centre = np.array([x, y]) - 0.5 * length * direction  # SUMO reports the front
-                out.append(Obstacle(oid, obstacle_kind, centre, speed * direction, heading, length, width))
-        return out
+                body = Obstacle(oid, obstacle_kind, centre, velocity, heading, length, width)
+                bodies.append(body)
+                if obstacle_kind != "scripted":
+                    seen.append(body)
+                    continue
+                lane_angle = self.api.lane.getAngle(v.getLaneID(oid), v.getLanePosition(oid))
+                centre, heading, length, width = collision_cover(x, y, angle, lane_angle, length, width)
+                seen.append(Obstacle(oid, obstacle_kind, centre, velocity, heading, length, width))
+        return bodies, seen
 
     # -- the Simulator interface -------------------------------------------------------------
 
@@ -278,7 +291,7 @@ class SumoSimulator(Simulator):
             self.t = self.api.simulation.getTime() - self.t0
             self._take_departed()
             self._read_robots()
-            self._obstacles = self._read_obstacles()
+            self._bodies, self._obstacles = self._read_obstacles()
             sim_pairs = self._sim_collision_pairs()
         report = self._contacts()
         self.wrecked.update(name for pair in report.overlaps for name in pair if name in {r.name for r in self.robots})
@@ -296,16 +309,17 @@ class SumoSimulator(Simulator):
                 if c.collider in ours or c.victim in ours}
 
     def _contacts(self) -> ContactReport:
-        """Our footprint check, leaving out removed vehicles (their clearance is inf)."""
+        """Our footprint check on the bodies, leaving out removed vehicles (their clearance is inf)."""
         keep = [i for i, r in enumerate(self.robots) if r.name not in self.removed and self.present[i]]
-        world = WorldState(self.t, self.states[keep], [self.robots[i] for i in keep], self._obstacles)
+        world = WorldState(self.t, self.states[keep], [self.robots[i] for i in keep], self._bodies)
         partial = footprint_contacts(world)
         clearance = np.full(len(self.robots), np.inf)
         clearance[keep] = partial.clearance
         return ContactReport(clearance, partial.overlaps)
 
     def agents(self) -> list[dict]:
-        return agent_rows(self.observe())
+        """The agents' bodies (not the collision covers the coordinators see)."""
+        return agent_rows(WorldState(self.t, self.states.copy(), self.robots, list(self._bodies), self.present.copy()))
 
     def show(self, authority: set[str], stopped: set[str]) -> None:
         """In sumo-gui, colour the authority vehicles gold and those in a safety stop red."""
