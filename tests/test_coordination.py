@@ -231,7 +231,8 @@ def test_safety_stop_brakes_a_robot_heading_into_another(enabled):
 @given(seed=st.integers(0, 100_000), margin=st.floats(0.0, 1.0))
 def test_safety_check_flags_exactly_what_its_definition_says(seed, margin):
     """The check measures only pairs whose circumscribed discs come within the margin. It flags
-    the same robots as the definition applied to every pair: at some stage of the robot's
+    the same robots as the definition applied to every pair but those it leaves out (the
+    walkers a robot answers by stopping before their paths): at some stage of the robot's
     course some robot or obstacle gets closer than ``margin``, closer than now and than braking
     at once would get at that stage (standing obstacles count only on contact)."""
     rng = np.random.default_rng(seed)
@@ -253,7 +254,7 @@ def test_safety_check_flags_exactly_what_its_definition_says(seed, margin):
     targets = np.concatenate([rows, fixed])
     expected = np.zeros(n, dtype=bool)
     for i, t in itertools.product(range(n), range(len(targets))):
-        if t in (i, n + i):
+        if t in (i, n + i) or check.ignored[i, t]:
             continue
         course = rect_clearance_rows(rows[i], targets[t])
         braking = rect_clearance_rows(fixed[i], targets[t])
@@ -273,7 +274,8 @@ def test_safe_inputs_are_the_gentlest_braking_that_passes_the_check(seed, margin
     """The compiled stop equals its definition in rounds: robots that pass keep their inputs;
     a flagged robot coasts, then brakes with a third and two thirds of its strongest braking
     (never harder than it meant to), each time checked again with the others' new inputs
-    (once it passes it keeps that input), and brakes fully if it never passes."""
+    (once it passes it keeps that input), and brakes fully if it never passes; a robot that
+    must stop before a walker's path brakes at least as hard as that needs."""
     rng = np.random.default_rng(seed)
     n = 6
     robots = [robot(i) for i in range(n)]
@@ -296,6 +298,11 @@ def test_safe_inputs_are_the_gentlest_braking_that_passes_the_check(seed, margin
         flagged &= check.unsafe(checked, expected, margin)
     for i in checked[flagged]:
         expected[i] = [LIMITS.braking_input(states[i, 3], DT)[0], steer[i]]
+    stops = check.walker_stops(checked, inputs)
+    for i in np.flatnonzero(stops):
+        brake = LIMITS.braking_input(states[i, 3], DT, stops[i])[0]
+        if brake < expected[i, 0]:
+            expected[i] = [brake, steer[i]]
     np.testing.assert_array_equal(got, expected)
 
 
@@ -497,3 +504,108 @@ def test_authority_jain_counts_only_unfinished_robots():
     rows[1]["authority"], rows[3]["authority"] = False, False  # b never got its turns
     rows[2]["authority"] = True
     assert authority_jain(pd.DataFrame(rows)) < 0.6
+
+
+HIGHWAY_LIMITS = VehicleLimits(a_min=-6.0, a_max=3.0, steer_max=0.5, v_min=0.0, v_max=20.0, a_lat_max=3.0, steer_rate_max=0.5, a_comfort=3.0)
+HIGHWAY_CAR = RobotSpec("car", 4.0, 1.8, BicycleModel(2.6, HIGHWAY_LIMITS))
+WALKERS = MpcConfig(dt=DT, pedestrian_reach=1.5, pedestrian_margin=1.0)
+
+
+def drive_past_walker(front: float, north: float, speed: float = 16.0, walk: float = 1.3, seconds: float = 12.0):
+    """A car (4 m x 1.8 m, a_comfort 3, a_min -6 m/s^2) in a lane along y = -1.75 m heading
+    east at ``speed``, its front ``front`` metres before x = 0 [m], meant to drive on (input 0
+    every period), through the safety stop; a walker (0.3 m x 0.5 m) crossing at x = 0 from
+    ``north`` [m] south at ``walk`` [m/s], as in the highway's seed 4. Returns the car's states
+    (K+1, 4), the applied accelerations (K,) and the walker's centres (K+1, 2)."""
+    state = np.array([-front - HIGHWAY_CAR.centre_offset - 2.0, -1.75, 0.0, speed])
+    walker, steer = np.array([0.0, north]), 0.0
+    states, accels, walkers = [state], [], [walker]
+    for k in range(int(round(seconds / DT))):
+        person = Obstacle("p3", "pedestrian", walker, np.array([0.0, -walk]), -np.pi / 2, 0.3, 0.5)
+        world = WorldState(k * DT, state[None, :], [HIGHWAY_CAR], [person])
+        u = SafetyCheck(world, Fleet([HIGHWAY_CAR]), WALKERS, np.zeros(1), np.array([steer])).safe_inputs(np.array([0]), np.zeros((1, 2)), 0.3)[0]
+        steer = u[1]
+        state = HIGHWAY_CAR.model.step(state, u, DT)
+        walker = walker + DT * np.array([0.0, -walk])
+        states.append(state), accels.append(u[0]), walkers.append(walker)
+    return np.array(states), np.array(accels), np.array(walkers)
+
+
+def test_a_car_stops_before_a_walker_who_sets_off_next_to_the_road_with_the_margin_braking_just_as_hard_as_needed():
+    """The highway's seed 4: a walker sets off next to the road (her centre at y = 4.25 m, 6 m
+    north of the car's lane centre) as a car at 16 m/s is 40 m before her path. Under the
+    check's assumption (she may start towards it at 1.5 m/s) the car cannot pass, and it can stop
+    before her path with the 1 m margin at v^2 / (2 (D - v dt / 2 - 6 dt^2 / 8)) = 3.38 m/s^2,
+    D = 40 - 0.29 - 1 m (half her diagonal, the margin; the rest is the model's Euler steps): an
+    emergency beyond its comfort 3 m/s^2, below its strongest 6. It brakes exactly so from the
+    first period to standstill, along its lane (it never swerves), and stands with its front just
+    outside her strip; before, the check braked it at 3 m/s^2, then 6, and it stood 0.4 m from
+    her path."""
+    states, accels, _ = drive_past_walker(40.0, 4.25)
+    edge = -0.5 * np.hypot(0.3, 0.5) - 1.0  # her strip: half her diagonal and the margin
+    need = 16.0**2 / (2.0 * (40.0 + edge - 0.5 * 16.0 * DT - 6.0 * DT**2 / 8))  # the model's Euler steps
+    braking = accels[states[:-1, 3] > 1e-9]
+    assert need == pytest.approx(3.38, abs=0.005)
+    np.testing.assert_allclose(braking[:-1], -need, atol=1e-9)  # the last period only brakes what is left
+    assert -braking[-1] <= need
+    front = states[-1, 0] + HIGHWAY_CAR.centre_offset + 2.0
+    assert states[-1, 3] == 0.0 and edge - 0.05 <= front <= edge
+    assert np.ptp(states[:, 1]) == 0.0 and np.ptp(states[:, 2]) == 0.0
+
+
+def test_a_walker_stop_comes_as_late_as_comfort_allows_and_ends_once_she_is_gone():
+    """The same walker 80 m ahead of the car: it drives on until braking at its comfort
+    deceleration (3 m/s^2) is just enough to stop before her path, then brakes at what it needs
+    (no emergency), and drives on once she has crossed its lane and walks away faster than she
+    could come back within its passing time. A walker 20 m north, who cannot come within the
+    margin of its lane before it has passed, does not stop it at all."""
+    states, accels, walkers = drive_past_walker(80.0, 4.0)
+    braking = np.flatnonzero(accels < 0.0)
+    assert braking.size and -accels.min() <= HIGHWAY_LIMITS.a_comfort + 1e-9
+    assert -accels[braking[0]] == pytest.approx(3.0, abs=0.1)  # it waited as long as its comfort braking allowed
+    assert accels[braking[-1] + 1:].max(initial=0.0) == 0.0 and states[-1, 3] > 0.0  # then on its way again
+    assert walkers[braking[-1], 1] < -1.75 - 0.9 - 0.25 - 1.0  # when she was beyond its lane and the margin
+    assert states[:, 3].min() > 0.0  # it did not need to stand
+    states, accels, _ = drive_past_walker(40.0, 20.0)
+    assert np.all(accels == 0.0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 100_000))
+def test_braking_as_a_walker_stop_says_stands_before_her_strip_and_she_is_left_out_of_the_check(seed):
+    """On random worlds (cars at random headings and speeds, walkers at random velocities, some
+    standing): a robot answers a walker only when she walks, her strip lies ahead of it, and it
+    cannot pass her (driving on, its rear leaves her strip no sooner than she could come within
+    the margin of its path at her speed towards it plus the reach); braking from now at the
+    deceleration it answers her with, it comes to stand with its footprint outside her strip,
+    within its strongest braking; exactly those walkers are left out of its check."""
+    rng = np.random.default_rng(seed)
+    n, m = 4, 3
+    robots = [HIGHWAY_CAR] * n
+    states = np.column_stack([rng.uniform(-30, 30, (n, 2)), rng.uniform(-np.pi, np.pi, n), rng.uniform(0, 16, n)])
+    velocities = rng.uniform(-1.6, 1.6, (m, 2)) * (np.arange(m) > 0)[:, None]  # walker 0 stands
+    walkers = [Obstacle(f"w{j}", "pedestrian", rng.uniform(-20, 20, 2), velocities[j], float(np.arctan2(*velocities[j][::-1])), 0.3, 0.5)
+               for j in range(m)]  # each heads where she walks
+    world = WorldState(0.0, states, robots, walkers)
+    check = SafetyCheck(world, Fleet(robots), WALKERS, states[:, 2], np.zeros(n))
+    index, need, _ = check.walker_paths()
+    assert index.tolist() == [j for j in range(m) if np.hypot(*walkers[j].velocity) > 0.1]
+    np.testing.assert_array_equal(check.ignored[:, 2 * n:][:, index], need > 0.0)
+    assert not check.ignored[:, 2 * n:][:, [j for j in range(m) if j not in index]].any()
+    for i, col in zip(*np.nonzero(need)):
+        w = walkers[index[col]]
+        course = np.arctan2(w.velocity[1], w.velocity[0])
+        across = np.array([-np.sin(course), np.cos(course)])
+        half = 0.5 * np.hypot(0.3, 0.5) + 1.0  # half her diagonal, plus the margin
+        assert need[i, col] <= 6.0
+        state = states[i].copy()
+        sides = []
+        for _ in range(100_000):
+            corners = rect_corners(WorldState(0.0, state[None, :], [HIGHWAY_CAR]).robot_footprints())[0]
+            sides.append((corners - w.centre) @ across)
+            if state[3] == 0.0:
+                break
+            state = HIGHWAY_CAR.model.step(state, [HIGHWAY_LIMITS.braking_input(state[3], DT, need[i, col])[0], 0.0], DT)
+        sides = np.array(sides)
+        assert state[3] == 0.0
+        assert np.all(sides.min(axis=1) > half - 1e-6) or np.all(sides.max(axis=1) < -half + 1e-6)  # never in her strip
