@@ -297,3 +297,29 @@ def test_sumo_counts_a_car_changing_lanes_by_its_box_along_the_lane_and_we_see_t
     assert sumo == 1 and covered < 0.0 and apart > 1.0 and not overlaps
     sumo, covered, apart, _ = place(60.5)  # from 56.0 m: 0.2 m ahead of our front
     assert sumo == 0 and covered == pytest.approx(0.2, abs=1e-3) and apart > 1.0
+
+
+def test_sumo_cars_changing_lanes_reach_the_coordinators_moving_across_and_in_both_lanes():
+    """On the bundled highway, SUMO drives every car but ``aac.0`` (ours, driving straight on);
+    with its continuous lane change the first SUMO car that changes lanes moves across its lane
+    at its lateral speed (a lane per 2 s): the coordinators see it moving so, and as its
+    collision cover, wider than its body; the recorded body keeps its size."""
+    here = Path(__file__).resolve().parents[1] / "sumo_networks" / "highway_work_zone"
+    options = SumoOptions(here / "highway_work_zone.net.xml", config=here / "highway_work_zone.sumocfg",
+                          extra_args=("--lanechange.duration", "2"))
+    robot = robot_spec(config.load("highway_work_zone"), "aac.0", 4.0, 1.8)
+    sim = SumoSimulator([robot], np.zeros((1, 4)), 0.1, [], options, routed=frozenset({"aac.0"}))
+    try:
+        for _ in range(600):
+            sim.step(np.zeros((1, 2)))
+            moving = [o for o in sim.observe().obstacles if o.kind == "scripted" and abs(sim.api.vehicle.getLateralSpeed(o.name)) > 0.5]
+            if moving:
+                break
+        seen = moving[0]
+        lateral, speed = sim.api.vehicle.getLateralSpeed(seen.name), sim.api.vehicle.getSpeed(seen.name)
+        body = next(a for a in sim.agents() if a["name"] == seen.name)
+    finally:
+        sim.close()
+    assert abs(lateral) == pytest.approx(3.5 / 2.0, abs=0.01)
+    assert seen.velocity == pytest.approx([speed, lateral], abs=1e-6)  # the lanes run east (+x) here
+    assert seen.width > body["width"] == 1.8 and seen.heading == pytest.approx(0.0, abs=1e-9)

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from aac_sumo.sim.sumo_frames import body_from_sumo, collision_cover, heading_from_sumo, state_from_sumo, sumo_from_state
+from aac_sumo.sim.sumo_frames import body_from_sumo, collision_cover, heading_from_sumo, state_from_sumo, sumo_from_state, velocity_from_sumo
 
 coords = st.floats(-1e4, 1e4, allow_nan=False)
 dims = st.tuples(st.floats(0.3, 20.0), st.floats(0.0, 1.0)).map(lambda t: (t[0], t[0] * t[1]))  # length, wheelbase <= length
@@ -81,3 +81,11 @@ def test_a_car_pulling_out_at_24_degrees_is_covered_in_both_lanes():
     assert centre[1] - 0.5 * width == pytest.approx(-8.3)
     assert centre[1] + 0.5 * width == pytest.approx(-7.4 + 4.5 * math.sin(math.radians(24)) + 0.9 * math.cos(math.radians(24)))
     assert length == pytest.approx(4.5 + 0.9 * math.sin(math.radians(24)))
+
+
+def test_a_sumo_velocity_is_the_speed_along_the_lane_plus_the_lateral_speed_across_it():
+    """SUMO moves a car changing lanes across its lane at its lateral speed (positive to the
+    left), whatever its heading: on a lane heading east (90 degrees) at 19.9 m/s, 1.75 m/s to the
+    right is (19.9, -1.75) m/s; on a lane heading north, to the left is towards -x."""
+    assert velocity_from_sumo(19.9, -1.75, 90.0) == pytest.approx([19.9, -1.75])
+    assert velocity_from_sumo(10.0, 1.0, 0.0) == pytest.approx([-1.0, 10.0])

@@ -30,7 +30,7 @@ from aac_sumo.dynamics import FleetModel
 from aac_sumo.network import sumo_binary
 from aac_sumo.sim.base import ContactReport, Simulator, agent_rows, footprint_contacts
 from aac_sumo.sim.isolated import IsolatedSimulator
-from aac_sumo.sim.sumo_frames import body_from_sumo, collision_cover, state_from_sumo, sumo_from_state
+from aac_sumo.sim.sumo_frames import body_from_sumo, collision_cover, state_from_sumo, sumo_from_state, velocity_from_sumo
 from aac_sumo.world import Obstacle, RobotSpec, WorldState, parking_spot
 
 ROUTE_ID = "aac_road"
@@ -246,7 +246,9 @@ class SumoSimulator(Simulator):
         front positions), and as the coordinators see them: a vehicle as the rectangle along its
         lane that also covers the box SUMO's collision check gives it
         (:func:`~aac_sumo.sim.sumo_frames.collision_cover`: a car changing lanes is seen in both
-        lanes, as far as SUMO counts it in each)."""
+        lanes, as far as SUMO counts it in each). A vehicle's velocity is its speed along its
+        lane plus its lateral speed across it (SUMO's heading of a car changing lanes at a crawl
+        is far from where it moves)."""
         bodies, seen = [], []
         ours = {r.name for r in self.robots}
         v = self.api.vehicle
@@ -258,14 +260,16 @@ class SumoSimulator(Simulator):
                 x, y = domain.getPosition(oid)
                 angle = domain.getAngle(oid)
                 centre, heading = body_from_sumo(x, y, angle, length)
-                velocity = domain.getSpeed(oid) * np.array([math.cos(heading), math.sin(heading)])
                 obstacle_kind = kind or ("cone" if vtype in self.options.cone_types else "scripted")
-                body = Obstacle(oid, obstacle_kind, centre, velocity, heading, length, width)
-                bodies.append(body)
                 if obstacle_kind != "scripted":
+                    body = Obstacle(oid, obstacle_kind, centre, domain.getSpeed(oid) * np.array([math.cos(heading), math.sin(heading)]),
+                                    heading, length, width)
+                    bodies.append(body)
                     seen.append(body)
                     continue
                 lane_angle = self.api.lane.getAngle(v.getLaneID(oid), v.getLanePosition(oid))
+                velocity = velocity_from_sumo(v.getSpeed(oid), v.getLateralSpeed(oid), lane_angle)
+                bodies.append(Obstacle(oid, obstacle_kind, centre, velocity, heading, length, width))
                 centre, heading, length, width = collision_cover(x, y, angle, lane_angle, length, width)
                 seen.append(Obstacle(oid, obstacle_kind, centre, velocity, heading, length, width))
         return bodies, seen

@@ -71,3 +71,13 @@ def collision_cover(x: float, y: float, angle_deg: float, lane_angle_deg: float,
     cl, sl = math.cos(lane), math.sin(lane)
     centre = np.array([x + mid_a * cl - mid_c * sl, y + mid_a * sl + mid_c * cl])
     return centre, lane, hi_a - lo_a, hi_c - lo_c
+
+
+def velocity_from_sumo(speed: float, lateral_speed: float, lane_angle_deg: float) -> np.ndarray:
+    """World velocity (2,) [m/s] of a vehicle SUMO moves at ``speed`` along its lane and
+    ``lateral_speed`` across it (positive to the left; a continuous lane change moves it across
+    at a lane width per ``--lanechange.duration``, whatever its speed), the lane heading
+    ``lane_angle_deg`` (navigational degrees)."""
+    lane = heading_from_sumo(lane_angle_deg)
+    c, s = math.cos(lane), math.sin(lane)
+    return np.array([speed * c - lateral_speed * s, speed * s + lateral_speed * c])
