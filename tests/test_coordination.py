@@ -24,6 +24,7 @@ from aac_sumo.geometry import containing_ellipse, convex_hull, ellipse_signed_di
 from aac_sumo.metrics import authority_jain
 from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
 from aac_sumo.references import PathReference
+from aac_sumo.sim.sumo_frames import body_from_sumo, collision_cover, velocity_from_sumo
 from aac_sumo.world import Obstacle, RobotSpec, WorldState
 
 DT = 0.1
@@ -609,3 +610,46 @@ def test_braking_as_a_walker_stop_says_stands_before_her_strip_and_she_is_left_o
         sides = np.array(sides)
         assert state[3] == 0.0
         assert np.all(sides.min(axis=1) > half - 1e-6) or np.all(sides.max(axis=1) < -half + 1e-6)  # never in her strip
+
+
+#: Seed 1 of the highway at 218.4-219.4 s: SUMO's bg.16 (4.5 m x 1.8 m) pulls out of the
+#: leftmost lane (y = -1.75 m) to the right: its front [m], SUMO's angle [deg] and its speed
+#: along the lane [m/s], every 0.1 s; its front moves 1.75 m/s across (a lane per 2 s).
+PULL_OUT = np.array([
+    [1489.187, -1.893, 91.8, 0.43], [1489.247, -2.054, 93.8, 0.61], [1489.321, -2.227, 96.0, 0.73], [1489.410, -2.402, 98.1, 0.90],
+    [1489.519, -2.577, 100.1, 1.09], [1489.644, -2.752, 102.0, 1.26], [1489.782, -2.927, 103.8, 1.37], [1489.938, -3.102, 105.5, 1.56],
+    [1490.115, -3.277, 107.1, 1.78], [1490.303, -3.452, 108.5, 1.88], [1490.509, -3.627, 109.8, 2.06]])
+
+
+@pytest.mark.parametrize("seen", ["cover", "body"])
+def test_a_car_keeps_clear_of_a_sumo_car_pulling_out_in_front_of_it_as_sumo_counts_it(seen):
+    """The highway's seed 1, replayed: our car (4 m x 1.8 m) comes up the next lane (y = -5.25 m)
+    at 4.95 m/s, braking gently (-1.34 m/s^2) for the queue ahead, 2.3 m behind the box SUMO's
+    collision check gives the car pulling out (behind its front, at its front's lateral
+    position). Seen as the SUMO adapter shows it (its collision cover, moving at its speed along
+    the lane and 1.75 m/s across), the safety stop brakes ours in time (an emergency, 6 m/s^2):
+    their SUMO boxes stay over 0.2 m apart. Seen as its body moving along its heading (a few degrees
+    while it crawls), as before, ours drove into that box: SUMO's side collision."""
+    state, worst = np.array([1479.127, -5.2467, 0.0, 4.95]), np.inf
+    for k in range(30):
+        x, y, angle, speed = PULL_OUT[min(k, len(PULL_OUT) - 1)]
+        if k >= len(PULL_OUT):  # on as it went: faster, further across, to the next lane's centre
+            x, y, speed = x + 0.21 * (k - len(PULL_OUT) + 1), max(y - 0.175 * (k - len(PULL_OUT) + 1), -5.25), speed + 0.15 * (k - len(PULL_OUT) + 1)
+        lateral = -1.75 if y > -5.25 else 0.0
+        if seen == "cover":
+            centre, heading, length, width = collision_cover(x, y, angle, 90.0, 4.5, 1.8)
+            velocity = velocity_from_sumo(speed, lateral, 90.0)
+        else:
+            (centre, heading), length, width = body_from_sumo(x, y, angle, 4.5), 4.5, 1.8
+            velocity = speed * np.array([np.cos(heading), np.sin(heading)])
+        front = state[0] + HIGHWAY_CAR.centre_offset + 2.0
+        along = (x - 4.5) - front  # SUMO's boxes along the lane now: theirs behind its front, ours behind ours
+        across = (y - 0.9) - (state[1] + 0.9)
+        worst = min(worst, max(along, across))
+        world = WorldState(0.1 * k, state[None, :], [HIGHWAY_CAR], [Obstacle("bg.16", "scripted", centre, velocity, heading, length, width)])
+        check = SafetyCheck(world, Fleet([HIGHWAY_CAR]), WALKERS, np.zeros(1), np.zeros(1))
+        state = HIGHWAY_CAR.model.step(state, check.safe_inputs(np.array([0]), np.array([[-1.34, 0.0]]), 0.3)[0], DT)
+    if seen == "cover":
+        assert worst > 0.2
+    else:
+        assert worst < -1.0
