@@ -653,3 +653,19 @@ def test_a_car_keeps_clear_of_a_sumo_car_pulling_out_in_front_of_it_as_sumo_coun
         assert worst > 0.2
     else:
         assert worst < -1.0
+
+
+@pytest.mark.parametrize("course, answered", [(-0.151, False), (np.pi / 2, True)])
+def test_a_walker_turning_onto_the_footpath_along_the_road_is_no_reason_to_stop(course, answered):
+    """The highway's seed 0 at 177.4 s: a walker who has crossed the road turns east onto the
+    footpath 6 m to the right of a car's lane, walking 8.7 degrees away from the road, as the
+    car comes at 16 m/s 95 m behind her. Her path's line crosses the car's lane 39 m behind her,
+    where she came from, not where she goes: the car does not stop for it (it braked at its
+    comfort 3 m/s^2 for 1.5 s). Walking back north across the road from there, she is answered."""
+    state = np.array([[1400.99, -8.9647, 0.0, 15.99]])
+    walker = Obstacle("p3", "pedestrian", np.array([1499.5, -15.0]), 1.12 * np.array([np.cos(course), np.sin(course)]), course, 0.3, 0.5)
+    check = SafetyCheck(WorldState(177.4, state, [HIGHWAY_CAR], [walker]), Fleet([HIGHWAY_CAR]), WALKERS, np.zeros(1), np.zeros(1))
+    _, need, _ = check.walker_paths()
+    assert bool(need[0, 0] > 0.0) == answered
+    if not answered:
+        assert check.walker_stops(np.array([0]), np.zeros((1, 2)))[0] == 0.0

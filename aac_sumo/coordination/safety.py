@@ -142,14 +142,17 @@ class SafetyCheck:
 
         Her path is the strip she sweeps walking on at her velocity, as wide as her footprint
         turned any way (its diagonal: she sways as she walks) plus the planner's
-        ``pedestrian_margin`` on each side. A moving robot answers her so when
-        her strip lies ahead of it along its heading, it cannot pass (driving on at its speed, its
-        rear leaves the strip no sooner than she could come within the margin of its path, walking
-        on and starting towards it at ``pedestrian_reach``, as the check assumes: also just after
-        she has crossed its path), and it can still stop before the strip
-        within its strongest braking: ``v^2 / (2 (D - v dt / 2 - a dt^2 / 8))`` (the model's Euler
-        steps, ``a`` its strongest braking) with ``D`` that distance. Such a walker is then left out of the check above for that robot
-        (:attr:`ignored`): her growing region would make it brake as if it could stop nowhere."""
+        ``pedestrian_margin`` on each side, from where she is on: where the robot crosses it she
+        must be able to be by then, walking on or coming back at her reach beyond her speed (not
+        where she came from: a walker turning onto a footpath along the road). A moving robot
+        answers her so when her strip lies ahead of it along its heading, it cannot pass (driving
+        on at its speed, its rear leaves the strip no sooner than she could come within the
+        margin of its path, walking on and starting towards it at ``pedestrian_reach``, as the
+        check assumes: also just after she has crossed its path), and it can still stop before
+        the strip within its strongest braking: ``v^2 / (2 (D - v dt / 2 - a dt^2 / 8))`` (the
+        model's Euler steps, ``a`` its strongest braking) with ``D`` that distance. Such a walker
+        is then left out of the check above for that robot (:attr:`ignored`): her growing region
+        would make it brake as if it could stop nowhere."""
         if self._walkers is not None:
             return self._walkers
         world, fleet, cfg = self.world, self.fleet, self.config
@@ -172,7 +175,8 @@ class SafetyCheck:
         velocity = np.array([o.velocity for o in walkers])
         size = np.array([[o.length, o.width, o.heading] for o in walkers])
         course = np.arctan2(velocity[:, 1], velocity[:, 0])
-        across_path = np.column_stack([-np.sin(course), np.cos(course)])
+        path = np.column_stack([np.cos(course), np.sin(course)])
+        across_path = np.column_stack([-path[:, 1], path[:, 0]])
         half = 0.5 * np.hypot(size[:, 0], size[:, 1]) + margin  # (m,) half the strip's width: her footprint turned any way
         # the strip along the robot's heading: how far until its footprint enters it, and has left it
         side = np.einsum("rkj,mj->rmk", corners, across_path) - (centre * across_path).sum(axis=1)[None, :, None]  # (r, m, 4)
@@ -188,7 +192,14 @@ class SafetyCheck:
         gap = np.abs(offset) - _across(size[None, :, 0], size[None, :, 1], size[None, :, 2] - rows[:, 4:5]) - 0.5 * rows[:, 3:4]
         closing = towards + reach
         reaches = np.where(closing > 0.0, np.maximum(gap - margin, 0.0) / np.maximum(closing, 1e-9), np.inf)
-        blocked = coming & (out_of / v[:, None] >= reaches)
+        # her path ahead of her only: where the robot crosses her strip she could be by then (walking on, or coming back
+        # at her reach beyond her speed), not where she came from (a walker turning onto a footpath along the road)
+        along_path = ahead @ path.T  # (r, m)
+        behind = np.einsum("rkj,mj->rmk", corners, path).max(axis=2) - (centre * path).sum(axis=1)[None, :] + np.maximum(
+            into * along_path, out_of * along_path)
+        speed_w = np.hypot(velocity[:, 0], velocity[:, 1])
+        ahead_of_her = behind >= -half[None, :] - np.maximum(reach - speed_w, 0.0)[None, :] * out_of / v[:, None]
+        blocked = coming & ahead_of_her & (out_of / v[:, None] >= reaches)
         room = into - 0.5 * v[:, None] * dt - 0.125 * -fleet.a_min[moving, None] * dt * dt  # Euler steps overshoot up to a dt^2 / 8
         decel = v[:, None] ** 2 / (2.0 * np.maximum(room, 1e-9))
         answered = blocked & (room > 0.0) & (decel <= -fleet.a_min[moving, None])
