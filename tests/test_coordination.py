@@ -669,3 +669,16 @@ def test_a_walker_turning_onto_the_footpath_along_the_road_is_no_reason_to_stop(
     assert bool(need[0, 0] > 0.0) == answered
     if not answered:
         assert check.walker_stops(np.array([0]), np.zeros((1, 2)))[0] == 0.0
+
+
+@pytest.mark.parametrize("braking_heading, answered", [(0.0123, False), (-0.1816, True)])
+def test_a_car_changing_lanes_towards_the_footpath_does_not_stop_for_a_walker_on_it(braking_heading, answered):
+    """The highway's seed 0 at 194.5 s: a car at 7.3 m/s changes lanes to the right, 10 degrees
+    off its lane (heading 0.0123 rad here), 5 m to the left of a walker on the footpath walking
+    along the lane. The safety stop's course brakes turning towards the lane's heading, along
+    which the car never meets her path: no stop (it braked at 3.3 m/s^2 along the line of its
+    heading at that moment, which does cross the footpath 9 m ahead)."""
+    state = np.array([[1527.146, -10.736, -0.1816, 7.32]])
+    walker = Obstacle("p3", "pedestrian", np.array([1519.04, -15.366]), 1.265 * np.array([np.cos(0.0123), np.sin(0.0123)]), 0.0123, 0.3, 0.5)
+    check = SafetyCheck(WorldState(194.5, state, [HIGHWAY_CAR], [walker]), Fleet([HIGHWAY_CAR]), WALKERS, np.array([braking_heading]), np.zeros(1))
+    assert bool(check.walker_paths()[1][0, 0] > 0.0) == answered

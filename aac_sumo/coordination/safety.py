@@ -152,7 +152,9 @@ class SafetyCheck:
         the strip within its strongest braking: ``v^2 / (2 (D - v dt / 2 - a dt^2 / 8))`` (the
         model's Euler steps, ``a`` its strongest braking) with ``D`` that distance. Such a walker
         is then left out of the check above for that robot (:attr:`ignored`): her growing region
-        would make it brake as if it could stop nowhere."""
+        would make it brake as if it could stop nowhere. A robot goes along the heading its
+        braking course turns to (its lane's: a car in a lane change towards the footpath is not
+        heading for a walker on it)."""
         if self._walkers is not None:
             return self._walkers
         world, fleet, cfg = self.world, self.fleet, self.config
@@ -168,7 +170,7 @@ class SafetyCheck:
         rows = world.robot_footprints()[moving]
         corners = rect_corners(rows)  # (r, 4, 2)
         v = world.states[moving, 3]
-        ahead = np.column_stack([np.cos(rows[:, 4]), np.sin(rows[:, 4])])  # (r, 2)
+        ahead = np.column_stack([np.cos(self.headings[moving]), np.sin(self.headings[moving])])  # (r, 2): where its braking course goes
         left = np.column_stack([-ahead[:, 1], ahead[:, 0]])
         walkers = [world.obstacles[j] for j in index]
         centre = np.array([o.centre for o in walkers])  # (m, 2)
