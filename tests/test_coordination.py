@@ -589,9 +589,10 @@ def test_braking_as_a_walker_stop_says_stands_before_her_strip_and_she_is_left_o
                for j in range(m)]  # each heads where she walks
     world = WorldState(0.0, states, robots, walkers)
     check = SafetyCheck(world, Fleet(robots), WALKERS, states[:, 2], np.zeros(n))
-    index, need, _ = check.walker_paths()
+    index, need, _, passing = check.walker_paths()
     assert index.tolist() == [j for j in range(m) if np.hypot(*walkers[j].velocity) > 0.1]
-    np.testing.assert_array_equal(check.ignored[:, 2 * n:][:, index], need > 0.0)
+    np.testing.assert_array_equal(check.ignored[:, 2 * n:][:, index], (need > 0.0) | passing)
+    assert not np.any((need > 0.0) & passing)
     assert not check.ignored[:, 2 * n:][:, [j for j in range(m) if j not in index]].any()
     for i, col in zip(*np.nonzero(need)):
         w = walkers[index[col]]
@@ -665,7 +666,7 @@ def test_a_walker_turning_onto_the_footpath_along_the_road_is_no_reason_to_stop(
     state = np.array([[1400.99, -8.9647, 0.0, 15.99]])
     walker = Obstacle("p3", "pedestrian", np.array([1499.5, -15.0]), 1.12 * np.array([np.cos(course), np.sin(course)]), course, 0.3, 0.5)
     check = SafetyCheck(WorldState(177.4, state, [HIGHWAY_CAR], [walker]), Fleet([HIGHWAY_CAR]), WALKERS, np.zeros(1), np.zeros(1))
-    _, need, _ = check.walker_paths()
+    _, need, _, _ = check.walker_paths()
     assert bool(need[0, 0] > 0.0) == answered
     if not answered:
         assert check.walker_stops(np.array([0]), np.zeros((1, 2)))[0] == 0.0
@@ -682,3 +683,21 @@ def test_a_car_changing_lanes_towards_the_footpath_does_not_stop_for_a_walker_on
     walker = Obstacle("p3", "pedestrian", np.array([1519.04, -15.366]), 1.265 * np.array([np.cos(0.0123), np.sin(0.0123)]), 0.0123, 0.3, 0.5)
     check = SafetyCheck(WorldState(194.5, state, [HIGHWAY_CAR], [walker]), Fleet([HIGHWAY_CAR]), WALKERS, np.array([braking_heading]), np.zeros(1))
     assert bool(check.walker_paths()[1][0, 0] > 0.0) == answered
+
+
+def test_a_car_too_late_to_stop_before_a_walker_passes_her_when_it_clears_her_path_before_she_comes():
+    """The highway's seed 1 at 202.5 s: a car at 5.4 m/s has its front 0.55 m from the path of a
+    walker who comes north from the footpath (1.08 m/s, 5.4 m from its lane); it can no longer
+    stop before her path, and it leaves her strip in 1.4 s, before she could come within the
+    margin of its lane even starting towards it at her reach (1.7 s): it passes her rather than
+    brake (the check alone braked it at 3 m/s^2, and it stood on the crossing with her passing
+    0.92 m behind it). The seed-4 walker with the car 12 m before her path at 16 m/s: too late
+    to stop, and she is 2.8 s from its lane at her speed: it passes her."""
+    state = np.array([[1494.4586, -11.1598, -0.1264, 5.4265]])
+    walker = Obstacle("p4", "pedestrian", np.array([1499.68, -17.7714]), np.array([0.0, 1.0838]), np.pi / 2, 0.3, 0.5)
+    check = SafetyCheck(WorldState(202.5, state, [HIGHWAY_CAR], [walker]), Fleet([HIGHWAY_CAR]), WALKERS, np.zeros(1), np.zeros(1))
+    _, need, _, passing = check.walker_paths()
+    assert need[0, 0] == 0.0 and passing[0, 0] and check.ignored[0, 2]
+    assert check.safe_inputs(np.array([0]), np.zeros((1, 2)), 0.3)[0, 0] == 0.0
+    states, accels, _ = drive_past_walker(12.0, 4.0)
+    assert np.all(accels == 0.0)

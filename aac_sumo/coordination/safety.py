@@ -97,8 +97,8 @@ class SafetyCheck:
         self.previous_steer = np.asarray(previous_steer, dtype=float)
         self.ignored = following(world) if followers else np.zeros((len(world.robots), 2 * len(world.robots) + len(world.obstacles)), dtype=bool)
         self._walkers = None
-        index, need, _ = self.walker_paths()
-        self.ignored[:, 2 * len(world.robots) + index] |= need > 0.0
+        index, need, _, passing = self.walker_paths()
+        self.ignored[:, 2 * len(world.robots) + index] |= (need > 0.0) | passing
         self._around: dict = {}
         self._steer = None
 
@@ -134,11 +134,12 @@ class SafetyCheck:
                 chosen[i] = [brake, self._steer[i]]
         return chosen
 
-    def walker_paths(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Which walking pedestrians each robot answers by stopping before her path (computed once
-        per period): the walkers' obstacle indices (m,), and per robot and walker (n, m) the
-        deceleration [m/s^2] that stops it before her path (0 where it does not answer her so)
-        and the distance [m] from its footprint to her path along its heading.
+    def walker_paths(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Which walking pedestrians each robot answers by stopping before her path, and which it
+        passes (computed once per period): the walkers' obstacle indices (m,), and per robot and
+        walker (n, m) the deceleration [m/s^2] that stops it before her path (0 where it does not
+        answer her so), the distance [m] from its footprint to her path along its heading, and
+        whether it passes her.
 
         Her path is the strip she sweeps walking on at her velocity, as wide as her footprint
         turned any way (its diagonal: she sways as she walks) plus the planner's
@@ -152,7 +153,10 @@ class SafetyCheck:
         the strip within its strongest braking: ``v^2 / (2 (D - v dt / 2 - a dt^2 / 8))`` (the
         model's Euler steps, ``a`` its strongest braking) with ``D`` that distance. Such a walker
         is then left out of the check above for that robot (:attr:`ignored`): her growing region
-        would make it brake as if it could stop nowhere. A robot goes along the heading its
+        would make it brake as if it could stop nowhere. A robot that does not stop so passes her
+        when it leaves her strip before she could come within the margin of its path walking on
+        at her speed (too late to stop before her path, or able to pass even if she started
+        towards it at her reach): she is left out too (braking, it would stop in her way). A robot goes along the heading its
         braking course turns to (its lane's: a car in a lane change towards the footpath is not
         heading for a walker on it)."""
         if self._walkers is not None:
@@ -162,8 +166,9 @@ class SafetyCheck:
                          dtype=np.int64)
         n = len(world.robots)
         need, enter = np.zeros((n, index.size)), np.full((n, index.size), np.inf)
+        passing = np.zeros((n, index.size), dtype=bool)
         moving = np.flatnonzero(world.on_road & (world.states[:, 3] > 0.0))
-        self._walkers = index, need, enter
+        self._walkers = index, need, enter, passing
         if index.size == 0 or moving.size == 0:
             return self._walkers
         dt, margin, reach = cfg.dt, cfg.pedestrian_margin, cfg.pedestrian_reach
@@ -184,10 +189,11 @@ class SafetyCheck:
         side = np.einsum("rkj,mj->rmk", corners, across_path) - (centre * across_path).sum(axis=1)[None, :, None]  # (r, m, 4)
         rate = ahead @ across_path.T  # (r, m): change of those offsets per metre ahead
         lo, hi = side.min(axis=2), side.max(axis=2)
-        coming = np.where(rate < 0.0, lo > half, hi < -half) & (np.abs(rate) > 1e-9)
         per_metre = np.maximum(np.abs(rate), 1e-9)
         into = np.where(rate < 0.0, lo - half, -half - hi) / per_metre
         out_of = np.where(rate < 0.0, hi + half, half - lo) / per_metre
+        through = (np.abs(rate) > 1e-9) & (out_of > 0.0)  # it has not passed the strip yet
+        coming = through & (into > 0.0)  # nor entered it
         # her way to the band the robot sweeps: how far across it, how fast towards it
         offset = np.einsum("rmj,rj->rm", centre[None, :, :] - rows[:, None, :2], left)
         towards = -np.sign(offset) * (left @ velocity.T)
@@ -201,12 +207,16 @@ class SafetyCheck:
             into * along_path, out_of * along_path)
         speed_w = np.hypot(velocity[:, 0], velocity[:, 1])
         ahead_of_her = behind >= -half[None, :] - np.maximum(reach - speed_w, 0.0)[None, :] * out_of / v[:, None]
-        blocked = coming & ahead_of_her & (out_of / v[:, None] >= reaches)
+        blocked = through & ahead_of_her & (out_of / v[:, None] >= reaches)
         room = into - 0.5 * v[:, None] * dt - 0.125 * -fleet.a_min[moving, None] * dt * dt  # Euler steps overshoot up to a dt^2 / 8
         decel = v[:, None] ** 2 / (2.0 * np.maximum(room, 1e-9))
-        answered = blocked & (room > 0.0) & (decel <= -fleet.a_min[moving, None])
+        answered = blocked & coming & (room > 0.0) & (decel <= -fleet.a_min[moving, None])
+        # else it passes when it leaves her strip before she comes within the margin of its path walking on at her speed
+        # (too late to stop before her path, rather than stop in her way)
+        arrives = np.where(towards > 0.0, np.maximum(gap - margin, 0.0) / np.maximum(towards, 1e-9), np.inf)
         need[moving] = np.where(answered, decel, 0.0)
         enter[moving] = np.where(answered, into, np.inf)
+        passing[moving] = through & ahead_of_her & ~answered & (out_of / v[:, None] < arrives)
         return self._walkers
 
     def walker_stops(self, check: np.ndarray, inputs: np.ndarray) -> np.ndarray:
@@ -215,7 +225,7 @@ class SafetyCheck:
         only once one more period of its input ``inputs`` (n, 2) and braking at its comfort
         deceleration would no longer stop it there (comfort first)."""
         out = np.zeros(len(self.world.robots))
-        _, need, enter = self.walker_paths()
+        _, need, enter, _ = self.walker_paths()
         check = np.asarray(check, dtype=np.int64)
         if need.size == 0 or check.size == 0:
             return out
