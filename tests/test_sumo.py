@@ -302,8 +302,9 @@ def test_sumo_counts_a_car_changing_lanes_by_its_box_along_the_lane_and_we_see_t
 def test_sumo_cars_changing_lanes_reach_the_coordinators_moving_across_and_in_both_lanes():
     """On the bundled highway, SUMO drives every car but ``aac.0`` (ours, driving straight on);
     with its continuous lane change the first SUMO car that changes lanes moves across its lane
-    at its lateral speed (a lane per 2 s): the coordinators see it moving so, and as its
-    collision cover, wider than its body; the recorded body keeps its size."""
+    at its lateral speed (a lane per 2 s). The coordinators see it as its collision cover, which
+    reaches from where SUMO counts it now to the centre of the lane it moves into, moving along
+    the lane; the recorded body keeps its size and moves across as it does."""
     here = Path(__file__).resolve().parents[1] / "sumo_networks" / "highway_work_zone"
     options = SumoOptions(here / "highway_work_zone.net.xml", config=here / "highway_work_zone.sumocfg",
                           extra_args=("--lanechange.duration", "2"))
@@ -316,10 +317,14 @@ def test_sumo_cars_changing_lanes_reach_the_coordinators_moving_across_and_in_bo
             if moving:
                 break
         seen = moving[0]
-        lateral, speed = sim.api.vehicle.getLateralSpeed(seen.name), sim.api.vehicle.getSpeed(seen.name)
+        v = sim.api.vehicle
+        lateral, speed, front_y = v.getLateralSpeed(seen.name), v.getSpeed(seen.name), v.getPosition(seen.name)[1]
+        target = min((-12.25, -8.75, -5.25, -1.75), key=lambda c: abs(c - (front_y + np.sign(lateral) * 1.75)))  # car lane centres
         body = next(a for a in sim.agents() if a["name"] == seen.name)
     finally:
         sim.close()
     assert abs(lateral) == pytest.approx(3.5 / 2.0, abs=0.01)
-    assert seen.velocity == pytest.approx([speed, lateral], abs=1e-6)  # the lanes run east (+x) here
-    assert seen.width > body["width"] == 1.8 and seen.heading == pytest.approx(0.0, abs=1e-9)
+    assert seen.velocity == pytest.approx([speed, 0.0], abs=1e-6)  # the lanes run east (+x) here
+    lo, hi = seen.centre[1] - 0.5 * seen.width, seen.centre[1] + 0.5 * seen.width
+    assert lo <= min(front_y, target) - 0.9 + 1e-6 and hi >= max(front_y, target) + 0.9 - 1e-6  # from now to the new lane's centre
+    assert body["width"] == 1.8 and seen.heading == pytest.approx(0.0, abs=1e-9)

@@ -7,7 +7,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from aac_sumo.sim.sumo_frames import body_from_sumo, collision_cover, heading_from_sumo, state_from_sumo, sumo_from_state, velocity_from_sumo
+from aac_sumo.sim.sumo_frames import (
+    body_from_sumo, collision_cover, heading_from_sumo, lane_change_sweep, state_from_sumo, sumo_from_state, velocity_from_sumo,
+)
 
 coords = st.floats(-1e4, 1e4, allow_nan=False)
 dims = st.tuples(st.floats(0.3, 20.0), st.floats(0.0, 1.0)).map(lambda t: (t[0], t[0] * t[1]))  # length, wheelbase <= length
@@ -50,23 +52,26 @@ def _inside(points, centre, heading, length, width, tol=1e-6):
     return np.all(np.abs(along) <= 0.5 * length + tol) and np.all(np.abs(across) <= 0.5 * width + tol)
 
 
-@given(coords, coords, st.floats(0.0, 359.9), st.floats(-40.0, 40.0), st.floats(0.5, 20.0), st.floats(0.3, 3.0))
-def test_collision_cover_holds_the_body_and_sumos_box_and_no_more(x, y, lane_angle, turn, length, width):
+@given(coords, coords, st.floats(0.0, 359.9), st.floats(-40.0, 40.0), st.floats(0.5, 20.0), st.floats(0.3, 3.0), st.floats(-4.0, 4.0))
+def test_collision_cover_holds_the_body_and_sumos_box_and_no_more(x, y, lane_angle, turn, length, width, sweep):
     """The cover of a vehicle at ``turn`` degrees to its lane holds its body (the rectangle
     behind its front along its heading) and SUMO's collision box (the rectangle behind its front
-    along the lane), each of its four sides touches one of them, and on its lane it is the body."""
+    along the lane), now and ``sweep`` across the lane, each of its four sides touches one of
+    them, and on its lane without a sweep it is the body."""
     angle = (lane_angle + turn) % 360.0
-    centre, heading, cover_length, cover_width = collision_cover(x, y, angle, lane_angle, length, width)
+    centre, heading, cover_length, cover_width = collision_cover(x, y, angle, lane_angle, length, width, sweep)
     corners = []
-    for direction in (heading_from_sumo(angle), heading_from_sumo(lane_angle)):
+    lane = heading_from_sumo(lane_angle)
+    for direction, shift in ((heading_from_sumo(angle), 0.0), (lane, 0.0), (lane, sweep)):
         ahead, left = np.array([math.cos(direction), math.sin(direction)]), np.array([-math.sin(direction), math.cos(direction)])
-        corners += [np.array([x, y]) - back * ahead + side * 0.5 * width * left for back in (0.0, length) for side in (-1, 1)]
+        front = np.array([x, y]) + shift * np.array([-math.sin(lane), math.cos(lane)])
+        corners += [front - back * ahead + side * 0.5 * width * left for back in (0.0, length) for side in (-1, 1)]
     assert _inside(corners, centre, heading, cover_length, cover_width)
     c, s = math.cos(heading), math.sin(heading)
     rel = np.array(corners) - centre
     assert np.max(np.abs(rel @ np.array([c, s]))) == pytest.approx(0.5 * cover_length, abs=1e-6)
     assert np.max(np.abs(rel @ np.array([-s, c]))) == pytest.approx(0.5 * cover_width, abs=1e-6)
-    if turn == 0.0:
+    if turn == 0.0 and sweep == 0.0:
         body, body_heading = body_from_sumo(x, y, angle, length)
         assert centre == pytest.approx(body, abs=1e-6) and (cover_length, cover_width) == pytest.approx((length, width))
         assert math.cos(heading - body_heading) == pytest.approx(1.0)
@@ -89,3 +94,14 @@ def test_a_sumo_velocity_is_the_speed_along_the_lane_plus_the_lateral_speed_acro
     right is (19.9, -1.75) m/s; on a lane heading north, to the left is towards -x."""
     assert velocity_from_sumo(19.9, -1.75, 90.0) == pytest.approx([19.9, -1.75])
     assert velocity_from_sumo(10.0, 1.0, 0.0) == pytest.approx([-1.0, 10.0])
+
+
+@pytest.mark.parametrize("lateral_speed, position, sweep", [
+    (0.0, 0.4, 0.0),      # no change under way
+    (-1.75, 0.0, -3.5),   # just begun to the right: a whole lane
+    (-1.75, -1.2, -2.3),  # on its way, still on the old lane
+    (-1.75, 1.5, -1.5),   # past halfway: SUMO has it on the new lane, 1.5 m left of its centre
+    (1.75, -0.5, 0.5),    # to the left, on the new lane
+])
+def test_a_lane_change_sweeps_the_front_to_the_centre_of_the_lane_it_moves_into(lateral_speed, position, sweep):
+    assert lane_change_sweep(lateral_speed, position, 3.5) == pytest.approx(sweep)

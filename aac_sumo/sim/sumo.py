@@ -9,8 +9,9 @@ our model's: after ``moveToXY`` SUMO only knows the distance travelled in the st
 Every step SUMO's own collision check (``simulation.getCollisions``) is read beside our footprint
 check. Our check measures the agents' bodies; the coordinators see each SUMO-driven car as the
 rectangle along its lane that covers its body and the box SUMO's check gives it (a car changing
-lanes counts there with its rear where its front is: :func:`~aac_sumo.sim.sumo_frames.collision_cover`). A controlled vehicle SUMO removes (say, it left the network at the road's end) drives on
-in our model alone, as its reference does beyond the road (a car frozen there stood in the way
+lanes counts there with its rear where its front is), until its lane change ends
+(:func:`~aac_sumo.sim.sumo_frames.collision_cover`). A controlled vehicle SUMO removes (say, it
+left the network at the road's end) drives on in our model alone, as its reference does beyond the road (a car frozen there stood in the way
 of the cars behind it as a ghost), counts as finished, is left out of the collision checks, and
 the event is reported on stderr and in :attr:`SumoSimulator.events`.
 """
@@ -30,7 +31,9 @@ from aac_sumo.dynamics import FleetModel
 from aac_sumo.network import sumo_binary
 from aac_sumo.sim.base import ContactReport, Simulator, agent_rows, footprint_contacts
 from aac_sumo.sim.isolated import IsolatedSimulator
-from aac_sumo.sim.sumo_frames import body_from_sumo, collision_cover, state_from_sumo, sumo_from_state, velocity_from_sumo
+from aac_sumo.sim.sumo_frames import (
+    body_from_sumo, collision_cover, lane_change_sweep, state_from_sumo, sumo_from_state, velocity_from_sumo,
+)
 from aac_sumo.world import Obstacle, RobotSpec, WorldState, parking_spot
 
 ROUTE_ID = "aac_road"
@@ -245,10 +248,11 @@ class SumoSimulator(Simulator):
         (kind ``scripted``) and pedestrians, with their bodies (footprint centres from SUMO's
         front positions), and as the coordinators see them: a vehicle as the rectangle along its
         lane that also covers the box SUMO's collision check gives it
-        (:func:`~aac_sumo.sim.sumo_frames.collision_cover`: a car changing lanes is seen in both
-        lanes, as far as SUMO counts it in each). A vehicle's velocity is its speed along its
-        lane plus its lateral speed across it (SUMO's heading of a car changing lanes at a crawl
-        is far from where it moves)."""
+        (:func:`~aac_sumo.sim.sumo_frames.collision_cover`), and during a lane change also
+        where that box goes until the change ends: a car changing lanes is seen in both lanes
+        over its length for the whole change, moving along its lane. A body's velocity is its
+        speed along its lane plus its lateral speed across it (SUMO's heading of a car changing
+        lanes at a crawl is far from where it moves)."""
         bodies, seen = [], []
         ours = {r.name for r in self.robots}
         v = self.api.vehicle
@@ -267,11 +271,13 @@ class SumoSimulator(Simulator):
                     bodies.append(body)
                     seen.append(body)
                     continue
-                lane_angle = self.api.lane.getAngle(v.getLaneID(oid), v.getLanePosition(oid))
-                velocity = velocity_from_sumo(v.getSpeed(oid), v.getLateralSpeed(oid), lane_angle)
-                bodies.append(Obstacle(oid, obstacle_kind, centre, velocity, heading, length, width))
-                centre, heading, length, width = collision_cover(x, y, angle, lane_angle, length, width)
-                seen.append(Obstacle(oid, obstacle_kind, centre, velocity, heading, length, width))
+                lane = v.getLaneID(oid)
+                lane_angle = self.api.lane.getAngle(lane, v.getLanePosition(oid))
+                speed, lateral = v.getSpeed(oid), v.getLateralSpeed(oid)
+                bodies.append(Obstacle(oid, obstacle_kind, centre, velocity_from_sumo(speed, lateral, lane_angle), heading, length, width))
+                sweep = lane_change_sweep(lateral, v.getLateralLanePosition(oid), self.api.lane.getWidth(lane)) if lateral else 0.0
+                centre, heading, length, width = collision_cover(x, y, angle, lane_angle, length, width, sweep)
+                seen.append(Obstacle(oid, obstacle_kind, centre, velocity_from_sumo(speed, 0.0, lane_angle), heading, length, width))
         return bodies, seen
 
     # -- the Simulator interface -------------------------------------------------------------
