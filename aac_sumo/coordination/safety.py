@@ -24,8 +24,9 @@ lets pass brakes at its comfort deceleration now if braking at its hardest after
 passes, else harder (two thirds of its hardest, then all of it): an emergency. Every
 steering angle keeps the vehicle limits.
 
-A walking pedestrian heading into a robot's way is also answered by stopping before her path
-(:meth:`SafetyCheck.walker_stops`): the check above only makes a robot no closer than braking
+A walking pedestrian whose path lies ahead of a robot is answered by stopping before her path,
+or else by passing her when she cannot come within the margin first
+(:meth:`SafetyCheck.walker_paths`): the check above only makes a robot no closer than braking
 at once, and a car at 16 m/s 40 m before a walker who set off next to the road, braked at its
 comfort deceleration, came to stand 0.4 m from her path.
 """
@@ -34,6 +35,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from aac_sumo.coordination.anticipation import across_extent
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.dynamics import heading_hold_steer
 from aac_sumo.geometry import rect_corners
@@ -50,11 +52,6 @@ FOLLOW_ANGLE = np.pi / 4
 VEHICLE_KINDS = ("scripted", "robot")
 #: A walker slower than this [m/s] has no path to stop before (the check's growing region answers it).
 WALKER_STILL = 0.1
-
-
-def _across(length, width, relative_heading) -> np.ndarray:
-    """Half extent [m] of rectangles (length, width) across a direction at ``relative_heading`` to them."""
-    return 0.5 * np.abs(length * np.sin(relative_heading)) + 0.5 * np.abs(width * np.cos(relative_heading))
 
 
 def following(world: WorldState) -> np.ndarray:
@@ -88,8 +85,8 @@ class SafetyCheck:
     planner's ``config`` (period, pedestrian reach); robots brake turning towards ``headings``
     (n,) [rad], from the steering ``previous_steer`` (n,) [rad] they applied the period before.
     With ``followers``, each robot leaves its uncontrolled followers out (:func:`following`);
-    each always leaves out the walkers it answers by stopping before their paths
-    (:meth:`walker_paths`). ``ignored`` (n, 2 n + obstacles) says which targets each leaves out."""
+    each always leaves out the walkers it stops before or passes (:meth:`walker_paths`).
+    ``ignored`` (n, 2 n + obstacles) says which targets each leaves out."""
 
     def __init__(self, world: WorldState, fleet: Fleet, config: MpcConfig, headings: np.ndarray, previous_steer: np.ndarray,
                  followers: bool = False):
@@ -156,9 +153,9 @@ class SafetyCheck:
         would make it brake as if it could stop nowhere. A robot that does not stop so passes her
         when it leaves her strip before she could come within the margin of its path walking on
         at her speed (too late to stop before her path, or able to pass even if she started
-        towards it at her reach): she is left out too (braking, it would stop in her way). A robot goes along the heading its
-        braking course turns to (its lane's: a car in a lane change towards the footpath is not
-        heading for a walker on it)."""
+        towards it at her reach): she is left out too (braking, it would stop in her way). A
+        robot goes along the heading its braking course turns to (its lane's: a car in a lane
+        change towards the footpath is not heading for a walker on it)."""
         if self._walkers is not None:
             return self._walkers
         world, fleet, cfg = self.world, self.fleet, self.config
@@ -197,7 +194,7 @@ class SafetyCheck:
         # her way to the band the robot sweeps: how far across it, how fast towards it
         offset = np.einsum("rmj,rj->rm", centre[None, :, :] - rows[:, None, :2], left)
         towards = -np.sign(offset) * (left @ velocity.T)
-        gap = np.abs(offset) - _across(size[None, :, 0], size[None, :, 1], size[None, :, 2] - rows[:, 4:5]) - 0.5 * rows[:, 3:4]
+        gap = np.abs(offset) - across_extent(size[None, :, 0], size[None, :, 1], size[None, :, 2] - rows[:, 4:5]) - 0.5 * rows[:, 3:4]
         closing = towards + reach
         reaches = np.where(closing > 0.0, np.maximum(gap - margin, 0.0) / np.maximum(closing, 1e-9), np.inf)
         # her path ahead of her only: where the robot crosses her strip she could be by then (walking on, or coming back

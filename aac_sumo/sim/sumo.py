@@ -11,9 +11,10 @@ check. Our check measures the agents' bodies; the coordinators see each SUMO-dri
 rectangle along its lane that covers its body and the box SUMO's check gives it (a car changing
 lanes counts there with its rear where its front is), until its lane change ends
 (:func:`~aac_sumo.sim.sumo_frames.collision_cover`). A controlled vehicle SUMO removes (say, it
-left the network at the road's end) drives on in our model alone, as its reference does beyond the road (a car frozen there stood in the way
-of the cars behind it as a ghost), counts as finished, is left out of the collision checks, and
-the event is reported on stderr and in :attr:`SumoSimulator.events`.
+left the network at the road's end) drives on in our model alone, as its reference does beyond
+the road (a car frozen there stood in the way of the cars behind it as a ghost), counts as
+finished, is left out of the collision checks, and the event is reported on stderr and in
+:attr:`SumoSimulator.events`.
 """
 
 from __future__ import annotations
