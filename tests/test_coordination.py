@@ -25,6 +25,7 @@ from aac_sumo.geometry import containing_ellipse, convex_hull, ellipse_signed_di
 from aac_sumo.metrics import authority_jain
 from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
 from aac_sumo.references import PathReference
+from aac_sumo.sim.sumo_frames import body_from_sumo, collision_cover, lane_change_sweep, velocity_from_sumo
 from aac_sumo.world import Obstacle, RobotSpec, WorldState
 
 DT = 0.1
@@ -232,7 +233,8 @@ def test_safety_stop_brakes_a_robot_heading_into_another(enabled):
 @given(seed=st.integers(0, 100_000), margin=st.floats(0.0, 1.0))
 def test_safety_check_flags_exactly_what_its_definition_says(seed, margin):
     """The check measures only pairs whose circumscribed discs come within the margin. It flags
-    the same robots as the definition applied to every pair: at some stage of the robot's
+    the same robots as the definition applied to every pair but those it leaves out (the
+    walkers a robot answers by stopping before their paths): at some stage of the robot's
     course some robot or obstacle gets closer than ``margin``, closer than now and than braking
     at once would get at that stage (standing obstacles count only within ``STANDING_GAP``)."""
     rng = np.random.default_rng(seed)
@@ -254,7 +256,7 @@ def test_safety_check_flags_exactly_what_its_definition_says(seed, margin):
     targets = np.concatenate([rows, fixed])
     expected = np.zeros(n, dtype=bool)
     for i, t in itertools.product(range(n), range(len(targets))):
-        if t in (i, n + i):
+        if t in (i, n + i) or check.ignored[i, t]:
             continue
         course = rect_clearance_rows(rows[i], targets[t])
         braking = rect_clearance_rows(fixed[i], targets[t])
@@ -275,7 +277,8 @@ def test_safe_inputs_are_the_gentlest_braking_that_passes_the_check(seed, margin
     """The compiled stop equals its definition in rounds: robots that pass keep their inputs;
     a flagged robot coasts, then brakes with a third and two thirds of its strongest braking
     (never harder than it meant to), each time checked again with the others' new inputs
-    (once it passes it keeps that input), and brakes fully if it never passes."""
+    (once it passes it keeps that input), and brakes fully if it never passes; a robot that
+    must stop before a walker's path brakes at least as hard as that needs."""
     rng = np.random.default_rng(seed)
     n = 6
     robots = [robot(i) for i in range(n)]
@@ -298,6 +301,11 @@ def test_safe_inputs_are_the_gentlest_braking_that_passes_the_check(seed, margin
         flagged &= check.unsafe(checked, expected, margin)
     for i in checked[flagged]:
         expected[i] = [LIMITS.braking_input(states[i, 3], DT)[0], steer[i]]
+    stops = check.walker_stops(checked, inputs)
+    for i in np.flatnonzero(stops):
+        brake = LIMITS.braking_input(states[i, 3], DT, stops[i])[0]
+        if brake < expected[i, 0]:
+            expected[i] = [brake, steer[i]]
     np.testing.assert_array_equal(got, expected)
 
 
@@ -518,3 +526,201 @@ def test_authority_jain_counts_only_unfinished_robots():
     rows[1]["authority"], rows[3]["authority"] = False, False  # b never got its turns
     rows[2]["authority"] = True
     assert authority_jain(pd.DataFrame(rows)) < 0.6
+
+
+HIGHWAY_LIMITS = VehicleLimits(a_min=-6.0, a_max=3.0, steer_max=0.5, v_min=0.0, v_max=20.0, a_lat_max=3.0, steer_rate_max=0.5, a_comfort=3.0)
+HIGHWAY_CAR = RobotSpec("car", 4.0, 1.8, BicycleModel(2.6, HIGHWAY_LIMITS))
+WALKERS = MpcConfig(dt=DT, pedestrian_reach=1.5, pedestrian_margin=1.0)
+
+
+def drive_past_walker(front: float, north: float, speed: float = 16.0, walk: float = 1.3, seconds: float = 12.0):
+    """A car (4 m x 1.8 m, a_comfort 3, a_min -6 m/s^2) in a lane along y = -1.75 m heading
+    east at ``speed``, its front ``front`` metres before x = 0 [m], meant to drive on (input 0
+    every period), through the safety stop; a walker (0.3 m x 0.5 m) crossing at x = 0 from
+    ``north`` [m] south at ``walk`` [m/s], as in the highway's seed 4. Returns the car's states
+    (K+1, 4), the applied accelerations (K,) and the walker's centres (K+1, 2)."""
+    state = np.array([-front - HIGHWAY_CAR.centre_offset - 2.0, -1.75, 0.0, speed])
+    walker, steer = np.array([0.0, north]), 0.0
+    states, accels, walkers = [state], [], [walker]
+    for k in range(int(round(seconds / DT))):
+        person = Obstacle("p3", "pedestrian", walker, np.array([0.0, -walk]), -np.pi / 2, 0.3, 0.5)
+        world = WorldState(k * DT, state[None, :], [HIGHWAY_CAR], [person])
+        u = SafetyCheck(world, Fleet([HIGHWAY_CAR]), WALKERS, np.zeros(1), np.array([steer])).safe_inputs(np.array([0]), np.zeros((1, 2)), 0.3)[0]
+        steer = u[1]
+        state = HIGHWAY_CAR.model.step(state, u, DT)
+        walker = walker + DT * np.array([0.0, -walk])
+        states.append(state), accels.append(u[0]), walkers.append(walker)
+    return np.array(states), np.array(accels), np.array(walkers)
+
+
+def test_a_car_stops_before_a_walker_who_sets_off_next_to_the_road_with_the_margin_braking_just_as_hard_as_needed():
+    """The highway's seed 4: a walker sets off next to the road (her centre at y = 4.25 m, 6 m
+    north of the car's lane centre) as a car at 16 m/s is 40 m before her path. Under the
+    check's assumption (she may start towards it at 1.5 m/s) the car cannot pass, and it can stop
+    before her path with the 1 m margin at v^2 / (2 (D - v dt / 2 - 6 dt^2 / 8)) = 3.38 m/s^2,
+    D = 40 - 0.29 - 1 m (half her diagonal, the margin; the rest is the model's Euler steps): an
+    emergency beyond its comfort 3 m/s^2, below its strongest 6. It brakes exactly so from the
+    first period to standstill, along its lane (it never swerves), and stands with its front just
+    outside her strip; before, the check braked it at 3 m/s^2, then 6, and it stood 0.4 m from
+    her path."""
+    states, accels, _ = drive_past_walker(40.0, 4.25)
+    edge = -0.5 * np.hypot(0.3, 0.5) - 1.0  # her strip: half her diagonal and the margin
+    need = 16.0**2 / (2.0 * (40.0 + edge - 0.5 * 16.0 * DT - 6.0 * DT**2 / 8))  # the model's Euler steps
+    braking = accels[states[:-1, 3] > 1e-9]
+    assert need == pytest.approx(3.38, abs=0.005)
+    np.testing.assert_allclose(braking[:-1], -need, atol=1e-9)  # the last period only brakes what is left
+    assert -braking[-1] <= need
+    front = states[-1, 0] + HIGHWAY_CAR.centre_offset + 2.0
+    assert states[-1, 3] == 0.0 and edge - 0.05 <= front <= edge
+    assert np.ptp(states[:, 1]) == 0.0 and np.ptp(states[:, 2]) == 0.0
+
+
+def test_a_walker_stop_comes_as_late_as_comfort_allows_and_ends_once_she_is_gone():
+    """The same walker 80 m ahead of the car: it drives on until braking at its comfort
+    deceleration (3 m/s^2) is just enough to stop before her path, then brakes at what it needs
+    (no emergency), and drives on once she has crossed its lane and walks away faster than she
+    could come back within its passing time. A walker 20 m north, who cannot come within the
+    margin of its lane before it has passed, does not stop it at all."""
+    states, accels, walkers = drive_past_walker(80.0, 4.0)
+    braking = np.flatnonzero(accels < 0.0)
+    assert braking.size and -accels.min() <= HIGHWAY_LIMITS.a_comfort + 1e-9
+    assert -accels[braking[0]] == pytest.approx(3.0, abs=0.1)  # it waited as long as its comfort braking allowed
+    assert accels[braking[-1] + 1:].max(initial=0.0) == 0.0 and states[-1, 3] > 0.0  # then on its way again
+    assert walkers[braking[-1], 1] < -1.75 - 0.9 - 0.25 - 1.0  # when she was beyond its lane and the margin
+    assert states[:, 3].min() > 0.0  # it did not need to stand
+    states, accels, _ = drive_past_walker(40.0, 20.0)
+    assert np.all(accels == 0.0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 100_000))
+def test_braking_as_a_walker_stop_says_stands_before_her_strip_and_she_is_left_out_of_the_check(seed):
+    """On random worlds (cars at random headings and speeds, walkers at random velocities, some
+    standing): a robot answers a walker only when she walks, her strip lies ahead of it, and it
+    cannot pass her (driving on, its rear leaves her strip no sooner than she could come within
+    the margin of its path at her speed towards it plus the reach); braking from now at the
+    deceleration it answers her with, it comes to stand with its footprint outside her strip,
+    within its strongest braking; exactly those walkers are left out of its check."""
+    rng = np.random.default_rng(seed)
+    n, m = 4, 3
+    robots = [HIGHWAY_CAR] * n
+    states = np.column_stack([rng.uniform(-30, 30, (n, 2)), rng.uniform(-np.pi, np.pi, n), rng.uniform(0, 16, n)])
+    velocities = rng.uniform(-1.6, 1.6, (m, 2)) * (np.arange(m) > 0)[:, None]  # walker 0 stands
+    walkers = [Obstacle(f"w{j}", "pedestrian", rng.uniform(-20, 20, 2), velocities[j], float(np.arctan2(*velocities[j][::-1])), 0.3, 0.5)
+               for j in range(m)]  # each heads where she walks
+    world = WorldState(0.0, states, robots, walkers)
+    check = SafetyCheck(world, Fleet(robots), WALKERS, states[:, 2], np.zeros(n))
+    index, need, _, passing = check.walker_paths()
+    assert index.tolist() == [j for j in range(m) if np.hypot(*walkers[j].velocity) > 0.1]
+    np.testing.assert_array_equal(check.ignored[:, 2 * n:][:, index], (need > 0.0) | passing)
+    assert not np.any((need > 0.0) & passing)
+    assert not check.ignored[:, 2 * n:][:, [j for j in range(m) if j not in index]].any()
+    for i, col in zip(*np.nonzero(need)):
+        w = walkers[index[col]]
+        course = np.arctan2(w.velocity[1], w.velocity[0])
+        across = np.array([-np.sin(course), np.cos(course)])
+        half = 0.5 * np.hypot(0.3, 0.5) + 1.0  # half her diagonal, plus the margin
+        assert need[i, col] <= 6.0
+        state = states[i].copy()
+        sides = []
+        for _ in range(100_000):
+            corners = rect_corners(WorldState(0.0, state[None, :], [HIGHWAY_CAR]).robot_footprints())[0]
+            sides.append((corners - w.centre) @ across)
+            if state[3] == 0.0:
+                break
+            state = HIGHWAY_CAR.model.step(state, [HIGHWAY_LIMITS.braking_input(state[3], DT, need[i, col])[0], 0.0], DT)
+        sides = np.array(sides)
+        assert state[3] == 0.0
+        assert np.all(sides.min(axis=1) > half - 1e-6) or np.all(sides.max(axis=1) < -half + 1e-6)  # never in her strip
+
+
+#: Seed 1 of the highway at 218.4-219.4 s: SUMO's bg.16 (4.5 m x 1.8 m) pulls out of the
+#: leftmost lane (y = -1.75 m) to the right: its front [m], SUMO's angle [deg] and its speed
+#: along the lane [m/s], every 0.1 s; its front moves 1.75 m/s across (a lane per 2 s).
+PULL_OUT = np.array([
+    [1489.187, -1.893, 91.8, 0.43], [1489.247, -2.054, 93.8, 0.61], [1489.321, -2.227, 96.0, 0.73], [1489.410, -2.402, 98.1, 0.90],
+    [1489.519, -2.577, 100.1, 1.09], [1489.644, -2.752, 102.0, 1.26], [1489.782, -2.927, 103.8, 1.37], [1489.938, -3.102, 105.5, 1.56],
+    [1490.115, -3.277, 107.1, 1.78], [1490.303, -3.452, 108.5, 1.88], [1490.509, -3.627, 109.8, 2.06]])
+
+
+@pytest.mark.parametrize("seen", ["cover", "body"])
+def test_a_car_keeps_clear_of_a_sumo_car_pulling_out_in_front_of_it_as_sumo_counts_it(seen):
+    """The highway's seed 1, replayed: our car (4 m x 1.8 m) comes up the next lane (y = -5.25 m)
+    at 4.95 m/s, braking gently (-1.34 m/s^2) for the queue ahead, 2.3 m behind the box SUMO's
+    collision check gives the car pulling out (behind its front, at its front's lateral
+    position). Seen as the SUMO adapter shows it (its collision cover: that box from where it is
+    to the centre of the lane it moves into, moving along the lane), the safety stop brakes ours
+    in time (an emergency, 6 m/s^2): their SUMO boxes stay 0.47 m apart. Seen as its body moving
+    along its heading (a few degrees while it crawls), as before, ours drove into that box:
+    SUMO's side collision."""
+    state, worst = np.array([1479.127, -5.2467, 0.0, 4.95]), np.inf
+    for k in range(30):
+        x, y, angle, speed = PULL_OUT[min(k, len(PULL_OUT) - 1)]
+        if k >= len(PULL_OUT):  # on as it went: faster, further across, to the next lane's centre
+            x, y, speed = x + 0.21 * (k - len(PULL_OUT) + 1), max(y - 0.175 * (k - len(PULL_OUT) + 1), -5.25), speed + 0.15 * (k - len(PULL_OUT) + 1)
+        lateral = -1.75 if y > -5.25 else 0.0
+        if seen == "cover":  # SUMO has it on the new lane from halfway across
+            sweep = lane_change_sweep(lateral, y + 1.75 if y > -3.5 else y + 5.25, 3.5)
+            centre, heading, length, width = collision_cover(x, y, angle, 90.0, 4.5, 1.8, sweep)
+            velocity = velocity_from_sumo(speed, 0.0, 90.0)
+        else:
+            (centre, heading), length, width = body_from_sumo(x, y, angle, 4.5), 4.5, 1.8
+            velocity = speed * np.array([np.cos(heading), np.sin(heading)])
+        front = state[0] + HIGHWAY_CAR.centre_offset + 2.0
+        along = (x - 4.5) - front  # SUMO's boxes along the lane now: theirs behind its front, ours behind ours
+        across = (y - 0.9) - (state[1] + 0.9)
+        worst = min(worst, max(along, across))
+        world = WorldState(0.1 * k, state[None, :], [HIGHWAY_CAR], [Obstacle("bg.16", "scripted", centre, velocity, heading, length, width)])
+        check = SafetyCheck(world, Fleet([HIGHWAY_CAR]), WALKERS, np.zeros(1), np.zeros(1))
+        state = HIGHWAY_CAR.model.step(state, check.safe_inputs(np.array([0]), np.array([[-1.34, 0.0]]), 0.3)[0], DT)
+    if seen == "cover":
+        assert worst > 0.4
+    else:
+        assert worst < -1.0
+
+
+@pytest.mark.parametrize("course, answered", [(-0.151, False), (np.pi / 2, True)])
+def test_a_walker_turning_onto_the_footpath_along_the_road_is_no_reason_to_stop(course, answered):
+    """The highway's seed 0 at 177.4 s: a walker who has crossed the road turns east onto the
+    footpath 6 m to the right of a car's lane, walking 8.7 degrees away from the road, as the
+    car comes at 16 m/s 95 m behind her. Her path's line crosses the car's lane 39 m behind her,
+    where she came from, not where she goes: the car does not stop for it (it braked at its
+    comfort 3 m/s^2 for 1.5 s). Walking back north across the road from there, she is answered."""
+    state = np.array([[1400.99, -8.9647, 0.0, 15.99]])
+    walker = Obstacle("p3", "pedestrian", np.array([1499.5, -15.0]), 1.12 * np.array([np.cos(course), np.sin(course)]), course, 0.3, 0.5)
+    check = SafetyCheck(WorldState(177.4, state, [HIGHWAY_CAR], [walker]), Fleet([HIGHWAY_CAR]), WALKERS, np.zeros(1), np.zeros(1))
+    _, need, _, _ = check.walker_paths()
+    assert bool(need[0, 0] > 0.0) == answered
+    if not answered:
+        assert check.walker_stops(np.array([0]), np.zeros((1, 2)))[0] == 0.0
+
+
+@pytest.mark.parametrize("braking_heading, answered", [(0.0123, False), (-0.1816, True)])
+def test_a_car_changing_lanes_towards_the_footpath_does_not_stop_for_a_walker_on_it(braking_heading, answered):
+    """The highway's seed 0 at 194.5 s: a car at 7.3 m/s changes lanes to the right, 10 degrees
+    off its lane (heading 0.0123 rad here), 5 m to the left of a walker on the footpath walking
+    along the lane. The safety stop's course brakes turning towards the lane's heading, along
+    which the car never meets her path: no stop (it braked at 3.3 m/s^2 along the line of its
+    heading at that moment, which does cross the footpath 9 m ahead)."""
+    state = np.array([[1527.146, -10.736, -0.1816, 7.32]])
+    walker = Obstacle("p3", "pedestrian", np.array([1519.04, -15.366]), 1.265 * np.array([np.cos(0.0123), np.sin(0.0123)]), 0.0123, 0.3, 0.5)
+    check = SafetyCheck(WorldState(194.5, state, [HIGHWAY_CAR], [walker]), Fleet([HIGHWAY_CAR]), WALKERS, np.array([braking_heading]), np.zeros(1))
+    assert bool(check.walker_paths()[1][0, 0] > 0.0) == answered
+
+
+def test_a_car_too_late_to_stop_before_a_walker_passes_her_when_it_clears_her_path_before_she_comes():
+    """The highway's seed 1 at 202.5 s: a car at 5.4 m/s has its front 0.55 m from the path of a
+    walker who comes north from the footpath (1.08 m/s, 5.4 m from its lane); it can no longer
+    stop before her path, and it leaves her strip in 1.4 s, before she could come within the
+    margin of its lane even starting towards it at her reach (1.7 s): it passes her rather than
+    brake (the check alone braked it at 3 m/s^2, and it stood on the crossing with her passing
+    0.92 m behind it). The seed-4 walker with the car 12 m before her path at 16 m/s: too late
+    to stop, and she is 2.8 s from its lane at her speed: it passes her."""
+    state = np.array([[1494.4586, -11.1598, -0.1264, 5.4265]])
+    walker = Obstacle("p4", "pedestrian", np.array([1499.68, -17.7714]), np.array([0.0, 1.0838]), np.pi / 2, 0.3, 0.5)
+    check = SafetyCheck(WorldState(202.5, state, [HIGHWAY_CAR], [walker]), Fleet([HIGHWAY_CAR]), WALKERS, np.zeros(1), np.zeros(1))
+    _, need, _, passing = check.walker_paths()
+    assert need[0, 0] == 0.0 and passing[0, 0] and check.ignored[0, 2]
+    assert check.safe_inputs(np.array([0]), np.zeros((1, 2)), 0.3)[0, 0] == 0.0
+    states, accels, _ = drive_past_walker(12.0, 4.0)
+    assert np.all(accels == 0.0)

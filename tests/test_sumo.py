@@ -17,6 +17,7 @@ from aac_sumo.experiments import build
 from aac_sumo.experiments.common import robot_spec
 from aac_sumo.experiments.lane_change import BAND_SETTLE, BUNDLED_NET, BUNDLED_NET_DIR, lane_change_band, target_lane
 from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
+from aac_sumo.geometry import rect_clearance_rows
 from aac_sumo.sim.sumo import SumoOptions, SumoSimulator
 
 CONES = BUNDLED_NET_DIR / "cones.rou.xml"
@@ -258,3 +259,72 @@ def test_fifteen_vehicles_change_lanes_without_collision(name):
 def test_sumo_binaries_come_from_the_wheel():
     done = subprocess.run([network.sumo_binary("sumo"), "--version"], capture_output=True, text=True)
     assert done.returncode == 0 and "Eclipse SUMO" in done.stdout
+
+
+def test_sumo_counts_a_car_changing_lanes_by_its_box_along_the_lane_and_we_see_that_box():
+    """With SUMO's continuous lane change (``--lanechange.duration 2``) SUMO checks two cars on a
+    lane as boxes along the lane, each behind its front and at its front's lateral position. A
+    4.5 m SUMO car pulling out of lane 2 into lane 1 at 24 degrees (its front 1.4 m into lane 1)
+    ahead of our car standing in lane 1: their bodies stay 1.3 m apart, yet SUMO reports a
+    collision once our front is 0.3 m inside its box, and none 0.2 m behind it. The coordinators
+    see that car as its collision cover, which overlaps ours exactly then; the recorded body does
+    not."""
+    def place(front_x: float):
+        sim = SumoSimulator(cars("car0"), np.array([[55.8 - 3.3, LANE_Y[1], 0.0, 0.0]]), 0.1, ["E0", "E1"],
+                            SumoOptions(BUNDLED_NET, extra_args=("--lanechange.duration", "2")))
+        try:
+            api = sim.api
+            api.vehicletype.copy("DEFAULT_VEHTYPE", "bg")
+            api.vehicletype.setLength("bg", 4.5)
+            api.vehicletype.setWidth("bg", 1.8)
+            api.vehicle.add("bg", "aac_road", "bg", depart="now", departSpeed="0")
+            api.vehicle.setSpeedMode("bg", 0)
+            api.vehicle.setLaneChangeMode("bg", 0)
+            reports = []
+            for _ in range(3):
+                api.vehicle.moveToXY("bg", "", -1, front_x, LANE_Y[1] + 1.4, 114.0, keepRoute=2)
+                reports.append(sim.step(np.zeros((1, 2))))
+            seen = next(o for o in sim.observe().obstacles if o.name == "bg")
+            body = next(a for a in sim.agents() if a["name"] == "bg")
+            ours = sim.observe().robot_footprints()
+        finally:
+            sim.close()
+        covered = rect_clearance_rows(ours, seen.footprint()[None, :])[0]
+        apart = rect_clearance_rows(ours, np.array([[body["x"], body["y"], body["length"], body["width"], body["heading"]]]))[0]
+        return sum(r.sim_collisions for r in reports), covered, apart, reports[-1].overlaps
+
+    sumo, covered, apart, overlaps = place(60.0)  # SUMO's box from 55.5 m: our front (55.8 m) is 0.3 m inside
+    assert sumo == 1 and covered < 0.0 and apart > 1.0 and not overlaps
+    sumo, covered, apart, _ = place(60.5)  # from 56.0 m: 0.2 m ahead of our front
+    assert sumo == 0 and covered == pytest.approx(0.2, abs=1e-3) and apart > 1.0
+
+
+def test_sumo_cars_changing_lanes_reach_the_coordinators_moving_across_and_in_both_lanes():
+    """On the bundled highway, SUMO drives every car but ``aac.0`` (ours, driving straight on);
+    with its continuous lane change the first SUMO car that changes lanes moves across its lane
+    at its lateral speed (a lane per 2 s). The coordinators see it as its collision cover, which
+    reaches from where SUMO counts it now to the centre of the lane it moves into, moving along
+    the lane; the recorded body keeps its size and moves across as it does."""
+    here = Path(__file__).resolve().parents[1] / "sumo_networks" / "highway_work_zone"
+    options = SumoOptions(here / "highway_work_zone.net.xml", config=here / "highway_work_zone.sumocfg",
+                          extra_args=("--lanechange.duration", "2"))
+    robot = robot_spec(config.load("highway_work_zone"), "aac.0", 4.0, 1.8)
+    sim = SumoSimulator([robot], np.zeros((1, 4)), 0.1, [], options, routed=frozenset({"aac.0"}))
+    try:
+        for _ in range(600):
+            sim.step(np.zeros((1, 2)))
+            moving = [o for o in sim.observe().obstacles if o.kind == "scripted" and abs(sim.api.vehicle.getLateralSpeed(o.name)) > 0.5]
+            if moving:
+                break
+        seen = moving[0]
+        v = sim.api.vehicle
+        lateral, speed, front_y = v.getLateralSpeed(seen.name), v.getSpeed(seen.name), v.getPosition(seen.name)[1]
+        target = min((-12.25, -8.75, -5.25, -1.75), key=lambda c: abs(c - (front_y + np.sign(lateral) * 1.75)))  # car lane centres
+        body = next(a for a in sim.agents() if a["name"] == seen.name)
+    finally:
+        sim.close()
+    assert abs(lateral) == pytest.approx(3.5 / 2.0, abs=0.01)
+    assert seen.velocity == pytest.approx([speed, 0.0], abs=1e-6)  # the lanes run east (+x) here
+    lo, hi = seen.centre[1] - 0.5 * seen.width, seen.centre[1] + 0.5 * seen.width
+    assert lo <= min(front_y, target) - 0.9 + 1e-6 and hi >= max(front_y, target) + 0.9 - 1e-6  # from now to the new lane's centre
+    assert body["width"] == 1.8 and seen.heading == pytest.approx(0.0, abs=1e-9)

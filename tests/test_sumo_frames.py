@@ -7,7 +7,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from aac_sumo.sim.sumo_frames import state_from_sumo, sumo_from_state
+from aac_sumo.sim.sumo_frames import (
+    body_from_sumo, collision_cover, heading_from_sumo, lane_change_sweep, state_from_sumo, sumo_from_state, velocity_from_sumo,
+)
 
 coords = st.floats(-1e4, 1e4, allow_nan=False)
 dims = st.tuples(st.floats(0.3, 20.0), st.floats(0.0, 1.0)).map(lambda t: (t[0], t[0] * t[1]))  # length, wheelbase <= length
@@ -41,3 +43,65 @@ def test_front_bumper_lies_half_length_plus_half_wheelbase_ahead(heading, angle,
     x, y, a = sumo_from_state([10.0, 20.0, heading, 5.0], 4.0, 2.6)
     assert (x, y) == pytest.approx(np.array([10.0, 20.0]) + 3.3 * np.array(ahead))
     assert a == pytest.approx(angle)
+
+
+def _inside(points, centre, heading, length, width, tol=1e-6):
+    c, s = math.cos(heading), math.sin(heading)
+    rel = np.asarray(points) - centre
+    along, across = rel @ np.array([c, s]), rel @ np.array([-s, c])
+    return np.all(np.abs(along) <= 0.5 * length + tol) and np.all(np.abs(across) <= 0.5 * width + tol)
+
+
+@given(coords, coords, st.floats(0.0, 359.9), st.floats(-40.0, 40.0), st.floats(0.5, 20.0), st.floats(0.3, 3.0), st.floats(-4.0, 4.0))
+def test_collision_cover_holds_the_body_and_sumos_box_and_no_more(x, y, lane_angle, turn, length, width, sweep):
+    """The cover of a vehicle at ``turn`` degrees to its lane holds its body (the rectangle
+    behind its front along its heading) and SUMO's collision box (the rectangle behind its front
+    along the lane), now and ``sweep`` across the lane, each of its four sides touches one of
+    them, and on its lane without a sweep it is the body."""
+    angle = (lane_angle + turn) % 360.0
+    centre, heading, cover_length, cover_width = collision_cover(x, y, angle, lane_angle, length, width, sweep)
+    corners = []
+    lane = heading_from_sumo(lane_angle)
+    for direction, shift in ((heading_from_sumo(angle), 0.0), (lane, 0.0), (lane, sweep)):
+        ahead, left = np.array([math.cos(direction), math.sin(direction)]), np.array([-math.sin(direction), math.cos(direction)])
+        front = np.array([x, y]) + shift * np.array([-math.sin(lane), math.cos(lane)])
+        corners += [front - back * ahead + side * 0.5 * width * left for back in (0.0, length) for side in (-1, 1)]
+    assert _inside(corners, centre, heading, cover_length, cover_width)
+    c, s = math.cos(heading), math.sin(heading)
+    rel = np.array(corners) - centre
+    assert np.max(np.abs(rel @ np.array([c, s]))) == pytest.approx(0.5 * cover_length, abs=1e-6)
+    assert np.max(np.abs(rel @ np.array([-s, c]))) == pytest.approx(0.5 * cover_width, abs=1e-6)
+    if turn == 0.0 and sweep == 0.0:
+        body, body_heading = body_from_sumo(x, y, angle, length)
+        assert centre == pytest.approx(body, abs=1e-6) and (cover_length, cover_width) == pytest.approx((length, width))
+        assert math.cos(heading - body_heading) == pytest.approx(1.0)
+
+
+def test_a_car_pulling_out_at_24_degrees_is_covered_in_both_lanes():
+    """A 4.5 m car pulling out to the right at 24 degrees to its lane (front at y = -7.4 m):
+    SUMO counts it from y = -8.3 to -6.5 m, its body reaches up to y = -4.75 m; the cover spans
+    both, 3.55 m across, and 4.5 m plus the front corner's 0.37 m along."""
+    centre, heading, length, width = collision_cover(1200.0, -7.4, 114.0, 90.0, 4.5, 1.8)
+    assert heading == pytest.approx(0.0, abs=1e-12)
+    assert centre[1] - 0.5 * width == pytest.approx(-8.3)
+    assert centre[1] + 0.5 * width == pytest.approx(-7.4 + 4.5 * math.sin(math.radians(24)) + 0.9 * math.cos(math.radians(24)))
+    assert length == pytest.approx(4.5 + 0.9 * math.sin(math.radians(24)))
+
+
+def test_a_sumo_velocity_is_the_speed_along_the_lane_plus_the_lateral_speed_across_it():
+    """SUMO moves a car changing lanes across its lane at its lateral speed (positive to the
+    left), whatever its heading: on a lane heading east (90 degrees) at 19.9 m/s, 1.75 m/s to the
+    right is (19.9, -1.75) m/s; on a lane heading north, to the left is towards -x."""
+    assert velocity_from_sumo(19.9, -1.75, 90.0) == pytest.approx([19.9, -1.75])
+    assert velocity_from_sumo(10.0, 1.0, 0.0) == pytest.approx([-1.0, 10.0])
+
+
+@pytest.mark.parametrize("lateral_speed, position, sweep", [
+    (0.0, 0.4, 0.0),      # no change under way
+    (-1.75, 0.0, -3.5),   # just begun to the right: a whole lane
+    (-1.75, -1.2, -2.3),  # on its way, still on the old lane
+    (-1.75, 1.5, -1.5),   # past halfway: SUMO has it on the new lane, 1.5 m left of its centre
+    (1.75, -0.5, 0.5),    # to the left, on the new lane
+])
+def test_a_lane_change_sweeps_the_front_to_the_centre_of_the_lane_it_moves_into(lateral_speed, position, sweep):
+    assert lane_change_sweep(lateral_speed, position, 3.5) == pytest.approx(sweep)

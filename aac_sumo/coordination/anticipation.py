@@ -69,7 +69,7 @@ class Anticipation:
     hold: float = 2.0
 
 
-def _across_extent(length, width, relative_heading) -> np.ndarray:
+def across_extent(length, width, relative_heading) -> np.ndarray:
     """Half extent [m] of rectangles (length, width) across a direction at ``relative_heading``."""
     return 0.5 * np.abs(length * np.sin(relative_heading)) + 0.5 * np.abs(width * np.cos(relative_heading))
 
@@ -142,7 +142,7 @@ def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipa
     tangent = np.column_stack([np.cos(direction), np.sin(direction)])
     normal = np.column_stack([-tangent[:, 1], tangent[:, 0]])
     side = np.where(np.einsum("ij,ij->i", normal, c - poses[:, :2]) < 0.0, -1.0, 1.0)
-    gap_across = off - _across_extent(lengths[near], widths[near], rel) - 0.5 * robot.width
+    gap_across = off - across_extent(lengths[near], widths[near], rel) - 0.5 * robot.width
     across = -side * np.einsum("ij,ij->i", vel, normal)  # speed towards the path (negative: away from it)
     toward = np.maximum(0.0, across)  # walking towards the path, or cutting in
     arrive = ahead / max(abs(state[3]), 1.0)

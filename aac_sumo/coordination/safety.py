@@ -24,14 +24,22 @@ that no comfortable choice (coasting, a third, two thirds or all of its comfort 
 lets pass brakes at its comfort deceleration now if braking at its hardest afterwards
 passes, else harder (two thirds of its hardest, then all of it): an emergency. Every
 steering angle keeps the vehicle limits.
+
+A walking pedestrian whose path lies ahead of a robot is answered by stopping before her path,
+or else by passing her when she cannot come within the margin first
+(:meth:`SafetyCheck.walker_paths`): the check above only makes a robot no closer than braking
+at once, and a car at 16 m/s 40 m before a walker who set off next to the road, braked at its
+comfort deceleration, came to stand 0.4 m from her path.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from aac_sumo.coordination.anticipation import across_extent
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.dynamics import heading_hold_steer
+from aac_sumo.geometry import rect_corners
 from aac_sumo.kernels import braking_courses, gentlest_stops, stop_flags
 from aac_sumo.mpc.planner import FALLBACK_TURN_TIME, MpcConfig
 from aac_sumo.world import WorldState
@@ -43,6 +51,8 @@ BRAKING_TIE = 1e-6
 FOLLOW_ANGLE = np.pi / 4
 #: Obstacle kinds that drive as vehicles on their own (SUMO's traffic, scripted agents).
 VEHICLE_KINDS = ("scripted", "robot")
+#: A walker slower than this [m/s] has no path to stop before (the check's growing region answers it).
+WALKER_STILL = 0.1
 
 
 def following(world: WorldState) -> np.ndarray:
@@ -75,13 +85,18 @@ class SafetyCheck:
     """The safety stop of one period of ``world``, for robots of ``fleet`` driven with the
     planner's ``config`` (period, pedestrian reach); robots brake turning towards ``headings``
     (n,) [rad], from the steering ``previous_steer`` (n,) [rad] they applied the period before.
-    With ``followers``, each robot leaves its uncontrolled followers out (:func:`following`)."""
+    With ``followers``, each robot leaves its uncontrolled followers out (:func:`following`);
+    each always leaves out the walkers it stops before or passes (:meth:`walker_paths`).
+    ``ignored`` (n, 2 n + obstacles) says which targets each leaves out."""
 
     def __init__(self, world: WorldState, fleet: Fleet, config: MpcConfig, headings: np.ndarray, previous_steer: np.ndarray,
                  followers: bool = False):
         self.world, self.fleet, self.config, self.headings = world, fleet, config, np.asarray(headings, dtype=float)
         self.previous_steer = np.asarray(previous_steer, dtype=float)
         self.ignored = following(world) if followers else np.zeros((len(world.robots), 2 * len(world.robots) + len(world.obstacles)), dtype=bool)
+        self._walkers = None
+        index, need, _, passing = self.walker_paths()
+        self.ignored[:, 2 * len(world.robots) + index] |= (need > 0.0) | passing
         self._around: dict = {}
         self._steer = None
 
@@ -97,7 +112,8 @@ class SafetyCheck:
         """Every robot's inputs (n, 2) after the check of robots ``check``: one whose intended
         input fails :meth:`unsafe` gets the gentlest braking (coasting, then a third, two thirds
         and all of its strongest braking) that passes, else full braking, steering as braking
-        robots do (compiled: :func:`~aac_sumo.kernels.gentlest_stops`)."""
+        robots do (compiled: :func:`~aac_sumo.kernels.gentlest_stops`); and one that must stop
+        before a walker's path (:meth:`walker_stops`) brakes at least as hard as that needs."""
         world, fleet = self.world, self.fleet
         if self._steer is None:
             self._steer = self.braking_steer(world.states)
@@ -109,7 +125,113 @@ class SafetyCheck:
             chosen, still = self._gentlest(urgent, chosen, fleet.a_min, margin)
             for i in urgent[still]:
                 chosen[i] = [self.braking(i, -fleet.a_min[i]), self._steer[i]]
+        stops = self.walker_stops(check, inputs)
+        for i in np.flatnonzero(stops):
+            brake = self.braking(i, stops[i])
+            if brake < chosen[i, 0]:
+                chosen[i] = [brake, self._steer[i]]
         return chosen
+
+    def walker_paths(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Which walking pedestrians each robot answers by stopping before her path, and which it
+        passes (computed once per period): the walkers' obstacle indices (m,), and per robot and
+        walker (n, m) the deceleration [m/s^2] that stops it before her path (0 where it does not
+        answer her so), the distance [m] from its footprint to her path along its heading, and
+        whether it passes her.
+
+        Her path is the strip she sweeps walking on at her velocity, as wide as her footprint
+        turned any way (its diagonal: she sways as she walks) plus the planner's
+        ``pedestrian_margin`` on each side, from where she is on: where the robot crosses it she
+        must be able to be by then, walking on or coming back at her reach beyond her speed (not
+        where she came from: a walker turning onto a footpath along the road). A moving robot
+        answers her so when her strip lies ahead of it along its heading, it cannot pass (driving
+        on at its speed, its rear leaves the strip no sooner than she could come within the
+        margin of its path, walking on and starting towards it at ``pedestrian_reach``, as the
+        check assumes: also just after she has crossed its path), and it can still stop before
+        the strip within its strongest braking: ``v^2 / (2 (D - v dt / 2 - a dt^2 / 8))`` (the
+        model's Euler steps, ``a`` its strongest braking) with ``D`` that distance. Such a walker
+        is then left out of the check above for that robot (:attr:`ignored`): her growing region
+        would make it brake as if it could stop nowhere. A robot that does not stop so passes her
+        when it leaves her strip before she could come within the margin of its path walking on
+        at her speed (too late to stop before her path, or able to pass even if she started
+        towards it at her reach): she is left out too (braking, it would stop in her way). A
+        robot goes along the heading its braking course turns to (its lane's: a car in a lane
+        change towards the footpath is not heading for a walker on it)."""
+        if self._walkers is not None:
+            return self._walkers
+        world, fleet, cfg = self.world, self.fleet, self.config
+        index = np.array([j for j, o in enumerate(world.obstacles) if o.kind == "pedestrian" and np.hypot(*o.velocity) > WALKER_STILL],
+                         dtype=np.int64)
+        n = len(world.robots)
+        need, enter = np.zeros((n, index.size)), np.full((n, index.size), np.inf)
+        passing = np.zeros((n, index.size), dtype=bool)
+        moving = np.flatnonzero(world.on_road & (world.states[:, 3] > 0.0))
+        self._walkers = index, need, enter, passing
+        if index.size == 0 or moving.size == 0:
+            return self._walkers
+        dt, margin, reach = cfg.dt, cfg.pedestrian_margin, cfg.pedestrian_reach
+        rows = world.robot_footprints()[moving]
+        corners = rect_corners(rows)  # (r, 4, 2)
+        v = world.states[moving, 3]
+        ahead = np.column_stack([np.cos(self.headings[moving]), np.sin(self.headings[moving])])  # (r, 2): where its braking course goes
+        left = np.column_stack([-ahead[:, 1], ahead[:, 0]])
+        walkers = [world.obstacles[j] for j in index]
+        centre = np.array([o.centre for o in walkers])  # (m, 2)
+        velocity = np.array([o.velocity for o in walkers])
+        size = np.array([[o.length, o.width, o.heading] for o in walkers])
+        course = np.arctan2(velocity[:, 1], velocity[:, 0])
+        path = np.column_stack([np.cos(course), np.sin(course)])
+        across_path = np.column_stack([-path[:, 1], path[:, 0]])
+        half = 0.5 * np.hypot(size[:, 0], size[:, 1]) + margin  # (m,) half the strip's width: her footprint turned any way
+        # the strip along the robot's heading: how far until its footprint enters it, and has left it
+        side = np.einsum("rkj,mj->rmk", corners, across_path) - (centre * across_path).sum(axis=1)[None, :, None]  # (r, m, 4)
+        rate = ahead @ across_path.T  # (r, m): change of those offsets per metre ahead
+        lo, hi = side.min(axis=2), side.max(axis=2)
+        per_metre = np.maximum(np.abs(rate), 1e-9)
+        into = np.where(rate < 0.0, lo - half, -half - hi) / per_metre
+        out_of = np.where(rate < 0.0, hi + half, half - lo) / per_metre
+        through = (np.abs(rate) > 1e-9) & (out_of > 0.0)  # it has not passed the strip yet
+        coming = through & (into > 0.0)  # nor entered it
+        # her way to the band the robot sweeps: how far across it, how fast towards it
+        offset = np.einsum("rmj,rj->rm", centre[None, :, :] - rows[:, None, :2], left)
+        towards = -np.sign(offset) * (left @ velocity.T)
+        gap = np.abs(offset) - across_extent(size[None, :, 0], size[None, :, 1], size[None, :, 2] - rows[:, 4:5]) - 0.5 * rows[:, 3:4]
+        closing = towards + reach
+        reaches = np.where(closing > 0.0, np.maximum(gap - margin, 0.0) / np.maximum(closing, 1e-9), np.inf)
+        # her path ahead of her only: where the robot crosses her strip she could be by then (walking on, or coming back
+        # at her reach beyond her speed), not where she came from (a walker turning onto a footpath along the road)
+        along_path = ahead @ path.T  # (r, m)
+        behind = np.einsum("rkj,mj->rmk", corners, path).max(axis=2) - (centre * path).sum(axis=1)[None, :] + np.maximum(
+            into * along_path, out_of * along_path)
+        speed_w = np.hypot(velocity[:, 0], velocity[:, 1])
+        ahead_of_her = behind >= -half[None, :] - np.maximum(reach - speed_w, 0.0)[None, :] * out_of / v[:, None]
+        blocked = through & ahead_of_her & (out_of / v[:, None] >= reaches)
+        room = into - 0.5 * v[:, None] * dt - 0.125 * -fleet.a_min[moving, None] * dt * dt  # Euler steps overshoot up to a dt^2 / 8
+        decel = v[:, None] ** 2 / (2.0 * np.maximum(room, 1e-9))
+        answered = blocked & coming & (room > 0.0) & (decel <= -fleet.a_min[moving, None])
+        # else it passes when it leaves her strip before she comes within the margin of its path walking on at her speed
+        # (too late to stop before her path, rather than stop in her way)
+        arrives = np.where(towards > 0.0, np.maximum(gap - margin, 0.0) / np.maximum(towards, 1e-9), np.inf)
+        need[moving] = np.where(answered, decel, 0.0)
+        enter[moving] = np.where(answered, into, np.inf)
+        passing[moving] = through & ahead_of_her & ~answered & (out_of / v[:, None] < arrives)
+        return self._walkers
+
+    def walker_stops(self, check: np.ndarray, inputs: np.ndarray) -> np.ndarray:
+        """The deceleration [m/s^2] (n,; 0: none) with which each robot of ``check`` brakes now
+        to stop before a walker's path (:meth:`walker_paths`): just as hard as that needs, and
+        only once one more period of its input ``inputs`` (n, 2) and braking at its comfort
+        deceleration would no longer stop it there (comfort first)."""
+        out = np.zeros(len(self.world.robots))
+        _, need, enter, _ = self.walker_paths()
+        check = np.asarray(check, dtype=np.int64)
+        if need.size == 0 or check.size == 0:
+            return out
+        dt, v = self.config.dt, self.world.states[check, 3:4]
+        v1 = np.maximum(v + np.asarray(inputs, dtype=float)[check, 0:1] * dt, 0.0)
+        late = v1**2 / (2.0 * self.fleet.comfort[check, None]) + 0.5 * v1 * dt > enter[check] - v * dt
+        out[check] = np.where(late, need[check], 0.0).max(axis=1)
+        return out
 
     def braking(self, i: int, decel: float) -> float:
         """Robot ``i``'s acceleration [m/s^2] braking at ``decel`` towards standstill this period."""

@@ -7,10 +7,14 @@ lane-change mode 0 and, every step, placed at the pose our bicycle model reached
 our model's: after ``moveToXY`` SUMO only knows the distance travelled in the step.
 
 Every step SUMO's own collision check (``simulation.getCollisions``) is read beside our footprint
-check. A controlled vehicle SUMO removes (say, it left the network at the road's end) drives on
-in our model alone, as its reference does beyond the road (a car frozen there stood in the way
-of the cars behind it as a ghost), counts as finished, is left out of the collision checks, and
-the event is reported on stderr and in :attr:`SumoSimulator.events`.
+check. Our check measures the agents' bodies; the coordinators see each SUMO-driven car as the
+rectangle along its lane that covers its body and the box SUMO's check gives it (a car changing
+lanes counts there with its rear where its front is), until its lane change ends
+(:func:`~aac_sumo.sim.sumo_frames.collision_cover`). A controlled vehicle SUMO removes (say, it
+left the network at the road's end) drives on in our model alone, as its reference does beyond
+the road (a car frozen there stood in the way of the cars behind it as a ghost), counts as
+finished, is left out of the collision checks, and the event is reported on stderr and in
+:attr:`SumoSimulator.events`.
 """
 
 from __future__ import annotations
@@ -28,7 +32,9 @@ from aac_sumo.dynamics import FleetModel
 from aac_sumo.network import sumo_binary
 from aac_sumo.sim.base import ContactReport, Simulator, agent_rows, footprint_contacts
 from aac_sumo.sim.isolated import IsolatedSimulator
-from aac_sumo.sim.sumo_frames import state_from_sumo, sumo_from_state
+from aac_sumo.sim.sumo_frames import (
+    body_from_sumo, collision_cover, lane_change_sweep, state_from_sumo, sumo_from_state, velocity_from_sumo,
+)
 from aac_sumo.world import Obstacle, RobotSpec, WorldState, parking_spot
 
 ROUTE_ID = "aac_road"
@@ -152,7 +158,7 @@ class SumoSimulator(Simulator):
                 if missing:
                     raise SumoError(f"SUMO did not insert {', '.join(missing)} at its start pose")
                 self._read_robots()
-                self._obstacles = self._read_obstacles()
+                self._bodies, self._obstacles = self._read_obstacles()
         except BaseException:
             self.close()
             raise
@@ -238,24 +244,42 @@ class SumoSimulator(Simulator):
             self._obstacle_dims[oid] = (domain.getLength(oid), domain.getWidth(oid), domain.getTypeID(oid))
         return self._obstacle_dims[oid]
 
-    def _read_obstacles(self) -> list[Obstacle]:
+    def _read_obstacles(self) -> tuple[list[Obstacle], list[Obstacle]]:
         """Every SUMO agent that is not ours: cones (vType in ``cone_types``), other vehicles
-        (kind ``scripted``) and pedestrians. Positions become footprint centres."""
-        out = []
+        (kind ``scripted``) and pedestrians, with their bodies (footprint centres from SUMO's
+        front positions), and as the coordinators see them: a vehicle as the rectangle along its
+        lane that also covers the box SUMO's collision check gives it
+        (:func:`~aac_sumo.sim.sumo_frames.collision_cover`), and during a lane change also
+        where that box goes until the change ends: a car changing lanes is seen in both lanes
+        over its length for the whole change, moving along its lane. A body's velocity is its
+        speed along its lane plus its lateral speed across it (SUMO's heading of a car changing
+        lanes at a crawl is far from where it moves)."""
+        bodies, seen = [], []
         ours = {r.name for r in self.robots}
-        for domain, kind in ((self.api.vehicle, None), (self.api.person, "pedestrian")):
+        v = self.api.vehicle
+        for domain, kind in ((v, None), (self.api.person, "pedestrian")):
             for oid in domain.getIDList():
                 if oid in ours:
                     continue
                 length, width, vtype = self._dims(domain, oid)
                 x, y = domain.getPosition(oid)
-                heading = math.radians(90.0 - domain.getAngle(oid))
-                speed = domain.getSpeed(oid)
-                direction = np.array([math.cos(heading), math.sin(heading)])
+                angle = domain.getAngle(oid)
+                centre, heading = body_from_sumo(x, y, angle, length)
                 obstacle_kind = kind or ("cone" if vtype in self.options.cone_types else "scripted")
-                centre = np.array([x, y]) - 0.5 * length * direction  # SUMO reports the front
-                out.append(Obstacle(oid, obstacle_kind, centre, speed * direction, heading, length, width))
-        return out
+                if obstacle_kind != "scripted":
+                    body = Obstacle(oid, obstacle_kind, centre, domain.getSpeed(oid) * np.array([math.cos(heading), math.sin(heading)]),
+                                    heading, length, width)
+                    bodies.append(body)
+                    seen.append(body)
+                    continue
+                lane = v.getLaneID(oid)
+                lane_angle = self.api.lane.getAngle(lane, v.getLanePosition(oid))
+                speed, lateral = v.getSpeed(oid), v.getLateralSpeed(oid)
+                bodies.append(Obstacle(oid, obstacle_kind, centre, velocity_from_sumo(speed, lateral, lane_angle), heading, length, width))
+                sweep = lane_change_sweep(lateral, v.getLateralLanePosition(oid), self.api.lane.getWidth(lane)) if lateral else 0.0
+                centre, heading, length, width = collision_cover(x, y, angle, lane_angle, length, width, sweep)
+                seen.append(Obstacle(oid, obstacle_kind, centre, velocity_from_sumo(speed, 0.0, lane_angle), heading, length, width))
+        return bodies, seen
 
     # -- the Simulator interface -------------------------------------------------------------
 
@@ -278,7 +302,7 @@ class SumoSimulator(Simulator):
             self.t = self.api.simulation.getTime() - self.t0
             self._take_departed()
             self._read_robots()
-            self._obstacles = self._read_obstacles()
+            self._bodies, self._obstacles = self._read_obstacles()
             sim_pairs = self._sim_collision_pairs()
         report = self._contacts()
         self.wrecked.update(name for pair in report.overlaps for name in pair if name in {r.name for r in self.robots})
@@ -296,16 +320,17 @@ class SumoSimulator(Simulator):
                 if c.collider in ours or c.victim in ours}
 
     def _contacts(self) -> ContactReport:
-        """Our footprint check, leaving out removed vehicles (their clearance is inf)."""
+        """Our footprint check on the bodies, leaving out removed vehicles (their clearance is inf)."""
         keep = [i for i, r in enumerate(self.robots) if r.name not in self.removed and self.present[i]]
-        world = WorldState(self.t, self.states[keep], [self.robots[i] for i in keep], self._obstacles)
+        world = WorldState(self.t, self.states[keep], [self.robots[i] for i in keep], self._bodies)
         partial = footprint_contacts(world)
         clearance = np.full(len(self.robots), np.inf)
         clearance[keep] = partial.clearance
         return ContactReport(clearance, partial.overlaps)
 
     def agents(self) -> list[dict]:
-        return agent_rows(self.observe())
+        """The agents' bodies (not the collision covers the coordinators see)."""
+        return agent_rows(WorldState(self.t, self.states.copy(), self.robots, list(self._bodies), self.present.copy()))
 
     def show(self, authority: set[str], stopped: set[str]) -> None:
         """In sumo-gui, colour the authority vehicles gold and those in a safety stop red."""

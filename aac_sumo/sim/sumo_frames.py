@@ -1,4 +1,5 @@
-"""The one conversion between SUMO's vehicle pose and our rear-axle state.
+"""The one conversion between SUMO's poses and ours: a vehicle's rear-axle state, an agent's
+footprint, and the room SUMO's collision check gives a vehicle.
 
 SUMO places a vehicle by its front-bumper centre ``(x, y)`` [m] and its angle in navigational
 degrees (0 = north, clockwise). We use the rear-axle midpoint and the heading [rad]
@@ -20,7 +21,7 @@ def bumper_to_axle(length: float, wheelbase: float) -> float:
 
 def state_from_sumo(x: float, y: float, angle_deg: float, speed: float, length: float, wheelbase: float) -> np.ndarray:
     """Our state ``[x, y, heading, v]`` (rear axle, heading in (-pi, pi]) from a SUMO pose."""
-    heading = math.atan2(math.cos(math.radians(angle_deg)), math.sin(math.radians(angle_deg)))
+    heading = heading_from_sumo(angle_deg)
     back = bumper_to_axle(length, wheelbase)
     return np.array([x - back * math.cos(heading), y - back * math.sin(heading), heading, speed])
 
@@ -31,3 +32,67 @@ def sumo_from_state(state, length: float, wheelbase: float) -> tuple[float, floa
     ahead = bumper_to_axle(length, wheelbase)
     angle = (90.0 - math.degrees(heading)) % 360.0
     return x + ahead * math.cos(heading), y + ahead * math.sin(heading), angle
+
+
+def heading_from_sumo(angle_deg: float) -> float:
+    """Heading [rad] counter-clockwise from +x, in (-pi, pi], of a SUMO angle (navigational degrees)."""
+    return math.atan2(math.cos(math.radians(angle_deg)), math.sin(math.radians(angle_deg)))
+
+
+def body_from_sumo(x: float, y: float, angle_deg: float, length: float) -> tuple[np.ndarray, float]:
+    """Footprint centre ``(cx, cy)`` [m] and heading [rad] of a body SUMO places by its front
+    ``(x, y)`` and ``angle_deg`` (half its length behind the front, along its heading)."""
+    heading = heading_from_sumo(angle_deg)
+    return np.array([x - 0.5 * length * math.cos(heading), y - 0.5 * length * math.sin(heading)]), heading
+
+
+def collision_cover(x: float, y: float, angle_deg: float, lane_angle_deg: float, length: float, width: float,
+                    sweep: float = 0.0) -> tuple[np.ndarray, float, float, float]:
+    """The smallest rectangle along the vehicle's lane that covers both its body and the box
+    SUMO's collision check gives it, now and ``sweep`` [m] further across its lane (positive to
+    the left: where a lane change under way takes its front, :func:`lane_change_sweep`):
+    ``(centre (2,) [m], heading [rad], length, width [m])``.
+
+    With lateral dynamics (a continuous lane change, ``--lanechange.duration`` > 0, or the
+    sublane model) SUMO checks two vehicles on a lane as boxes along the lane: from the front
+    bumper's lane position back by the vehicle's length, and across it the vehicle's width
+    centred on the front's lateral position, whatever the vehicle's angle (``MSLane``'s
+    collision check; tests/test_sumo.py reproduces it). A car pulling out at an angle thus
+    counts with its rear already where its front is, in the lane it moves into. Its body and
+    that box coincide when it drives along its lane (``angle_deg == lane_angle_deg``); with
+    ``sweep``, a car changing lanes is in both lanes over its length until its change ends.
+    """
+    heading, lane = heading_from_sumo(angle_deg), heading_from_sumo(lane_angle_deg)
+    delta = heading - lane  # the body's angle to the lane
+    c, s = math.cos(delta), math.sin(delta)
+    half = 0.5 * width
+    # corners in the lane's frame (along, across) relative to the front bumper's centre
+    along = [0.0, 0.0, -length, -length, half * s, -half * s, -length * c + half * s, -length * c - half * s]
+    across = [half, -half, half, -half, -half * c, half * c, -length * s - half * c, -length * s + half * c, sweep + half, sweep - half]
+    lo_a, hi_a, lo_c, hi_c = min(along), max(along), min(across), max(across)
+    mid_a, mid_c = 0.5 * (lo_a + hi_a), 0.5 * (lo_c + hi_c)
+    cl, sl = math.cos(lane), math.sin(lane)
+    centre = np.array([x + mid_a * cl - mid_c * sl, y + mid_a * sl + mid_c * cl])
+    return centre, lane, hi_a - lo_a, hi_c - lo_c
+
+
+def velocity_from_sumo(speed: float, lateral_speed: float, lane_angle_deg: float) -> np.ndarray:
+    """World velocity (2,) [m/s] of a vehicle SUMO moves at ``speed`` along its lane and
+    ``lateral_speed`` across it (positive to the left; a continuous lane change moves it across
+    at a lane width per ``--lanechange.duration``, whatever its speed), the lane heading
+    ``lane_angle_deg`` (navigational degrees)."""
+    lane = heading_from_sumo(lane_angle_deg)
+    c, s = math.cos(lane), math.sin(lane)
+    return np.array([speed * c - lateral_speed * s, speed * s + lateral_speed * c])
+
+
+def lane_change_sweep(lateral_speed: float, lateral_position: float, lane_width: float) -> float:
+    """How far [m] (positive to the left) the front of a car in SUMO's continuous lane change
+    still moves across: to the centre of the lane it moves into. ``lateral_speed`` [m/s] gives
+    the direction (0: no change, no sweep), ``lateral_position`` [m] is its offset from the
+    centre of the lane SUMO has it on (that lane becomes the new one halfway across), and
+    ``lane_width`` [m] the lanes' width."""
+    if lateral_speed == 0.0:
+        return 0.0
+    side = math.copysign(1.0, lateral_speed)
+    return -lateral_position if lateral_position * side < 0.0 else side * lane_width - lateral_position
