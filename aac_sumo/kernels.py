@@ -339,7 +339,7 @@ def stop_flags(check, rows, fixed, standing, growing, margin, tie, ignored):
     course, then ``fixed`` (n + obstacles, K+1, 5: every robot braking at once, then the
     obstacles), skipping itself on either course and the targets ``ignored`` (n, 2 n +
     obstacles) marks for it; ``standing`` (2 n + obstacles) marks the targets that count only
-    on contact, ``growing`` those that count only while a course moves."""
+    within :data:`STANDING_GAP`, ``growing`` those that count only while a course moves."""
     n, m = rows.shape[0], check.shape[0]
     targets = np.concatenate((rows, fixed))
     skip = np.zeros((m, targets.shape[0]), dtype=np.bool_)
