@@ -111,8 +111,7 @@ class BicycleModel:
         within ``a_lat_max`` at ``speed`` [m/s] (any shape), and within ``steer_max``."""
         lim = self.limits
         speed = np.abs(np.asarray(speed, dtype=float))
-        with np.errstate(divide="ignore"):
-            bound = np.arctan(lim.a_lat_max * self.wheelbase / speed**2)
+        bound = np.arctan2(lim.a_lat_max * self.wheelbase, speed**2)  # pi/2 at standstill, without dividing by zero
         return np.minimum(bound, lim.steer_max)
 
     def limit_steer(self, steer, speed, previous, dt: float, accel=0.0) -> np.ndarray:
