@@ -222,6 +222,10 @@ def test_an_interrupted_run_keeps_what_it_recorded_and_exits_non_zero(tmp_path, 
     out = tmp_path / "out"
     cmd = [str(Path(sys.executable).parent / "aac-sumo"), "run", "random_crossing", "--set", "random_crossing.n_robots=100",
            "--out", str(out)]
+    # a short run first fills numba's on-disk cache, which the child then loads instead of compiling: on a fresh clone
+    # compiling took longer than the 10 s below, and the signal came during start-up
+    assert main(["run", "random_crossing", "--set", "random_crossing.n_robots=3", "--set", "scenario.duration=0.3",
+                 "--out", str(tmp_path / "warm")]) == 0
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     time.sleep(10.0)  # past start-up and warm-up, long before the 100-robot crossing ends (120 s, about a minute here)
     proc.send_signal(sig)
