@@ -302,7 +302,7 @@ def test_safe_inputs_are_the_gentlest_braking_that_passes_the_check(seed, margin
     for i in checked[flagged]:
         expected[i] = [LIMITS.braking_input(states[i, 3], DT)[0], steer[i]]
     stops = check.walker_stops(checked, inputs)
-    for i in np.flatnonzero(stops):
+    for i in np.flatnonzero(np.isfinite(stops)):
         brake = LIMITS.braking_input(states[i, 3], DT, stops[i])[0]
         if brake < expected[i, 0]:
             expected[i] = [brake, steer[i]]
@@ -533,10 +533,10 @@ HIGHWAY_CAR = RobotSpec("car", 4.0, 1.8, BicycleModel(2.6, HIGHWAY_LIMITS))
 WALKERS = MpcConfig(dt=DT, pedestrian_reach=1.5, pedestrian_margin=1.0)
 
 
-def drive_past_walker(front: float, north: float, speed: float = 16.0, walk: float = 1.3, seconds: float = 12.0):
+def drive_past_walker(front: float, north: float, speed: float = 16.0, walk: float = 1.3, seconds: float = 12.0, accel: float = 0.0):
     """A car (4 m x 1.8 m, a_comfort 3, a_min -6 m/s^2) in a lane along y = -1.75 m heading
-    east at ``speed``, its front ``front`` metres before x = 0 [m], meant to drive on (input 0
-    every period), through the safety stop; a walker (0.3 m x 0.5 m) crossing at x = 0 from
+    east at ``speed``, its front ``front`` metres before x = 0 [m], meant to drive on (input
+    ``accel`` [m/s^2] every period, up to 16 m/s), through the safety stop; a walker (0.3 m x 0.5 m) crossing at x = 0 from
     ``north`` [m] south at ``walk`` [m/s], as in the highway's seed 4. Returns the car's states
     (K+1, 4), the applied accelerations (K,) and the walker's centres (K+1, 2)."""
     state = np.array([-front - HIGHWAY_CAR.centre_offset - 2.0, -1.75, 0.0, speed])
@@ -545,7 +545,8 @@ def drive_past_walker(front: float, north: float, speed: float = 16.0, walk: flo
     for k in range(int(round(seconds / DT))):
         person = Obstacle("p3", "pedestrian", walker, np.array([0.0, -walk]), -np.pi / 2, 0.3, 0.5)
         world = WorldState(k * DT, state[None, :], [HIGHWAY_CAR], [person])
-        u = SafetyCheck(world, Fleet([HIGHWAY_CAR]), WALKERS, np.zeros(1), np.array([steer])).safe_inputs(np.array([0]), np.zeros((1, 2)), 0.3)[0]
+        wanted = np.array([[min(accel, (16.0 - state[3]) / DT), 0.0]])
+        u = SafetyCheck(world, Fleet([HIGHWAY_CAR]), WALKERS, np.zeros(1), np.array([steer])).safe_inputs(np.array([0]), wanted, 0.3)[0]
         steer = u[1]
         state = HIGHWAY_CAR.model.step(state, u, DT)
         walker = walker + DT * np.array([0.0, -walk])
@@ -592,6 +593,25 @@ def test_a_walker_stop_comes_as_late_as_comfort_allows_and_ends_once_she_is_gone
     assert np.all(accels == 0.0)
 
 
+def test_a_car_standing_at_the_edge_of_a_walkers_path_waits_for_her_rather_than_creep_into_it():
+    """The lane change's seed 3 at N = 15, at 13.5 s: veh14 has braked to stand with its front
+    2 cm before the strip of a walker who comes south across the road 8.7 m north of its lane at
+    1.1 m/s, and its tracking law sets off at 1.5 m/s^2. Standing, it counts on leaving her strip
+    no faster than at 0.3 m/s (one period of its strongest acceleration): not before she could
+    come within the margin of its path (she may turn towards it at 1.5 m/s), so it stays, and
+    she passes with the 1 m margin; it sets off once she is that far past (11 m, 19.5 s). (It used to set off: a standing car did not
+    answer walkers, and one more step put it inside her strip, where it crept on and stood 0.51 m
+    from her as she passed.)"""
+    half = 0.5 * np.hypot(0.3, 0.5) + 1.0  # half her strip: her diagonal, plus the margin
+    states, accels, walkers = drive_past_walker(half + 0.02, 8.7, speed=0.0, walk=1.1, seconds=20.0, accel=1.5)
+    front = states[:, 0] + HIGHWAY_CAR.centre_offset + 2.0
+    # her footprint (0.5 m wide along the road) against the car's, whenever she is within the margin of its lane
+    beside = np.abs(walkers[:, 1] + 1.75) < 0.9 + 0.15 + 1.0
+    assert np.all(walkers[beside, 0] - 0.25 - front[beside] >= 1.0)
+    assert np.all(front[walkers[:, 1] > -1.75] < -half)  # it stays out of her strip until she has crossed its lane
+    assert states[-1, 3] > 0.0  # and then goes
+
+
 @settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 100_000))
 @example(seed=675)  # a robot at 0.02 m/s answers a walker with 1.2e-6 m/s^2: 180,000 periods to stand
@@ -611,9 +631,9 @@ def test_braking_as_a_walker_stop_says_stands_before_her_strip_and_she_is_left_o
                for j in range(m)]  # each heads where she walks
     world = WorldState(0.0, states, robots, walkers)
     check = SafetyCheck(world, Fleet(robots), WALKERS, states[:, 2], np.zeros(n))
-    index, need, _, passing = check.walker_paths()
+    index, need, enter, passing = check.walker_paths()
     assert index.tolist() == [j for j in range(m) if np.hypot(*walkers[j].velocity) > 0.1]
-    np.testing.assert_array_equal(check.ignored[:, 2 * n:][:, index], (need > 0.0) | passing)
+    np.testing.assert_array_equal(check.ignored[:, 2 * n:][:, index], np.isfinite(enter) | passing)
     assert not np.any((need > 0.0) & passing)
     assert not check.ignored[:, 2 * n:][:, [j for j in range(m) if j not in index]].any()
     for i, col in zip(*np.nonzero(need)):
@@ -698,7 +718,7 @@ def test_a_walker_turning_onto_the_footpath_along_the_road_is_no_reason_to_stop(
     _, need, _, _ = check.walker_paths()
     assert bool(need[0, 0] > 0.0) == answered
     if not answered:
-        assert check.walker_stops(np.array([0]), np.zeros((1, 2)))[0] == 0.0
+        assert np.isnan(check.walker_stops(np.array([0]), np.zeros((1, 2)))[0])
 
 
 @pytest.mark.parametrize("braking_heading, answered", [(0.0123, False), (-0.1816, True)])

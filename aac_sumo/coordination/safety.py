@@ -53,6 +53,9 @@ FOLLOW_ANGLE = np.pi / 4
 VEHICLE_KINDS = ("scripted", "robot")
 #: A walker slower than this [m/s] has no path to stop before (the check's growing region answers it).
 WALKER_STILL = 0.1
+#: How far [m] into a walker's strip a robot may be (the last braking step's overshoot) and still
+#: be held at its edge rather than drive on into her path.
+STRIP_OVERSHOOT = 0.05
 
 
 def following(world: WorldState) -> np.ndarray:
@@ -95,8 +98,8 @@ class SafetyCheck:
         self.previous_steer = np.asarray(previous_steer, dtype=float)
         self.ignored = following(world) if followers else np.zeros((len(world.robots), 2 * len(world.robots) + len(world.obstacles)), dtype=bool)
         self._walkers = None
-        index, need, _, passing = self.walker_paths()
-        self.ignored[:, 2 * len(world.robots) + index] |= (need > 0.0) | passing
+        index, _, enter, passing = self.walker_paths()
+        self.ignored[:, 2 * len(world.robots) + index] |= np.isfinite(enter) | passing
         self._around: dict = {}
         self._steer = None
 
@@ -126,7 +129,7 @@ class SafetyCheck:
             for i in urgent[still]:
                 chosen[i] = [self.braking(i, -fleet.a_min[i]), self._steer[i]]
         stops = self.walker_stops(check, inputs)
-        for i in np.flatnonzero(stops):
+        for i in np.flatnonzero(np.isfinite(stops)):
             brake = self.braking(i, stops[i])
             if brake < chosen[i, 0]:
                 chosen[i] = [brake, self._steer[i]]
@@ -135,21 +138,24 @@ class SafetyCheck:
     def walker_paths(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """Which walking pedestrians each robot answers by stopping before her path, and which it
         passes (computed once per period): the walkers' obstacle indices (m,), and per robot and
-        walker (n, m) the deceleration [m/s^2] that stops it before her path (0 where it does not
-        answer her so), the distance [m] from its footprint to her path along its heading, and
+        walker (n, m) the deceleration [m/s^2] that stops it before her path, the distance [m] from
+        its footprint to her path along its heading (inf where it does not answer her so), and
         whether it passes her.
 
         Her path is the strip she sweeps walking on at her velocity, as wide as her footprint
         turned any way (its diagonal: she sways as she walks) plus the planner's
         ``pedestrian_margin`` on each side, from where she is on: where the robot crosses it she
         must be able to be by then, walking on or coming back at her reach beyond her speed (not
-        where she came from: a walker turning onto a footpath along the road). A moving robot
-        answers her so when her strip lies ahead of it along its heading, it cannot pass (driving
-        on at its speed, its rear leaves the strip no sooner than she could come within the
-        margin of its path, walking on and starting towards it at ``pedestrian_reach``, as the
-        check assumes: also just after she has crossed its path), and it can still stop before
-        the strip within its strongest braking: ``v^2 / (2 (D - v dt / 2 - a dt^2 / 8))`` (the
-        model's Euler steps, ``a`` its strongest braking) with ``D`` that distance. Such a walker
+        where she came from: a walker turning onto a footpath along the road). A robot, moving or
+        standing, answers her so when her strip lies ahead of it along its heading, it cannot pass
+        (driving on at its speed, or at least at the speed one period of its strongest acceleration
+        gives, its rear leaves the strip no sooner than she could come within the margin of its path, walking on and starting towards it at
+        ``pedestrian_reach``, as the check assumes: also just after she has crossed its path), and
+        it can still stop before the strip within its strongest braking, ``v^2 / (2 (D - v dt / 2
+        - a dt^2 / 8))`` (the model's Euler steps, ``a`` its strongest braking) with ``D`` that
+        distance, or within ``STRIP_OVERSHOOT`` of it (then braking at its strongest; standing
+        there, it stays: a car that stood at her strip's edge and set off again crept into her
+        path, 0.51 m from her, in the lane change's seed 3 at N = 15). Such a walker
         is then left out of the check above for that robot (:attr:`ignored`): her growing region
         would make it brake as if it could stop nowhere. A robot that does not stop so passes her
         when it leaves her strip before she could come within the margin of its path walking on
@@ -165,14 +171,14 @@ class SafetyCheck:
         n = len(world.robots)
         need, enter = np.zeros((n, index.size)), np.full((n, index.size), np.inf)
         passing = np.zeros((n, index.size), dtype=bool)
-        moving = np.flatnonzero(world.on_road & (world.states[:, 3] > 0.0))
+        moving = np.flatnonzero(world.on_road & (world.states[:, 3] >= 0.0))  # standing ones too: they must not start into her path
         self._walkers = index, need, enter, passing
         if index.size == 0 or moving.size == 0:
             return self._walkers
         dt, margin, reach = cfg.dt, cfg.pedestrian_margin, cfg.pedestrian_reach
         rows = world.robot_footprints()[moving]
         corners = rect_corners(rows)  # (r, 4, 2)
-        v = world.states[moving, 3]
+        v, a_go = world.states[moving, 3], fleet.a_max[moving, None]
         ahead = np.column_stack([np.cos(self.headings[moving]), np.sin(self.headings[moving])])  # (r, 2): where its braking course goes
         left = np.column_stack([-ahead[:, 1], ahead[:, 0]])
         walkers = [world.obstacles[j] for j in index]
@@ -191,7 +197,10 @@ class SafetyCheck:
         into = np.where(rate < 0.0, lo - half, -half - hi) / per_metre
         out_of = np.where(rate < 0.0, hi + half, half - lo) / per_metre
         through = (np.abs(rate) > 1e-9) & (out_of > 0.0)  # it has not passed the strip yet
-        coming = through & (into > 0.0)  # nor entered it
+        # when its rear leaves her strip driving on [s]: at its speed, and at least at the speed one period of its strongest
+        # acceleration gives (a standing robot may set off only when it can pass so; setting off with a shorter estimate, a
+        # car that then stopped again for a queue stood in her path)
+        leave = np.where(through, out_of / np.maximum(v, a_go[:, 0] * dt)[:, None], 0.0)
         # her way to the band the robot sweeps: how far across it, how fast towards it
         offset = np.einsum("rmj,rj->rm", centre[None, :, :] - rows[:, None, :2], left)
         towards = -np.sign(offset) * (left @ velocity.T)
@@ -204,33 +213,37 @@ class SafetyCheck:
         behind = np.einsum("rkj,mj->rmk", corners, path).max(axis=2) - (centre * path).sum(axis=1)[None, :] + np.maximum(
             into * along_path, out_of * along_path)
         speed_w = np.hypot(velocity[:, 0], velocity[:, 1])
-        ahead_of_her = behind >= -half[None, :] - np.maximum(reach - speed_w, 0.0)[None, :] * out_of / v[:, None]
-        blocked = through & ahead_of_her & (out_of / v[:, None] >= reaches)
-        room = into - 0.5 * v[:, None] * dt - 0.125 * -fleet.a_min[moving, None] * dt * dt  # Euler steps overshoot up to a dt^2 / 8
-        decel = v[:, None] ** 2 / (2.0 * np.maximum(room, 1e-9))
-        answered = blocked & coming & (room > 0.0) & (decel <= -fleet.a_min[moving, None])
+        ahead_of_her = behind >= -half[None, :] - np.maximum(reach - speed_w, 0.0)[None, :] * leave
+        blocked = through & ahead_of_her & (leave >= reaches)
+        strongest = -fleet.a_min[moving, None]
+        room = into - 0.5 * v[:, None] * dt - 0.125 * strongest * dt * dt  # Euler steps overshoot up to a dt^2 / 8
+        # it answers her while braking at its strongest still stops it short of her strip, or within STRIP_OVERSHOOT of its
+        # edge (where the last braking step left it, or where it stands): it stays there rather than creep into her path
+        answered = blocked & (room > -STRIP_OVERSHOOT) & (v[:, None] ** 2 <= 2.0 * strongest * np.maximum(room + STRIP_OVERSHOOT, 0.0))
+        decel = np.minimum(v[:, None] ** 2 / (2.0 * np.maximum(room, 1e-9)), strongest)
         # else it passes when it leaves her strip before she comes within the margin of its path walking on at her speed
         # (too late to stop before her path, rather than stop in her way)
         arrives = np.where(towards > 0.0, np.maximum(gap - margin, 0.0) / np.maximum(towards, 1e-9), np.inf)
         need[moving] = np.where(answered, decel, 0.0)
         enter[moving] = np.where(answered, into, np.inf)
-        passing[moving] = through & ahead_of_her & ~answered & (out_of / v[:, None] < arrives)
+        passing[moving] = through & ahead_of_her & ~answered & (v[:, None] > 0.0) & (out_of / np.maximum(v, 1e-12)[:, None] < arrives)
         return self._walkers
 
     def walker_stops(self, check: np.ndarray, inputs: np.ndarray) -> np.ndarray:
-        """The deceleration [m/s^2] (n,; 0: none) with which each robot of ``check`` brakes now
+        """The deceleration [m/s^2] (n,; NaN: none) with which each robot of ``check`` brakes now
         to stop before a walker's path (:meth:`walker_paths`): just as hard as that needs, and
         only once one more period of its input ``inputs`` (n, 2) and braking at its comfort
-        deceleration would no longer stop it there (comfort first)."""
-        out = np.zeros(len(self.world.robots))
+        deceleration would no longer stop it there (comfort first). A standing robot gets 0: it
+        stays where it is."""
+        out = np.full(len(self.world.robots), np.nan)
         _, need, enter, _ = self.walker_paths()
         check = np.asarray(check, dtype=np.int64)
         if need.size == 0 or check.size == 0:
             return out
         dt, v = self.config.dt, self.world.states[check, 3:4]
         v1 = np.maximum(v + np.asarray(inputs, dtype=float)[check, 0:1] * dt, 0.0)
-        late = v1**2 / (2.0 * self.fleet.comfort[check, None]) + 0.5 * v1 * dt > enter[check] - v * dt
-        out[check] = np.where(late, need[check], 0.0).max(axis=1)
+        late = np.isfinite(enter[check]) & (v1**2 / (2.0 * self.fleet.comfort[check, None]) + 0.5 * v1 * dt > enter[check] - v * dt)
+        out[check] = np.where(late.any(axis=1), np.where(late, need[check], -np.inf).max(axis=1), np.nan)
         return out
 
     def braking(self, i: int, decel: float) -> float:
