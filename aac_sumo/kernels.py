@@ -9,7 +9,8 @@ and a test pins it to that definition: :func:`rollouts` and :func:`braking_cours
 :func:`stop_flags` and :func:`gentlest_stops` are the safety stop's rule and its rounds of
 gentler braking, :func:`grow_trees`, :func:`closest_on_polyline`, :func:`polyline_offsets` and
 :func:`times_to_collision` the loops of the proximity decision, path projection, the lateral
-band's offsets and the time to collision. They import nothing else of this package.
+band's offsets and the time to collision, and :func:`tracking_course` the tracking law's rollout
+(:func:`aac_sumo.coordination.tracking.track`). They import nothing else of this package.
 Units: m, s, rad. Numba caches the compiled code beside this file, so only the first run on a
 machine compiles it.
 """
@@ -578,3 +579,59 @@ def ragged_clearance(own, flat, starts, lengths, skip, margin):
             else:
                 best = min(best, rect_clearance(a, b))
     return best
+
+
+@numba.njit(cache=True)
+def tracking_course(x, y, h, v, steps, dt, wheelbase, a_min, a_max, steer_max, v_min, v_max, a_lat_max, steer_rate_max, comfort,
+                    previous_steer, points, seg_len, cum, seg_dir, seg_heading, t_max, chunk_centre, chunk_radius, chunk, limits,
+                    speed, decel, stop_at_end, approach, lookahead, speed_gain, offset, target_speed):
+    """Inputs (steps, 2) ``[accel, steer]`` of the tracking law (the loop form of
+    :func:`aac_sumo.coordination.tracking.track`) applied period after period from the rear-axle
+    state ``(x, y, h, v)``, each step of :func:`_bicycle_step` with the inputs clipped to the
+    robot's bounds. Pure pursuit of the path point ``lookahead`` [m] beyond the projection
+    (clamped to the end of a path that stops), moved ``offset`` [m] to the right; within
+    ``approach`` [m] of the goal of a path that stops, straight at the goal at the speed that
+    stops there. The speed loop drives towards the path's speed at the projection (its
+    ``limits`` (M,) over ``cum`` when non-empty, its stopping profile at ``decel``), or
+    ``target_speed`` when that is not NaN, braking at most at ``comfort``; the steering keeps
+    the rate limit from the one before and the lateral limit at the larger of the speeds now
+    and after the period."""
+    out = np.empty((steps, 2))
+    n_seg = seg_len.shape[0]
+    length = cum[n_seg]
+    gx, gy = points[n_seg, 0], points[n_seg, 1]
+    steer_prev = previous_steer
+    for k in range(steps):
+        i, t, _ = closest_on_polyline(points, seg_len, t_max, x, y, chunk_centre, chunk_radius, chunk)
+        s0 = cum[i] + t * seg_len[i]
+        sl = min(s0 + lookahead, length) if stop_at_end else s0 + lookahead
+        j = min(max(np.searchsorted(cum, sl, side="right") - 1, 0), n_seg - 1)
+        local = sl - cum[j]
+        if stop_at_end:
+            local = min(max(local, 0.0), seg_len[j])
+        px, py, ph = points[j, 0] + local * seg_dir[j, 0], points[j, 1] + local * seg_dir[j, 1], seg_heading[j]
+        tx, ty = px + offset * math.sin(ph), py - offset * math.cos(ph)
+        near_goal = stop_at_end and math.hypot(gx - x, gy - y) <= approach
+        if near_goal:
+            tx, ty = gx, gy
+        rx, ry = tx - x, ty - y
+        dist = math.hypot(rx, ry)
+        steer = 0.0 if dist < 1e-6 else math.atan2(2.0 * wheelbase * math.sin(math.atan2(ry, rx) - h), dist)
+        if near_goal:
+            want = min(speed, math.sqrt(2.0 * decel * dist))
+        else:
+            cap = speed if limits.shape[0] == 0 else np.interp(s0, cum, limits)
+            want = min(speed, cap) if not stop_at_end else min(cap, math.sqrt(2.0 * decel * max(length - s0, 0.0)))
+            if not math.isnan(target_speed):
+                want = target_speed
+        accel = min(max(speed_gain * (want - v), -comfort), a_max)
+        rate = steer_rate_max * dt
+        steer = min(max(steer, steer_prev - rate), steer_prev + rate)
+        fastest = max(abs(v), abs(v + accel * dt))
+        bound = min(math.atan2(a_lat_max * wheelbase, fastest * fastest), steer_max)
+        steer = min(max(steer, -bound), bound)
+        out[k, 0], out[k, 1] = accel, steer
+        x, y, h, v = _bicycle_step(x, y, h, v, min(max(accel, a_min), a_max), min(max(steer, -steer_max), steer_max), dt, wheelbase,
+                                   v_min, v_max)
+        steer_prev = steer
+    return out

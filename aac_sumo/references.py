@@ -88,6 +88,14 @@ class PathReference:
         self._t_max = np.r_[np.ones(len(self.seg_len) - 1), 1.0 if stop_at_end else np.inf]
         self._chunks = polyline_chunks(self.points, PROJECTION_CHUNK)
 
+    def arrays(self) -> tuple:
+        """The path as the compiled kernels take it: points (M, 2), segment lengths, cumulative
+        arc lengths (M,), segment directions (M-1, 2) and headings, the projection's ``t`` bounds,
+        the chunk bounds with the chunk size, and the speed limits (M,; empty without)."""
+        limits = np.empty(0) if self.limits is None else self.limits
+        return (self.points, self.seg_len, self.s, self._seg_dir, self.seg_heading, self._t_max, *self._chunks, PROJECTION_CHUNK,
+                limits)
+
     def project(self, point) -> tuple[float, float]:
         """Arc length [m] of the closest path point to ``point`` and the distance [m] to it. A
         path that does not stop goes on straight beyond its end, so a point past the end projects

@@ -371,3 +371,51 @@ def test_compiled_rollouts_step_the_bicycle_model(seed, steps, dt):
         x = bicycle_step(x, inputs[:, k], dt, wheelbase)
         x[:, 3] = np.clip(x[:, 3], v_min, v_max)
         np.testing.assert_allclose(got[:, k + 1], x, rtol=1e-12, atol=1e-9)
+
+
+def _pure_pursuit(robot, state, task, lookahead, speed_gain, previous_steer, dt, offset, target_speed):
+    """The tracking law as numpy statements, from the path's own methods: the definition the
+    compiled rollout is held to."""
+    s0, _ = task.project(state[:2])
+    pose = task.pose_at(min(s0 + lookahead, task.length) if task.stop_at_end else s0 + lookahead)[0]
+    target = pose[:2] + offset * np.array([np.sin(pose[2]), -np.cos(pose[2])])
+    near_goal = task.stop_at_end and float(np.hypot(*(task.points[-1] - state[:2]))) <= task.approach
+    if near_goal:
+        target = task.points[-1]
+    rel = target - state[:2]
+    dist = float(np.hypot(*rel))
+    steer = 0.0 if dist < 1e-6 else float(np.arctan2(2.0 * robot.model.wheelbase * np.sin(np.arctan2(rel[1], rel[0]) - state[2]), dist))
+    speed = min(task.speed, float(np.sqrt(2.0 * task.decel * dist))) if near_goal else float(task.speed_at(s0))
+    if target_speed is not None and not near_goal:
+        speed = target_speed
+    lim = robot.model.limits
+    accel = min(max(speed_gain * (speed - state[3]), -lim.comfort_decel), lim.a_max)
+    return np.array([accel, float(robot.model.limit_steer(steer, state[3], previous_steer, dt, accel))])
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 100_000), steps=st.integers(1, 12))
+def test_compiled_tracking_course_is_the_pure_pursuit_law_applied_period_after_period(seed, steps):
+    """:func:`~aac_sumo.coordination.tracking.track_course` on random paths (stopping or not,
+    with speed limits or not, an approach zone or not), robots, offsets and target speeds gives
+    the inputs of the tracking law evaluated from the path's methods and the model's steering
+    limits, stepping the robot's model between periods."""
+    from aac_sumo.coordination.tracking import track_course
+    from aac_sumo.references import PathReference
+    from aac_sumo.world import RobotSpec
+
+    rng = np.random.default_rng(seed)
+    limits = VehicleLimits(a_min=-rng.uniform(2, 6), a_max=rng.uniform(1, 3), steer_max=rng.uniform(0.3, 0.6), v_max=rng.uniform(1.5, 20),
+                           a_lat_max=rng.choice([np.inf, 3.0]), steer_rate_max=rng.choice([np.inf, 0.5, 2.0]), a_comfort=rng.choice([np.inf, 2.0]))
+    robot = RobotSpec("r", 4.0, 1.8, BicycleModel(rng.uniform(0.4, 2.6), limits))
+    points = np.cumsum(rng.uniform(-5, 5, (int(rng.integers(2, 40)), 2)), axis=0)
+    task = PathReference(points, rng.uniform(0.5, 10), rng.uniform(0.5, 3), stop_at_end=bool(rng.integers(2)), approach=rng.choice([0.0, 2.0]),
+                         limits=rng.uniform(0.5, 10, len(points)) if rng.integers(2) else None)
+    state = np.r_[points[0] + rng.uniform(-2, 2, 2), rng.uniform(-3, 3), rng.uniform(0, limits.v_max)]
+    lookahead, offset, previous, dt = rng.uniform(0.5, 3), rng.choice([0.0, 1.0]), rng.uniform(-0.3, 0.3), 0.1
+    target = float(rng.uniform(0, 5)) if rng.integers(2) else None
+    got = track_course(robot, state, task, lookahead, 1.0, previous, dt, steps, offset, target)
+    for k in range(steps):
+        want = _pure_pursuit(robot, state, task, lookahead, 1.0, previous, dt, offset, target)
+        np.testing.assert_allclose(got[k], want, rtol=1e-9, atol=1e-9)
+        previous, state = want[1], robot.model.step(state, want, dt)

@@ -54,7 +54,7 @@ from aac_sumo.coordination.base import Coordinator, Decision, Finished, RobotDec
 from aac_sumo.coordination.commitments import CommitmentBook, clusters, reach_radii, stopping_commitment
 from aac_sumo.coordination.make_room import MakeRoom
 from aac_sumo.coordination.proximity import ProximityParams, close_pairs, proximity_decision
-from aac_sumo.coordination.tracking import track
+from aac_sumo.coordination.tracking import track, track_course
 from aac_sumo.mpc.planner import MpcPlanner
 from aac_sumo.references import PathReference
 from aac_sumo.world import WorldState
@@ -497,15 +497,8 @@ class AacCoordinator(Coordinator):
     def tracking_inputs(self, world: WorldState, j: int, steps: int) -> np.ndarray:
         """Inputs (steps, 2) of robot ``j`` following the tracking law from where it is, on its
         path moved by its keep-right shift of now."""
-        robot, cfg = world.robots[j], self.planner.config
-        state = world.states[j].copy()
-        shift = self.keep_right_shift(world, j)
-        out = np.empty((steps, 2))
-        for k in range(steps):
-            out[k] = track(robot, state, self.tasks[j], self.params.lookahead, self.params.speed_gain,
-                           out[k - 1, 1] if k else self.last_inputs[j, 1], cfg.dt, shift)
-            state = robot.model.step(state, out[k], cfg.dt)
-        return out
+        return track_course(world.robots[j], world.states[j], self.tasks[j], self.params.lookahead, self.params.speed_gain,
+                            self.last_inputs[j, 1], self.planner.config.dt, steps, self.keep_right_shift(world, j))
 
     def committed_safety_stop(self, world: WorldState, inputs: np.ndarray, records: list[RobotDecision], period: int,
                               statics: np.ndarray) -> int:

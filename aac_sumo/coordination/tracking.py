@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from aac_sumo.kernels import tracking_course
 from aac_sumo.references import PathReference
 from aac_sumo.world import RobotSpec
 
@@ -18,23 +19,17 @@ def track(robot: RobotSpec, state: np.ndarray, task: PathReference, lookahead: f
     comfort deceleration, and its steering keeps the vehicle limits (angle, lateral
     acceleration, and rate from ``previous_steer`` [rad], the steering applied the period ``dt``
     [s] before)."""
-    s0, _ = task.project(state[:2])
-    pose = task.pose_at(min(s0 + lookahead, task.length) if task.stop_at_end else s0 + lookahead)[0]
-    target = pose[:2] + offset * np.array([np.sin(pose[2]), -np.cos(pose[2])])
-    goal_rel = task.points[-1] - state[:2]
-    near_goal = task.stop_at_end and float(np.hypot(*goal_rel)) <= task.approach
-    if near_goal:  # within the approach distance: straight at the goal, as the reference does
-        target = task.points[-1]
-    rel = target - state[:2]
-    dist = float(np.hypot(*rel))
-    lim = robot.model.limits
-    if dist < 1e-6:
-        steer = 0.0
-    else:
-        alpha = np.arctan2(rel[1], rel[0]) - state[2]
-        steer = float(np.arctan2(2.0 * robot.model.wheelbase * np.sin(alpha), dist))
-    speed = min(task.speed, float(np.sqrt(2.0 * task.decel * dist))) if near_goal else float(task.speed_at(s0))
-    if target_speed is not None and not near_goal:
-        speed = target_speed
-    accel = min(max(speed_gain * (speed - state[3]), -lim.comfort_decel), lim.a_max)
-    return np.array([accel, float(robot.model.limit_steer(steer, state[3], previous_steer, dt, accel))])
+    return track_course(robot, state, task, lookahead, speed_gain, previous_steer, dt, 1, offset, target_speed)[0]
+
+
+def track_course(robot: RobotSpec, state: np.ndarray, task: PathReference, lookahead: float, speed_gain: float,
+                 previous_steer: float, dt: float, steps: int, offset: float = 0.0, target_speed: float | None = None) -> np.ndarray:
+    """Inputs (steps, 2) of :func:`track` applied for ``steps`` periods from ``state`` under the
+    robot's model (compiled: :func:`~aac_sumo.kernels.tracking_course`)."""
+    lim, model = robot.model.limits, robot.model
+    x, y, h, v = (float(c) for c in state[:4])
+    return tracking_course(x, y, h, v, int(steps), float(dt), float(model.wheelbase), float(lim.a_min), float(lim.a_max),
+                           float(lim.steer_max), float(lim.v_min), float(lim.v_max), float(lim.a_lat_max), float(lim.steer_rate_max),
+                           float(lim.comfort_decel), float(previous_steer), *task.arrays(), float(task.speed), float(task.decel),
+                           bool(task.stop_at_end), float(task.approach), float(lookahead), float(speed_gain), float(offset),
+                           np.nan if target_speed is None else float(target_speed))
