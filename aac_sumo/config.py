@@ -143,6 +143,9 @@ COMMON: dict[str, dict[str, Key]] = {
                              "where each obstacle ahead of it could stop at the earliest (the car-following stopping-distance rule; "
                              "docs/braking.md)"),
         "obstacle_decel": Key(float, 0.0, "strongest braking assumed of obstacles for terminal_stop [m/s^2]; 0 = as hard as the robot itself can", **NN),
+        "comfort_accel": Key(float, 0.0, "comfort envelope the MPC plans within first: |acceleration| at most this; only when no "
+                             "plan fits does it use the vehicle's full limits (0: off) [m/s^2]", **NN),
+        "comfort_lat": Key(float, 0.0, "the comfort envelope's lateral acceleration v^2 |tan(steer)| / wheelbase (0: off) [m/s^2]", **NN),
         "obstacle_slots": Key(int, 8, "obstacles the MPC considers (nearest first)", check=lambda n: 1 <= n <= 64, expect="in 1..64"),
         "ego_discs": Key(int, 1, "discs covering the ego footprint", check=lambda n: 1 <= n <= 5, expect="in 1..5"),
         "q_pos": Key(float, 1.0, "Q weight on position error [1/m^2]", **NN),

@@ -508,3 +508,27 @@ def test_a_compiled_problem_is_reused_without_building_it_again(tmp_path, monkey
     assert a.status == b.status == "solved"
     np.testing.assert_allclose(a.inputs, b.inputs, atol=1e-9)
     assert problem.library_path(shape) != problem.library_path(dataclasses.replace(shape, horizon=4))
+
+
+def test_the_comfort_envelope_is_kept_unless_only_the_vehicles_limits_allow_a_plan():
+    """With ``comfort_accel`` = ``comfort_lat`` = 2 m/s^2, a robot setting off at rest for 10 m/s
+    speeds up at 2 m/s^2, not the 3 its vehicle allows (the reference asks for far more). A
+    robot at 10 m/s held in its lane (a 0.1 m wide corridor) with a cone 14 m ahead brakes within
+    the envelope where the vehicle's limits alone had it brake at 2.5 m/s^2; with the cone 12 m
+    ahead no plan keeps the envelope, and it still gets one, braking beyond it."""
+    cfg = MpcConfig(horizon=HORIZON, dt=DT, slots=SLOTS, comfort_accel=2.0, comfort_lat=2.0)
+    assert cfg.envelopes(LIMITS) == [(-2.0, 2.0, 2.0), (LIMITS.a_min, LIMITS.a_max, LIMITS.a_lat_max)]
+    assert MpcConfig().envelopes(LIMITS) == [(LIMITS.a_min, LIMITS.a_max, LIMITS.a_lat_max)]
+    comfort, free = MpcPlanner(cfg), MpcPlanner(dataclasses.replace(cfg, comfort_accel=0.0, comfort_lat=0.0))
+    start = np.array([0.0, 0.0, 0.0, 0.0])
+    plan = comfort.plan(ROBOT, start, straight_reference(0.0, 10.0), np.zeros(2), [])
+    assert plan.status == "solved" and plan.inputs[:, 0].max() == pytest.approx(2.0, abs=1e-6)
+    assert free.plan(ROBOT, start, straight_reference(0.0, 10.0), np.zeros(2), []).inputs[:, 0].max() > 2.5
+
+    lane, moving = np.array([-1e3, 1e3, -0.05, 0.05]), np.array([0.0, 0.0, 0.0, 10.0])
+    for ahead, within in ((14.0, True), (12.0, False)):
+        cone = Obstacle("cone", "cone", np.array([ahead, 0.0]), np.zeros(2), 0.0, 0.5, 0.5)
+        plans = [p.plan(ROBOT, moving, straight_reference(0.0, 10.0), np.zeros(2), [cone], corridor=lane) for p in (comfort, free)]
+        assert all(p.status == "solved" for p in plans)
+        assert (plans[0].inputs[:, 0].min() >= -2.0 - 1e-6) == within
+        assert plans[1].inputs[:, 0].min() < -2.4

@@ -72,6 +72,7 @@ def mpc_config(scenario: Scenario) -> MpcConfig:
         pedestrian_reach=c["pedestrian_reach"], pedestrian_margin=c["pedestrian_margin"],
         prediction=c["prediction"], prediction_window=c["prediction_window"],
         terminal_stop=c["terminal_stop"], obstacle_decel=c["obstacle_decel"],
+        comfort_accel=c["comfort_accel"], comfort_lat=c["comfort_lat"],
     )
 
 

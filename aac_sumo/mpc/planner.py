@@ -56,6 +56,10 @@ class MpcConfig:
     braking at its strongest from the horizon's end, the ego stops short of where each obstacle
     ahead could stop at the earliest, braking at ``obstacle_decel`` [m/s^2] from now (0: as
     hard as the ego can).
+    ``comfort_accel`` and ``comfort_lat`` [m/s^2] (0: off) are the comfort envelope the planner
+    tries first: |acceleration| and lateral acceleration within them (and within the vehicle's
+    limits). Only when no solve finds a plan inside it does the planner use the vehicle's full
+    limits, so a harder input is one that the situation called for.
     """
 
     horizon: int = 10
@@ -87,10 +91,24 @@ class MpcConfig:
     prediction_window: int = 2
     terminal_stop: bool = False
     obstacle_decel: float = 0.0
+    comfort_accel: float = 0.0
+    comfort_lat: float = 0.0
 
     def weights(self) -> np.ndarray:
         q = np.array([self.q_pos, self.q_pos, self.q_heading, self.q_speed])
         return np.concatenate([q, [self.r_accel, self.r_steer], [self.s_accel, self.s_steer], self.terminal_scale * q])
+
+    def envelopes(self, limits) -> list[tuple[float, float, float]]:
+        """The input envelopes ``(a_min, a_max, a_lat_max)`` [m/s^2] the planner tries in turn
+        for a robot with vehicle ``limits``: the comfort envelope first when one is set, then the
+        vehicle's own."""
+        full = (limits.a_min, limits.a_max, limits.a_lat_max)
+        if self.comfort_accel <= 0.0 and self.comfort_lat <= 0.0:
+            return [full]
+        accel = self.comfort_accel if self.comfort_accel > 0.0 else np.inf
+        lat = self.comfort_lat if self.comfort_lat > 0.0 else np.inf
+        comfort = (max(limits.a_min, -accel), min(limits.a_max, accel), min(limits.a_lat_max, lat))
+        return [comfort, full] if comfort != full else [full]
 
     def shape(self, solver: str) -> ProblemShape:
         """Problem shape for ``solver``; only the fast path is compiled to C when ``codegen``."""
@@ -412,29 +430,33 @@ class MpcPlanner:
             terminal=terminal if cfg.terminal_stop else np.zeros(0),
             stop_decel=abs(lim.a_min) if cfg.terminal_stop else np.zeros(0),
             band=self.band_rows(robot, corridor, reference, state) if cfg.band else np.zeros(0),
-            limits=np.minimum([lim.a_lat_max, lim.steer_rate_max * cfg.dt], NO_LIMIT),
         )
         usable = cfg.warm_start and previous is not None and len(previous.inputs) == cfg.horizon
+        envelopes = cfg.envelopes(lim)
 
         def attempts():
-            """A warm start that fails is retried cold by the same solver (a shifted plan that the
-            moved regions cut through often traps it), then by ipopt from the first guess; the
-            cold guess is rolled out only when needed."""
+            """Per envelope (:meth:`MpcConfig.envelopes`, the comfort one first): a warm start
+            that fails is retried cold by the same solver (a shifted plan that the moved regions
+            cut through often traps it), then, within the vehicle's own limits, by ipopt from the
+            first guess; the cold guess is rolled out only when needed."""
             warm = previous.shifted(state) if usable else None
             if cfg.warm_start and guess is not None:
                 warm = (np.vstack([state[None], guess[0][1:]]), guess[1])
-            if warm is not None:
-                yield self.problem, warm
-            cold = self.coasting(robot, state)
-            yield self.problem, cold
-            if self.retry_problem is not None:
-                yield self.retry_problem, warm if warm is not None else cold
+            cold = None
+            for last, envelope in enumerate(envelopes, start=1 - len(envelopes)):
+                if warm is not None:
+                    yield self.problem, warm, envelope
+                cold = self.coasting(robot, state) if cold is None else cold
+                yield self.problem, cold, envelope
+                if self.retry_problem is not None and last == 0:
+                    yield self.retry_problem, warm if warm is not None else cold, envelope
 
         box = np.array([-np.inf, np.inf, -np.inf, np.inf]) if corridor is None or isinstance(corridor, LateralBand) else np.asarray(corridor, dtype=float)
-        bounds = ([box[0], box[2], -np.inf, lim.v_min], [box[1], box[3], np.inf, lim.v_max], [lim.a_min, -lim.steer_max], [lim.a_max, lim.steer_max])
         total_ms, outcome, used = 0.0, None, cfg.solver
-        for problem, start in attempts():
+        for problem, start, (a_min, a_max, a_lat) in attempts():
+            bounds = ([box[0], box[2], -np.inf, lim.v_min], [box[1], box[3], np.inf, lim.v_max], [a_min, -lim.steer_max], [a_max, lim.steer_max])
             lbx, ubx = problem.bounds(state, u_prev, *bounds)
+            params["limits"] = np.minimum([a_lat, lim.steer_rate_max * cfg.dt], NO_LIMIT)
             outcome = problem.solve(problem.parameters(**params), problem.pack(*start, u_prev), lbx, ubx)
             total_ms += outcome.solve_ms
             used = problem.shape.solver
