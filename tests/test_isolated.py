@@ -247,3 +247,15 @@ def test_ctrl_c_on_the_process_group_interrupts_an_isolated_run(tmp_path):
     assert proc.returncode == 130, err
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["error"].startswith("interrupted at t=")
+
+
+def test_sumo_warnings_of_one_kind_are_aggregated_unless_the_user_says_otherwise(tmp_path):
+    """With a log in the output folder, SUMO prints at most AGGREGATE_WARNINGS warnings of one
+    kind and then their count (a highway run warned 4,600 times that one car braked too hard);
+    a user's own ``--aggregate-warnings`` in ``sumo.extra_args`` is the only one passed."""
+    from aac_sumo.sim.sumo import AGGREGATE_WARNINGS
+
+    cmd = SumoOptions(Path("road.net.xml"), output_dir=tmp_path).command(0.1)
+    assert cmd[cmd.index("--aggregate-warnings") + 1] == str(AGGREGATE_WARNINGS) and cmd[cmd.index("--log") + 1].endswith("sumo.log")
+    cmd = SumoOptions(Path("road.net.xml"), output_dir=tmp_path, extra_args=("--aggregate-warnings", "-1")).command(0.1)
+    assert cmd.count("--aggregate-warnings") == 1 and cmd[cmd.index("--aggregate-warnings") + 1] == "-1"
