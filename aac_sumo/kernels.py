@@ -439,7 +439,8 @@ def ramped_speeds(s0, v0, steps, dt, decel, accel, brake, stops, speed, path_s, 
     path's speed at each stage (``speed``, below ``limits`` over ``path_s`` when it has any,
     and its stopping profile at ``path_decel`` before ``length`` when ``stop_at_end``), capped
     by braking at ``decel`` to every stop row ``[s_stop, v_lead, grow]`` (K, 3) of ``stops``
-    (as :func:`aac_sumo.coordination.anticipation.speed_cap`). A row that braking at ``decel``
+    (as :func:`aac_sumo.coordination.anticipation.speed_cap`: a row already passed caps below its
+    ``v_lead``, so that a gap that has closed opens again at ``decel``). A row that braking at ``decel``
     can no longer meet (seen late: a walker who stepped towards the path) is met braking as
     hard as it needs to come down to its ``v_lead`` within its room (the closing speed squared
     over twice the room), up to ``brake`` [m/s^2] (``brake <= decel``: never harder than ``decel``)."""
@@ -457,7 +458,7 @@ def ramped_speeds(s0, v0, steps, dt, decel, accel, brake, stops, speed, path_s, 
             for r in range(stops.shape[0]):
                 room = max(stops[r, 0] - s[k], 0.0)
                 bk = decel * stops[r, 2]
-                target = min(target, math.sqrt(bk * bk + stops[r, 1] ** 2 + 2.0 * decel * room) - bk)
+                target = min(target, math.sqrt(max(bk * bk + stops[r, 1] ** 2 + 2.0 * decel * (stops[r, 0] - s[k]), 0.0)) - bk)
                 closing = v[k - 1] - stops[r, 1]
                 if brake > decel and closing > 0.0:  # the rate that comes down to v_lead (going on at its speed) within the room left, grow v kept
                     left = room - stops[r, 2] * v[k - 1]

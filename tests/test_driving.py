@@ -171,6 +171,26 @@ def test_with_brake_a_stop_seen_late_is_met_braking_harder_within_comfort(distan
         assert slowing[0] == pytest.approx(-comfort * DT)
 
 
+def test_a_car_closer_to_its_leader_than_the_gap_it_keeps_falls_back_at_the_comfortable_rate():
+    """A car at 8 m/s with a leader at 8 m/s only 1 m beyond its stop row (the 2 m standstill gap
+    plus the 1 s time gap): its reference slows below the leader's speed, at most at the
+    comfortable rate, so that the gap opens again (at the leader's speed it would stay closed);
+    the cap there is sqrt(8^2 - 2 decel 1) ~ 7.8 m/s. With the leader far ahead it keeps 8 m/s."""
+    params = Anticipation()
+    front = CAR.centre_offset + 0.5 * CAR.length
+    behind = front + 0.2 + params.gap + params.time_gap * 8.0 - 1.0  # the leader's centre, 1 m too close
+    world, task = one_lane_world(behind, velocity=(8.0, 0.0), kind="scripted")
+    world.states[0, 3] = 8.0
+    stops = stop_points(world, 0, task, params)
+    assert stops[0, 0] == pytest.approx(-1.0) and stops[0, 1] == pytest.approx(8.0)
+    assert speed_cap(stops, [0.0], params.decel)[0] == pytest.approx(np.sqrt(64.0 - 2.0 * params.decel), rel=1e-9)
+    speeds = anticipated_reference(world, 0, task, 10, DT, params)[:, 3]
+    assert speeds[-1] < 8.0 - 0.5 and np.all(np.diff(speeds) >= -params.decel * DT - 1e-9)
+    far, task = one_lane_world(behind + 40.0, velocity=(8.0, 0.0), kind="scripted")
+    far.states[0, 3] = 8.0
+    assert np.all(anticipated_reference(far, 0, task, 10, DT, params)[:, 3] >= 8.0 - 1e-9)
+
+
 def test_a_braking_car_ahead_counts_also_where_it_will_stop():
     """A car 30 m ahead at 15 m/s braking at 4.5 m/s^2 (as SUMO's cars brake for a walker):
     besides the time-gap row at its speed, a standing row 15^2 / 9 = 25 m further on; a car

@@ -181,13 +181,18 @@ def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipa
 def speed_cap(stops: np.ndarray, s, decel: float) -> np.ndarray:
     """The highest speed ``v`` [m/s] at arc lengths ``s`` from which braking at ``decel``
     [m/s^2] reaches every stop row ``[s_stop, v_lead, grow]`` at its speed with ``grow * v``
-    [m] to spare: ``(v^2 - v_lead^2) / (2 decel) + grow v <= s_stop - s``; inf without any."""
+    [m] to spare: ``(v^2 - v_lead^2) / (2 decel) + grow v <= s_stop - s``; inf without any.
+    Past a row (``s > s_stop``: closer to a leader than the gap it keeps) the cap falls below
+    ``v_lead`` as if the room were negative, to zero where ``v_lead^2 < 2 decel (s - s_stop)``:
+    the gap opens again at ``decel`` instead of staying closed at the leader's speed. (AAC's cars
+    drive stale plans between their turns and closed up; their next solve then met the MPC's
+    barrier with a one-period brake at 3-4 m/s^2.)"""
     s = np.atleast_1d(np.asarray(s, dtype=float))
     if len(stops) == 0:
         return np.full(s.shape, np.inf)
-    room = np.clip(stops[None, :, 0] - s[:, None], 0.0, None)
+    room = stops[None, :, 0] - s[:, None]
     lead, bk = stops[None, :, 1], decel * stops[None, :, 2]
-    return (np.sqrt(bk**2 + lead**2 + 2.0 * decel * room) - bk).min(axis=1)
+    return np.maximum(np.sqrt(np.maximum(bk**2 + lead**2 + 2.0 * decel * room, 0.0)) - bk, 0.0).min(axis=1)
 
 
 def anticipated_reference(world: WorldState, i: int, task: PathReference, steps: int, dt: float, params: Anticipation,
