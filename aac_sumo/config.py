@@ -207,6 +207,11 @@ COMMON: dict[str, dict[str, Key]] = {
                          "robots in its way drive aside while it passes"),
         "stall_time": Key(float, 1.0, "standing time after which an unfinished robot may lead [s]", **P),
         "lead_time": Key(float, 8.0, "longest lead [s]", **P),
+        "detour": Key(bool, False, "detours (with commit): a robot that has stood for stall_time, or whose reference runs within "
+                      "detour_clearance of debris or of a parked or long-standing robot, follows a grid A* path round them "
+                      "to its goal instead"),
+        "detour_clearance": Key(float, 0.5, "gap a detour keeps from standing footprints where there is room; it squeezes closer "
+                                "(down to half the robot width + commit_margin) where there is not [m]", **P),
     },
     "lfc": {
         "safety_stop": Key(bool, False, "every robot's first planned input passes AAC's safety stop (the paper's LFC has none)"),
