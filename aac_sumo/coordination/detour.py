@@ -36,6 +36,9 @@ SAMPLES = 3
 STILL_SPEED = 0.05
 #: Spacing [m] of the samples along a reference that is checked for standing footprints.
 CHECK_SPACING = 0.1
+#: Within this distance [m] of its goal, a robot on a detour whose straight way to the goal is
+#: free goes straight there: a detour's last corner near the goal is a hook a car cannot follow.
+FINAL = 1.5
 
 
 def rect_distances(points: np.ndarray, rects: np.ndarray) -> np.ndarray:
@@ -116,8 +119,10 @@ class Detours:
     but its own, from its footprint centre to its goal, ``hard`` and ``clearance`` [m], grid
     ``cell`` [m]) when it has stood for ``stall_periods`` (and again after each further such
     stretch), and, every ``check_periods``, when what is left of its reference (from its
-    projection on) comes within ``clearance`` of a standing footprint. A robot that has
-    finished drops its detour. A detour keeps its task's speed, braking, goal approach and
+    projection on) comes within ``clearance`` of a standing footprint. Within ``FINAL`` of its
+    goal, a robot on a detour whose straight segment (rear axle to goal) keeps ``hard`` from
+    every standing footprint goes straight there instead. A robot that has finished drops its
+    detour. A detour keeps its task's speed, braking, goal approach and
     turning radius."""
 
     def __init__(self, tasks: list[PathReference], stall_periods: int, check_periods: int, hard: float, clearance: float,
@@ -128,6 +133,7 @@ class Detours:
         self.routes: list[PathReference | None] = [None] * len(tasks)
         self.still = np.zeros(len(tasks), dtype=int)
         self.next_check = np.zeros(len(tasks), dtype=int)
+        self.final = np.zeros(len(tasks), dtype=bool)  # on the straight way to the goal (FINAL)
         self.planned = 0  # detours planned so far
 
     def path(self, i: int) -> PathReference:
@@ -143,8 +149,19 @@ class Detours:
         self.still = np.where(~done & (np.abs(states[:, 3]) < STILL_SPEED), self.still + 1, 0)
         standing = parked | (self.still >= self.stall_periods)
         for i in np.flatnonzero(done):
-            self.routes[i] = None
+            self.routes[i], self.final[i] = None, False
+        gap = np.hypot(*(states[:, :2] - np.array([t.points[-1] for t in self.tasks])).T)
         for i in np.flatnonzero(~done & ~parked):
+            if self.routes[i] is not None and not self.final[i] and gap[i] <= FINAL:
+                others = standing.copy()
+                others[i] = False
+                rects = np.vstack([statics.reshape(-1, 5), footprints[others]])
+                goal = self.tasks[i].points[-1]
+                line = states[i, :2] + np.linspace(0.0, 1.0, int(np.ceil(gap[i] / CHECK_SPACING)) + 1)[:, None] * (goal - states[i, :2])
+                if rect_distances(line, rects).min() >= self.hard:
+                    self.routes[i] = self.route(i, np.array([states[i, :2], goal]))
+                    self.final[i] = True
+                    continue
             stalled = self.still[i] >= self.stall_periods and self.still[i] % self.stall_periods == 0
             if not stalled and period < self.next_check[i]:
                 continue
@@ -157,9 +174,14 @@ class Detours:
             task = self.tasks[i]
             waypoints = plan_detour(footprints[i, :2], task.points[-1], rects, self.hard, self.clearance, self.cell)
             if waypoints is not None and len(waypoints) >= 2:
-                self.routes[i] = PathReference(waypoints, task.speed, task.decel, approach=task.approach,
-                                               turn_radius=task.turn_radius, arrive=task.arrive)
+                self.routes[i], self.final[i] = self.route(i, waypoints), False
                 self.planned += 1
+
+    def route(self, i: int, waypoints: np.ndarray) -> PathReference:
+        """A detour of robot ``i`` through ``waypoints`` (K, 2), with its task's speed, braking,
+        goal approach and turning radius."""
+        task = self.tasks[i]
+        return PathReference(waypoints, task.speed, task.decel, approach=task.approach, turn_radius=task.turn_radius, arrive=task.arrive)
 
     def clear(self, i: int, state: np.ndarray, rects: np.ndarray) -> bool:
         """Whether what is left of robot ``i``'s reference, from its projection to the goal,
