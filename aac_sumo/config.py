@@ -230,7 +230,7 @@ COMMON: dict[str, dict[str, Key]] = {
         "lat_accel_threshold": Key(float, 3.0, "lateral acceleration v^2 |curvature| that counts as aggressive [m/s^2]", **P),
         "stop_speed": Key(float, 0.05, "speed below which a robot counts as stopped [m/s]", **NN),
         "ttc_max": Key(float, 10.0, "time-to-collision above this is no conflict and stays out of ttc_mean_s [s]", **P),
-        "deadlock_time": Key(float, 5.0, "a run ends as a deadlock when no unfinished robot got further than stop_speed * deadlock_time from where it was deadlock_time before [s]", **P),
+        "deadlock_time": Key(float, 5.0, "a run ends as a deadlock when no unfinished robot got further than stop_speed * deadlock_time, at any time in the last deadlock_time, from where it was deadlock_time before (a robot that drove off and came back is not stuck) [s]", **P),
     },
 }
 

@@ -101,8 +101,8 @@ def loop(setup: Setup, rec: Recording) -> None:
         if k * dt >= duration - 1e-9:
             return
         history.append(world.states[:, :2].copy())
-        if len(history) > window:
-            moved = np.hypot(*(history[-1] - history[0]).T)[~done & here]
+        if len(history) > window:  # how far each robot got from where it was, at any period of the window
+            moved = np.hypot(*(np.asarray(history) - history[0]).transpose(2, 0, 1)).max(axis=0)[~done & here]
             if moved.size and moved.max() <= stop * patience:
                 rec.deadlock = True
                 return

@@ -92,3 +92,21 @@ def test_random_crossing_that_deadlocked_completes_with_detours():
     metrics = runner.run(scenario).metrics
     assert metrics["completed"] and metrics["collisions"] == 0
     assert metrics["min_clearance_m"] >= scenario["aac.commit_margin"] - 1e-9
+
+
+def test_near_its_goal_a_detour_goes_straight_there():
+    """A detour's last corner close to the goal is a hook a car cannot follow: within FINAL of
+    the goal, with the straight way free, the robot goes straight."""
+    tasks = [PathReference([[-3.0, 0.0], [3.0, 0.0]], 1.0, approach=0.6)]
+    detours = Detours(tasks, stall_periods=10, check_periods=10, hard=HARD, clearance=CLEARANCE, cell=CELL)
+    detours.routes[0] = detours.route(0, np.array([[-3.0, 0.0], [2.6, -0.6], [3.0, 0.0]]))
+    state = np.array([[2.0, -0.5, 0.0, 0.8]])
+    footprint = np.column_stack([state[:, :2], [0.6], [0.4], state[:, 2]])
+    detours.update(state, footprint, np.zeros(1, dtype=bool), np.zeros(1, dtype=bool), np.zeros((0, 5)), period=1)
+    np.testing.assert_allclose(detours.path(0).points, [state[0, :2], [3.0, 0.0]])
+    # a standing footprint on the straight way keeps the detour
+    detours.routes[0], detours.final[0] = detours.route(0, np.array([[-3.0, 0.0], [2.6, -0.6], [3.0, 0.0]])), False
+    debris = np.array([[2.5, -0.25, 0.3, 0.3, 0.0]])
+    detours.next_check[0] = 100
+    detours.update(state, footprint, np.zeros(1, dtype=bool), np.zeros(1, dtype=bool), debris, period=2)
+    assert len(detours.path(0).points) == 3
