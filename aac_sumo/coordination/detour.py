@@ -97,13 +97,17 @@ def _shortcut(path: np.ndarray, kept: np.ndarray, rects: np.ndarray, hard: float
     distances the grid path kept) over the same stretch, at least ``hard``, less half a cell."""
     out = [path[0]]
     i, last = 0, len(path) - 1
+    radius = 0.5 * np.hypot(rects[:, 2], rects[:, 3])  # each rectangle lies within this of its centre
     while i < last:
         j = i + 1
         while j < last:
             need = max(float(kept[i:j + 2].min()), hard) - 0.5 * cell
-            length = float(np.hypot(*(path[j + 1] - path[i])))
+            a, b = path[i], path[j + 1]
+            length = float(np.hypot(*(b - a)))
+            along = np.clip((rects[:, :2] - a) @ (b - a) / max(length * length, 1e-12), 0.0, 1.0)
+            near = np.hypot(*(a + along[:, None] * (b - a) - rects[:, :2]).T) < need + radius  # only these can be closer than need
             t = np.linspace(0.0, 1.0, max(2, int(np.ceil(SAMPLES * length / cell)) + 1))
-            if rect_distances(path[i] + t[:, None] * (path[j + 1] - path[i]), rects).min() < need:
+            if near.any() and rect_distances(a + t[:, None] * (b - a), rects[near]).min() < need:
                 break
             j += 1
         out.append(path[j])
