@@ -210,6 +210,11 @@ COMMON: dict[str, dict[str, Key]] = {
                          "robots in its way drive aside while it passes"),
         "stall_time": Key(float, 1.0, "standing time after which an unfinished robot may lead [s]", **P),
         "lead_time": Key(float, 8.0, "longest lead [s]", **P),
+        "detour": Key(bool, False, "detours (with commit): a robot that has stood for stall_time, or whose reference runs within "
+                      "detour_clearance of debris or of a parked or long-standing robot, follows a grid A* path round them "
+                      "to its goal instead"),
+        "detour_clearance": Key(float, 0.5, "gap a detour keeps from standing footprints where there is room; it squeezes closer "
+                                "(down to half the robot width + commit_margin) where there is not [m]", **P),
     },
     "lfc": {
         "safety_stop": Key(bool, False, "every robot's first planned input passes AAC's safety stop (the paper's LFC has none)"),
@@ -228,7 +233,7 @@ COMMON: dict[str, dict[str, Key]] = {
         "lat_accel_threshold": Key(float, 3.0, "lateral acceleration v^2 |curvature| that counts as aggressive [m/s^2]", **P),
         "stop_speed": Key(float, 0.05, "speed below which a robot counts as stopped [m/s]", **NN),
         "ttc_max": Key(float, 10.0, "time-to-collision above this is no conflict and stays out of ttc_mean_s [s]", **P),
-        "deadlock_time": Key(float, 5.0, "a run ends as a deadlock when no unfinished robot got further than stop_speed * deadlock_time from where it was deadlock_time before [s]", **P),
+        "deadlock_time": Key(float, 5.0, "a run ends as a deadlock when no unfinished robot got further than stop_speed * deadlock_time, at any time in the last deadlock_time, from where it was deadlock_time before (a robot that drove off and came back is not stuck) [s]", **P),
     },
 }
 

@@ -17,6 +17,7 @@ machine compiles it.
 
 from __future__ import annotations
 
+import heapq
 import math
 
 import numba
@@ -635,4 +636,57 @@ def tracking_course(x, y, h, v, steps, dt, wheelbase, a_min, a_max, steer_max, v
         x, y, h, v = _bicycle_step(x, y, h, v, min(max(accel, a_min), a_max), min(max(steer, -steer_max), steer_max), dt, wheelbase,
                                    v_min, v_max)
         steer_prev = steer
+
+
+def grid_path(cost, start, goal):
+    """Cheapest 8-connected path of cells from ``start`` to ``goal`` (row, column) over the cell
+    costs ``cost`` (rows, columns) [per cell side], each at least 1 (inf: blocked); a step's
+    cost is its length in cell sides times the mean of its two cells' costs (A* with the octile
+    distance, admissible since every cost is at least 1). Returns the flat cell indices (K,)
+    from start to goal, empty when the goal cannot be reached."""
+    rows, cols = cost.shape
+    n = rows * cols
+    g = np.full(n, np.inf)
+    parent = np.full(n, -1, dtype=np.int64)
+    closed = np.zeros(n, dtype=np.bool_)
+    s, t = start[0] * cols + start[1], goal[0] * cols + goal[1]
+    g[s] = 0.0
+    heap = [(0.0, s)]
+    diag = math.sqrt(2.0)
+    while len(heap):
+        _, u = heapq.heappop(heap)
+        if closed[u]:
+            continue
+        if u == t:
+            break
+        closed[u] = True
+        ur, uc = u // cols, u % cols
+        for dr in range(-1, 2):
+            for dc in range(-1, 2):
+                if dr == 0 and dc == 0:
+                    continue
+                vr, vc = ur + dr, uc + dc
+                if vr < 0 or vr >= rows or vc < 0 or vc >= cols:
+                    continue
+                v = vr * cols + vc
+                if closed[v] or not math.isfinite(cost[vr, vc]):
+                    continue
+                step = (diag if dr != 0 and dc != 0 else 1.0) * 0.5 * (cost[ur, uc] + cost[vr, vc])
+                if g[u] + step < g[v]:
+                    g[v] = g[u] + step
+                    parent[v] = u
+                    ar, ac = abs(vr - goal[0]), abs(vc - goal[1])
+                    h = max(ar, ac) + (diag - 1.0) * min(ar, ac)
+                    heapq.heappush(heap, (g[v] + h, v))
+    if not math.isfinite(g[t]):
+        return np.empty(0, dtype=np.int64)
+    k, u = 1, t
+    while u != s:
+        u = parent[u]
+        k += 1
+    out = np.empty(k, dtype=np.int64)
+    u = t
+    for i in range(k - 1, -1, -1):
+        out[i] = u
+        u = parent[u]
     return out

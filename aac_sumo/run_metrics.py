@@ -77,8 +77,8 @@ def assemble_metrics(scenario: Scenario, rec: Recording, steps: pd.DataFrame, pe
         metrics["completed"], metrics["task_duration_s"] = False, None
         reasons.append(f"{rec.collisions} collision(s); wrecked robots stop where they hit")
     if rec.deadlock:
-        reasons.append(f"deadlock: no unfinished robot got further than {stop * patience:.2f} m from where it was "
-                       f"{patience} s before (t = {len(rec.periods) * dt:.1f} s)")
+        reasons.append(f"deadlock: no unfinished robot got further than {stop * patience:.2f} m, at any time in the last "
+                       f"{patience} s, from where it was {patience} s before (t = {len(rec.periods) * dt:.1f} s)")
     elif not rec.completed and rec.error is None:
         reasons.append(f"time limit {duration} s reached")
     if reasons:

@@ -76,6 +76,17 @@ class RunInterrupted(KeyboardInterrupt):
         self.result = result
 
 
+def stuck(history, unfinished: np.ndarray, limit: float) -> bool:
+    """The deadlock rule: whether some robot is ``unfinished`` (n,) and none of them got further
+    than ``limit`` [m], at any entry of ``history`` (positions (n, 2) per period, oldest
+    first), from where it was at the first. A robot that drove off and came back within the
+    window is not stuck."""
+    if not unfinished.any():
+        return False
+    moved = np.hypot(*(np.asarray(history) - history[0]).transpose(2, 0, 1)).max(axis=0)[unfinished]
+    return bool(moved.max() <= limit)
+
+
 def loop(setup: Setup, rec: Recording) -> None:
     """The closed loop, one control period per step until every task is finished, the time
     limit, or a deadlock: observe, decide, step, and record into ``rec``. A non-finite robot
@@ -101,11 +112,9 @@ def loop(setup: Setup, rec: Recording) -> None:
         if k * dt >= duration - 1e-9:
             return
         history.append(world.states[:, :2].copy())
-        if len(history) > window:
-            moved = np.hypot(*(history[-1] - history[0]).T)[~done & here]
-            if moved.size and moved.max() <= stop * patience:
-                rec.deadlock = True
-                return
+        if len(history) > window and stuck(history, ~done & here, stop * patience):
+            rec.deadlock = True
+            return
         decision = coord.decide(world)
         ttc = time_to_collision(world)
         nearest = nearest_robot_distance(world)

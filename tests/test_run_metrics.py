@@ -127,3 +127,15 @@ def test_no_kernel_is_loaded_or_compiled_inside_the_loop(sets):
     out = subprocess.run([sys.executable, "-c", LOOP_COMPILES, "scenario.duration=6.0", *sets],
                          capture_output=True, text=True, check=True)
     assert json.loads(out.stdout.strip().splitlines()[-1]) == {}
+
+
+def test_deadlock_rule_needs_every_unfinished_robot_to_stay_put_the_whole_window():
+    still = [np.array([[0.0, 0.0], [5.0, 5.0]])] * 81
+    stuck = runner.stuck
+    assert stuck(still, np.array([True, True]), 0.16)
+    # robot 1 drives off 1 m and comes back to where it was: not stuck, though it ends where it began
+    away = [np.array([[0.0, 0.0], [5.0 + np.sin(np.pi * k / 80), 5.0]]) for k in range(81)]
+    assert np.allclose(away[0], away[-1]) and not stuck(away, np.array([True, True]), 0.16)
+    # ... unless it has finished: only unfinished robots count, and with none there is no deadlock
+    assert stuck(away, np.array([True, False]), 0.16)
+    assert not stuck(still, np.array([False, False]), 0.16)

@@ -52,6 +52,7 @@ import numpy as np
 
 from aac_sumo.coordination.base import Coordinator, Decision, Finished, RobotDecision, check_safety_options, straight_behind
 from aac_sumo.coordination.commitments import CommitmentBook, clusters, reach_radii, stopping_commitment
+from aac_sumo.coordination.detour import Detours
 from aac_sumo.coordination.make_room import MakeRoom
 from aac_sumo.coordination.proximity import ProximityParams, close_pairs, proximity_decision
 from aac_sumo.coordination.tracking import track, track_course
@@ -70,6 +71,9 @@ STARVING = 2
 SLOW_SHARE = 0.3
 SHIFT_GROWTH = 0.5
 SHIFT_DECAY = 0.1
+#: Grid cell [m] of the detour planner, and how often [s] a robot checks its reference for standing footprints.
+DETOUR_CELL = 0.1
+DETOUR_CHECK = 1.0
 
 
 @dataclass(frozen=True)
@@ -82,8 +86,9 @@ class AacParams:
     of the sampling trees; committed plans (``commit``), their stopping tails' share of the
     strongest braking (``tail_brake``) and the gap every two commitments keep
     (``commit_margin`` [m]); authorities per period (1, k, or ``"clusters"``); the keep-right
-    rule (shift, trigger range and growth limit [m]); and the make-room lead (on/off, standing
-    time that makes a leader, longest lead [s])."""
+    rule (shift, trigger range and growth limit [m]); the make-room lead (on/off, standing
+    time that makes a leader, longest lead [s]); and detours (on/off, the clearance [m] they
+    keep from standing footprints where there is room; :mod:`~aac_sumo.coordination.detour`)."""
 
     close_distance: float = 2.0
     proximity: ProximityParams = ProximityParams()
@@ -104,6 +109,8 @@ class AacParams:
     make_room: bool = True
     stall_time: float = 1.0
     lead_time: float = 8.0
+    detour: bool = False
+    detour_clearance: float = 0.5
 
     def __post_init__(self):
         check_safety_options(self.safety_stop, self.fallback, self.ignore_followers)
@@ -111,6 +118,8 @@ class AacParams:
             raise ValueError("authorities must be a positive integer or 'clusters'")
         if self.authorities != 1 and not self.commit:
             raise ValueError("more than one authority per period needs committed plans (commit = true)")
+        if self.detour and not self.commit:
+            raise ValueError("detours need committed plans (commit = true)")
 
 
 class AacCoordinator(Coordinator):
@@ -132,6 +141,7 @@ class AacCoordinator(Coordinator):
         self.extra_shift = np.zeros(len(tasks))  # keep-right growth of robots held up in a crowd [m]
         self._crowded: tuple[float | None, np.ndarray] = (None, np.zeros(len(tasks), dtype=bool))  # (t, crowded_ahead)
         self.last_reason: dict[int, str] = {}  # per group (its first member), why its last authority held it
+        self.detours: Detours | None = None
 
     def admit(self, world: WorldState, i: int) -> None:
         """Robot ``i`` has just come onto the road: it has waited longest for a turn, and its
@@ -260,7 +270,11 @@ class AacCoordinator(Coordinator):
             back = -np.arange(cfg.horizon + 1) * cfg.dt * 0.5 * task.speed
             xy = x[:2] + back[:, None] * np.array([np.cos(x[2]), np.sin(x[2])])
             return np.column_stack([xy, np.full(cfg.horizon + 1, x[2]), np.full(cfg.horizon + 1, -0.5 * task.speed)])
-        ref = super().reference(world, i)
+        if self.detours is not None and self.detours.routes[i] is not None:
+            cfg = self.planner.config
+            ref = self.detours.routes[i].horizon(world.states[i], cfg.horizon, cfg.dt)
+        else:
+            ref = super().reference(world, i)
         shift = self.keep_right_shift(world, i)
         if shift == 0.0 or np.isnan(ref[:, 2]).any():  # no shift on a free heading (the goal approach)
             return ref
@@ -316,6 +330,12 @@ class AacCoordinator(Coordinator):
                 self.room = MakeRoom(n, int(round(self.params.stall_time / cfg.dt)), int(round(self.params.lead_time / cfg.dt)), corridor)
             goals = np.array([task.points[-1] for task in self.tasks])
             self.room.update(world.states, world.robot_centres(), goals, ~done, period)
+        if self.params.detour:
+            if self.detours is None:
+                hard = 0.5 * float(np.max(fleet.width)) + self.params.commit_margin
+                self.detours = Detours(self.tasks, int(round(self.params.stall_time / cfg.dt)), int(round(DETOUR_CHECK / cfg.dt)),
+                                       hard, max(self.params.detour_clearance, hard), DETOUR_CELL)
+            self.detours.update(world.states, world.robot_footprints(), done, parked, statics, period)
         if self.params.keep_right > 0.0:
             slow = np.abs(world.states[:, 3]) < SLOW_SHARE * np.array([t.speed for t in self.tasks])
             grow = slow & ~done & self.crowded_ahead(world)
@@ -341,6 +361,10 @@ class AacCoordinator(Coordinator):
                      safety_stops=stopped, authorities=len(holders), commit_cuts=cuts, commit_kept=kept, extensions=extended)
         return Decision(inputs, records, notes=notes)
 
+    def path(self, i: int) -> PathReference:
+        """Robot ``i``'s reference path: its detour (``detour``), else its task."""
+        return self.tasks[i] if self.detours is None else self.detours.path(i)
+
     def tail_decel(self) -> np.ndarray:
         """Each robot's stopping-tail deceleration [m/s^2]: ``tail_brake`` of its strongest
         braking, at most its comfort deceleration."""
@@ -349,7 +373,7 @@ class AacCoordinator(Coordinator):
     def commitment(self, world: WorldState, i: int, period: int, head: np.ndarray):
         """Robot ``i``'s commitment from now: the inputs ``head`` (m, 2), then its stopping tail
         turning towards its reference's heading where the head ends."""
-        task = self.tasks[i]
+        task = self.path(i)
         return stopping_commitment(self.fleet, i, period, world.states[i], head, lambda end: task.heading_at(end[:2]),
                                    self.tail_decel()[i], self.last_inputs[i, 1], self.planner.config.dt)
 
@@ -480,7 +504,7 @@ class AacCoordinator(Coordinator):
                 continue  # making room: it moves aside on its turns, not back onto its path
             if c.stage(period) == "plan" and c.start + c.planned - period > 1:
                 continue
-            if np.isnan(self.tasks[j].horizon(world.states[j], 0, cfg.dt)[0, 2]):
+            if np.isnan(self.path(j).horizon(world.states[j], 0, cfg.dt)[0, 2]):
                 continue  # approaching its goal off its path: a manoeuvre for its MPC, not for the forward-only law
             if movers and np.any(np.hypot(*(mover_centres - centres[j]).T) < reach[j] + mover_extent + mover_speed * len(c.inputs) * cfg.dt):
                 continue  # an uncontrolled agent (walker, scripted or SUMO-driven car) may meet it: only the MPC drives it on
@@ -497,7 +521,7 @@ class AacCoordinator(Coordinator):
     def tracking_inputs(self, world: WorldState, j: int, steps: int) -> np.ndarray:
         """Inputs (steps, 2) of robot ``j`` following the tracking law from where it is, on its
         path moved by its keep-right shift of now."""
-        return track_course(world.robots[j], world.states[j], self.tasks[j], self.params.lookahead, self.params.speed_gain,
+        return track_course(world.robots[j], world.states[j], self.path(j), self.params.lookahead, self.params.speed_gain,
                             self.last_inputs[j, 1], self.planner.config.dt, steps, self.keep_right_shift(world, j))
 
     def committed_safety_stop(self, world: WorldState, inputs: np.ndarray, records: list[RobotDecision], period: int,

@@ -86,7 +86,7 @@ def aac_params(scenario: Scenario) -> AacParams:
         fallback=a["fallback"], ignore_followers=a["ignore_followers"], seed=scenario["scenario.seed"],
         commit=a["commit"], authorities=a["authorities"], tail_brake=a["tail_brake"], commit_margin=a["commit_margin"],
         keep_right=a["keep_right"], keep_right_range=a["keep_right_range"], keep_right_max=a["keep_right_max"], make_room=a["make_room"],
-        stall_time=a["stall_time"], lead_time=a["lead_time"],
+        stall_time=a["stall_time"], lead_time=a["lead_time"], detour=a["detour"], detour_clearance=a["detour_clearance"],
     )
 
 
@@ -100,6 +100,8 @@ def _check_safety_options(scenario: Scenario, section: str) -> None:
     """Exit-2 error when an option of ``section`` that relies on its safety stop is on without it."""
     if section == "aac" and scenario["aac.authorities"] != 1 and not scenario["aac.commit"]:
         raise ScenarioError(scenario.source, "aac.authorities", "1 unless aac.commit is true", scenario["aac.authorities"])
+    if section == "aac" and scenario["aac.detour"] and not scenario["aac.commit"]:
+        raise ScenarioError(scenario.source, "aac.detour", "false unless aac.commit is true", True)
     if scenario[f"{section}.safety_stop"]:
         return
     if scenario[f"{section}.fallback"] == "tracking":

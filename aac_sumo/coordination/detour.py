@@ -1,0 +1,196 @@
+"""Detours for committed-plan AAC (beyond the paper): a global reference path round what stands.
+
+A robot's MPC looks one horizon ahead (1 s in the swarm scenarios); pressed against debris, or
+against robots parked at their goals or standing long, it finds no way round and stands. A
+**detour** is a new reference path from where the robot is to its goal, planned on a grid over
+the area:
+
+- every standing footprint (debris, parked and standing robots) is a rectangle; a cell whose
+  centre lies closer than ``hard`` [m] to one is blocked, and a cell closer than ``clearance``
+  [m] costs more the closer it is (up to ``1 + PENALTY``), so that the path keeps
+  ``clearance`` where there is room and squeezes through where there is not;
+- the cheapest 8-connected path (:func:`~aac_sumo.kernels.grid_path`, A*) is then shortened
+  to the corners it needs: from each kept point, the farthest later path point whose straight
+  segment keeps at least the smallest distance the grid path kept over the same stretch.
+
+The path is for the robot's footprint centre, which the MPC tracks through the rear axle on
+straight pieces; ``clearance`` covers the corners. The detour is only a reference: safety is
+untouched, every course the robot drives still passes the commitments' exact check. Positions
+in the world frame [m].
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from aac_sumo.kernels import grid_path
+from aac_sumo.references import PathReference
+
+#: Extra cost of a cell at distance ``hard`` from a standing footprint (none at ``clearance``).
+PENALTY = 20.0
+#: Grid margin round the start, the goal and the footprints [m].
+BORDER = 3.0
+#: Samples per cell side along a shortcut.
+SAMPLES = 3
+#: Speed [m/s] below which a robot counts as standing (as :data:`~aac_sumo.coordination.make_room.STILL_SPEED`).
+STILL_SPEED = 0.05
+#: Spacing [m] of the samples along a reference that is checked for standing footprints.
+CHECK_SPACING = 0.1
+#: Within this distance [m] of its goal, a robot on a detour whose straight way to the goal is
+#: free goes straight there: a detour's last corner near the goal is a hook a car cannot follow.
+FINAL = 1.5
+
+
+def rect_distances(points: np.ndarray, rects: np.ndarray) -> np.ndarray:
+    """Distance [m] from each of ``points`` (k, 2) to the nearest of the rectangles ``rects``
+    (m, 5) ``[cx, cy, length, width, heading]`` (0 inside; inf without rectangles)."""
+    if len(rects) == 0:
+        return np.full(len(points), np.inf)
+    c, s = np.cos(rects[:, 4]), np.sin(rects[:, 4])
+    dx, dy = points[:, None, 0] - rects[None, :, 0], points[:, None, 1] - rects[None, :, 1]
+    qx = np.abs(c * dx + s * dy) - 0.5 * rects[:, 2]
+    qy = np.abs(-s * dx + c * dy) - 0.5 * rects[:, 3]
+    return np.hypot(np.maximum(qx, 0.0), np.maximum(qy, 0.0)).min(axis=1)
+
+
+def plan_detour(start, goal, rects, hard: float, clearance: float, cell: float) -> np.ndarray | None:
+    """Waypoints (K, 2) [m] from ``start`` to ``goal`` round the standing footprints ``rects``
+    (m, 5) on a grid of ``cell`` [m] over the box round start and goal grown by ``BORDER``
+    (see the module docstring), or None when no path exists (the goal itself blocked, or walled
+    in). The start's own cell is never blocked (a robot pressed against a neighbour starts
+    inside its band)."""
+    start, goal = np.asarray(start, dtype=float), np.asarray(goal, dtype=float)
+    rects = np.asarray(rects, dtype=float).reshape(-1, 5)
+    lo = np.minimum(start, goal) - BORDER
+    hi = np.maximum(start, goal) + BORDER
+    cols, rows = (np.ceil((hi - lo) / cell).astype(int) + 1)
+    xs, ys = lo[0] + cell * np.arange(cols), lo[1] + cell * np.arange(rows)
+    dist = np.full((rows, cols), np.inf)
+    for rect in rects:  # each footprint only in its window: cells within clearance of it
+        reach = 0.5 * np.hypot(rect[2], rect[3]) + clearance
+        c0, r0 = np.floor((rect[:2] - reach - lo) / cell).astype(int).clip(0)
+        c1, r1 = np.ceil((rect[:2] + reach - lo) / cell).astype(int) + 1
+        if c0 >= cols or r0 >= rows or c1 <= 0 or r1 <= 0:
+            continue
+        gx, gy = np.meshgrid(xs[c0:c1], ys[r0:r1])
+        near = rect_distances(np.column_stack([gx.ravel(), gy.ravel()]), rect[None]).reshape(gx.shape)
+        dist[r0:r1, c0:c1] = np.minimum(dist[r0:r1, c0:c1], near)
+    cost = 1.0 + PENALTY * np.clip((clearance - dist) / max(clearance - hard, 1e-9), 0.0, 1.0)
+    cost[dist < hard] = np.inf
+    s_cell = np.round((start - lo) / cell).astype(int)[::-1]
+    g_cell = np.round((goal - lo) / cell).astype(int)[::-1]
+    if not np.isfinite(cost[g_cell[0], g_cell[1]]):
+        return None
+    cost[s_cell[0], s_cell[1]] = min(cost[s_cell[0], s_cell[1]], 1.0 + PENALTY)
+    cells = grid_path(cost, s_cell, g_cell)
+    if cells.size == 0:
+        return None
+    r, c = np.divmod(cells, cols)
+    path = np.column_stack([xs[c], ys[r]])
+    path[0], path[-1] = start, goal
+    return _shortcut(path, np.minimum(dist.ravel()[cells], clearance), rects, hard, cell)
+
+
+def _shortcut(path: np.ndarray, kept: np.ndarray, rects: np.ndarray, hard: float, cell: float) -> np.ndarray:
+    """The corners of ``path`` (K, 2) it needs: from each kept point on, the farthest later
+    point up to which every straight segment keeps at least the smallest of ``kept`` (the
+    distances the grid path kept) over the same stretch, at least ``hard``, less half a cell."""
+    out = [path[0]]
+    i, last = 0, len(path) - 1
+    radius = 0.5 * np.hypot(rects[:, 2], rects[:, 3])  # each rectangle lies within this of its centre
+    while i < last:
+        j = i + 1
+        while j < last:
+            need = max(float(kept[i:j + 2].min()), hard) - 0.5 * cell
+            a, b = path[i], path[j + 1]
+            length = float(np.hypot(*(b - a)))
+            along = np.clip((rects[:, :2] - a) @ (b - a) / max(length * length, 1e-12), 0.0, 1.0)
+            near = np.hypot(*(a + along[:, None] * (b - a) - rects[:, :2]).T) < need + radius  # only these can be closer than need
+            t = np.linspace(0.0, 1.0, max(2, int(np.ceil(SAMPLES * length / cell)) + 1))
+            if near.any() and rect_distances(a + t[:, None] * (b - a), rects[near]).min() < need:
+                break
+            j += 1
+        out.append(path[j])
+        i = j
+    return np.array(out)
+
+
+class Detours:
+    """The detour references of the robots of ``tasks`` (one per robot, None: its task's).
+
+    Standing are the debris, the ``parked`` robots and those that have stood for
+    ``stall_periods``. A robot plans a detour (:func:`plan_detour` round the standing footprints
+    but its own, from its footprint centre to its goal, ``hard`` and ``clearance`` [m], grid
+    ``cell`` [m]) when it has stood for ``stall_periods`` (and again after each further such
+    stretch), and, every ``check_periods``, when what is left of its reference (from its
+    projection on) comes within ``clearance`` of a standing footprint. Within ``FINAL`` of its
+    goal, a robot on a detour whose straight segment (rear axle to goal) keeps ``hard`` from
+    every standing footprint goes straight there instead. A robot that has finished drops its
+    detour. A detour keeps its task's speed, braking, goal approach and
+    turning radius."""
+
+    def __init__(self, tasks: list[PathReference], stall_periods: int, check_periods: int, hard: float, clearance: float,
+                 cell: float):
+        self.tasks = tasks
+        self.stall_periods, self.check_periods = stall_periods, check_periods
+        self.hard, self.clearance, self.cell = hard, clearance, cell
+        self.routes: list[PathReference | None] = [None] * len(tasks)
+        self.still = np.zeros(len(tasks), dtype=int)
+        self.next_check = np.zeros(len(tasks), dtype=int)
+        self.final = np.zeros(len(tasks), dtype=bool)  # on the straight way to the goal (FINAL)
+        self.planned = 0  # detours planned so far
+
+    def path(self, i: int) -> PathReference:
+        """Robot ``i``'s reference path: its detour, else its task."""
+        route = self.routes[i]
+        return self.tasks[i] if route is None else route
+
+    def update(self, states: np.ndarray, footprints: np.ndarray, done: np.ndarray, parked: np.ndarray, statics: np.ndarray,
+               period: int) -> None:
+        """Count standing periods and (re)plan the detours due at ``period``: ``states`` (n, 4)
+        rear axles, ``footprints`` (n, 5) rows ``[cx, cy, length, width, heading]``, ``done``
+        and ``parked`` (n,) as the coordinator's, ``statics`` (m, 5) debris footprints."""
+        self.still = np.where(~done & (np.abs(states[:, 3]) < STILL_SPEED), self.still + 1, 0)
+        standing = parked | (self.still >= self.stall_periods)
+        for i in np.flatnonzero(done):
+            self.routes[i], self.final[i] = None, False
+        gap = np.hypot(*(states[:, :2] - np.array([t.points[-1] for t in self.tasks])).T)
+        for i in np.flatnonzero(~done & ~parked):
+            if self.routes[i] is not None and not self.final[i] and gap[i] <= FINAL:
+                others = standing.copy()
+                others[i] = False
+                rects = np.vstack([statics.reshape(-1, 5), footprints[others]])
+                goal = self.tasks[i].points[-1]
+                line = states[i, :2] + np.linspace(0.0, 1.0, int(np.ceil(gap[i] / CHECK_SPACING)) + 1)[:, None] * (goal - states[i, :2])
+                if rect_distances(line, rects).min() >= self.hard:
+                    self.routes[i] = self.route(i, np.array([states[i, :2], goal]))
+                    self.final[i] = True
+                    continue
+            stalled = self.still[i] >= self.stall_periods and self.still[i] % self.stall_periods == 0
+            if not stalled and period < self.next_check[i]:
+                continue
+            self.next_check[i] = period + self.check_periods
+            others = standing.copy()
+            others[i] = False
+            rects = np.vstack([statics.reshape(-1, 5), footprints[others]])
+            if not stalled and self.clear(i, states[i], rects):
+                continue
+            task = self.tasks[i]
+            waypoints = plan_detour(footprints[i, :2], task.points[-1], rects, self.hard, self.clearance, self.cell)
+            if waypoints is not None and len(waypoints) >= 2:
+                self.routes[i], self.final[i] = self.route(i, waypoints), False
+                self.planned += 1
+
+    def route(self, i: int, waypoints: np.ndarray) -> PathReference:
+        """A detour of robot ``i`` through ``waypoints`` (K, 2), with its task's speed, braking,
+        goal approach and turning radius."""
+        task = self.tasks[i]
+        return PathReference(waypoints, task.speed, task.decel, approach=task.approach, turn_radius=task.turn_radius, arrive=task.arrive)
+
+    def clear(self, i: int, state: np.ndarray, rects: np.ndarray) -> bool:
+        """Whether what is left of robot ``i``'s reference, from its projection to the goal,
+        keeps ``clearance`` from every footprint of ``rects`` (m, 5)."""
+        path = self.path(i)
+        s0, _ = path.project(state[:2])
+        s = np.r_[np.arange(s0, path.length, CHECK_SPACING), path.length]
+        return bool(rect_distances(path.pose_at(s)[:, :2], rects).min() >= self.clearance)

@@ -1,0 +1,112 @@
+"""Detours of committed-plan AAC: the grid planner keeps clear of what stands, goes round a
+parked robot, and a random crossing that deadlocked without detours completes with them."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from aac_sumo import config, runner
+from aac_sumo.cli import main
+from aac_sumo.coordination.detour import Detours, plan_detour, rect_distances
+from aac_sumo.references import PathReference
+
+HARD, CLEARANCE, CELL = 0.25, 0.5, 0.1
+
+
+def polyline_distance(waypoints: np.ndarray, rects: np.ndarray) -> float:
+    """Smallest distance [m] from the polyline ``waypoints`` to ``rects``, sampled every 5 mm."""
+    pieces = [a + np.linspace(0.0, 1.0, max(2, int(np.hypot(*(b - a)) / 0.005)))[:, None] * (b - a)
+              for a, b in zip(waypoints[:-1], waypoints[1:])]
+    return float(rect_distances(np.vstack(pieces), rects).min())
+
+
+def test_rect_distances_is_the_exact_distance():
+    rect = np.array([[1.0, 2.0, 2.0, 1.0, np.pi / 2]])  # 2 m along y, 1 m along x
+    points = np.array([[1.0, 2.0], [2.0, 2.0], [1.0, 4.0], [2.5, 4.0]])
+    np.testing.assert_allclose(rect_distances(points, rect), [0.0, 0.5, 1.0, np.hypot(1.0, 1.0)])
+
+
+def test_detour_goes_round_a_parked_robot_with_its_clearance():
+    parked = np.array([[0.0, 0.05, 0.6, 0.4, 1.2]])  # a robot standing across the straight line
+    start, goal = np.array([-3.0, 0.0]), np.array([3.0, 0.0])
+    assert polyline_distance(np.array([start, goal]), parked) == 0.0
+    path = plan_detour(start, goal, parked, HARD, CLEARANCE, CELL)
+    np.testing.assert_allclose(path[0], start)
+    np.testing.assert_allclose(path[-1], goal)
+    assert polyline_distance(path, parked) >= CLEARANCE - CELL
+    assert len(path) <= 5  # corners only, not grid cells
+    assert np.sum(np.hypot(*np.diff(path, axis=0).T)) < 6.0 + 1.0  # round it, not far away
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 10_000), m=st.integers(1, 8))
+def test_detour_keeps_the_hard_distance_from_debris(seed, m):
+    rng = np.random.default_rng(seed)
+    debris = np.column_stack([rng.uniform(-2.5, 2.5, (m, 2)), rng.uniform(0.4, 1.2, (m, 2)), rng.uniform(0, np.pi, m)])
+    start, goal = np.array([-4.5, rng.uniform(-1, 1)]), np.array([4.5, rng.uniform(-1, 1)])
+    path = plan_detour(start, goal, debris, HARD, CLEARANCE, CELL)
+    if path is None:
+        return  # walled in (debris may merge into a wall): nothing to keep clear
+    np.testing.assert_allclose(path[[0, -1]], [start, goal])
+    # every grid cell on the way kept HARD; its corners are at most half a cell's diagonal off
+    assert polyline_distance(path, debris) >= HARD - CELL
+
+
+def test_no_detour_to_a_walled_in_goal():
+    wall = np.array([[0.0, 1.0, 2.0, 0.2, 0.0], [0.0, -1.0, 2.0, 0.2, 0.0], [1.0, 0.0, 0.2, 2.0, 0.0], [-1.0, 0.0, 0.2, 2.0, 0.0]])
+    assert plan_detour([-4.0, 0.0], [0.0, 0.0], wall, HARD, CLEARANCE, CELL) is None
+
+
+def test_detours_only_where_a_standing_robot_is_in_the_way():
+    tasks = [PathReference([[-3.0, 0.0], [3.0, 0.0]], 1.0, approach=0.6),   # runs through robot 1's spot
+             PathReference([[-4.0, 4.0], [0.0, 0.0]], 1.0, approach=0.6),   # parked at its goal
+             PathReference([[-3.0, -3.0], [3.0, -3.0]], 1.0, approach=0.6)]  # far from it
+    detours = Detours(tasks, stall_periods=10, check_periods=10, hard=HARD, clearance=CLEARANCE, cell=CELL)
+    states = np.array([[-3.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.8, 0.0], [-3.0, -3.0, 0.0, 1.0]])
+    footprints = np.column_stack([states[:, :2], np.full(3, 0.6), np.full(3, 0.4), states[:, 2]])
+    done = np.array([False, True, False])
+    detours.update(states, footprints, done, done, np.zeros((0, 5)), period=0)
+    assert detours.routes[1] is None and detours.routes[2] is None
+    route = detours.path(0)
+    assert route is not tasks[0]
+    np.testing.assert_allclose(route.points[-1], tasks[0].points[-1])
+    assert polyline_distance(route.points, footprints[[1]]) >= CLEARANCE - CELL
+    assert route.speed == tasks[0].speed and route.approach == tasks[0].approach
+
+
+def test_detour_needs_committed_plans(capsys):
+    argv = ["run", "random_crossing", "--set", "aac.commit=false", "--set", "aac.authorities=1", "--set", "aac.detour=true"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "aac.detour" in err[0]
+
+
+@pytest.mark.slow
+def test_random_crossing_that_deadlocked_completes_with_detours():
+    """Seed 8 ended in a deadlock at 43.9 s without detours (commit ed6d6fa)."""
+    scenario = config.load("random_crossing", ["scenario.seed=8"])
+    assert scenario["aac.detour"]
+    metrics = runner.run(scenario).metrics
+    assert metrics["completed"] and metrics["collisions"] == 0
+    assert metrics["min_clearance_m"] >= scenario["aac.commit_margin"] - 1e-9
+
+
+def test_near_its_goal_a_detour_goes_straight_there():
+    """A detour's last corner close to the goal is a hook a car cannot follow: within FINAL of
+    the goal, with the straight way free, the robot goes straight."""
+    tasks = [PathReference([[-3.0, 0.0], [3.0, 0.0]], 1.0, approach=0.6)]
+    detours = Detours(tasks, stall_periods=10, check_periods=10, hard=HARD, clearance=CLEARANCE, cell=CELL)
+    detours.routes[0] = detours.route(0, np.array([[-3.0, 0.0], [2.6, -0.6], [3.0, 0.0]]))
+    state = np.array([[2.0, -0.5, 0.0, 0.8]])
+    footprint = np.column_stack([state[:, :2], [0.6], [0.4], state[:, 2]])
+    detours.update(state, footprint, np.zeros(1, dtype=bool), np.zeros(1, dtype=bool), np.zeros((0, 5)), period=1)
+    np.testing.assert_allclose(detours.path(0).points, [state[0, :2], [3.0, 0.0]])
+    # a standing footprint on the straight way keeps the detour
+    detours.routes[0], detours.final[0] = detours.route(0, np.array([[-3.0, 0.0], [2.6, -0.6], [3.0, 0.0]])), False
+    debris = np.array([[2.5, -0.25, 0.3, 0.3, 0.0]])
+    detours.next_check[0] = 100
+    detours.update(state, footprint, np.zeros(1, dtype=bool), np.zeros(1, dtype=bool), debris, period=2)
+    assert len(detours.path(0).points) == 3
