@@ -636,8 +636,10 @@ def tracking_course(x, y, h, v, steps, dt, wheelbase, a_min, a_max, steer_max, v
         x, y, h, v = _bicycle_step(x, y, h, v, min(max(accel, a_min), a_max), min(max(steer, -steer_max), steer_max), dt, wheelbase,
                                    v_min, v_max)
         steer_prev = steer
+    return out
 
 
+@numba.njit(cache=True)
 def grid_path(cost, start, goal):
     """Cheapest 8-connected path of cells from ``start`` to ``goal`` (row, column) over the cell
     costs ``cost`` (rows, columns) [per cell side], each at least 1 (inf: blocked); a step's
