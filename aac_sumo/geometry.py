@@ -265,6 +265,18 @@ def point_rect_signed_distance(points, rect: OrientedRect) -> np.ndarray:
     return outside + inside
 
 
+def rect_distances(points: np.ndarray, rects: np.ndarray) -> np.ndarray:
+    """Distance [m] from each of ``points`` (k, 2) to the nearest of the rectangles ``rects``
+    (m, 5) ``[cx, cy, length, width, heading]`` (0 inside; inf without rectangles)."""
+    if len(rects) == 0:
+        return np.full(len(points), np.inf)
+    c, s = np.cos(rects[:, 4]), np.sin(rects[:, 4])
+    dx, dy = points[:, None, 0] - rects[None, :, 0], points[:, None, 1] - rects[None, :, 1]
+    qx = np.abs(c * dx + s * dy) - 0.5 * rects[:, 2]
+    qy = np.abs(-s * dx + c * dy) - 0.5 * rects[:, 3]
+    return np.hypot(np.maximum(qx, 0.0), np.maximum(qy, 0.0)).min(axis=1)
+
+
 def convex_hull(points) -> np.ndarray:
     """Vertices (H, 2) of the convex hull of ``points`` (K, 2) [m], counter-clockwise (scipy/Qhull)."""
     from scipy.spatial import ConvexHull

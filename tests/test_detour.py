@@ -10,7 +10,8 @@ from hypothesis import strategies as st
 
 from aac_sumo import config, runner
 from aac_sumo.cli import main
-from aac_sumo.coordination.detour import Detours, plan_detour, rect_distances
+from aac_sumo.coordination.detour import Detours, plan_detour
+from aac_sumo.geometry import rect_distances
 from aac_sumo.references import PathReference
 
 HARD, CLEARANCE, CELL = 0.25, 0.5, 0.1

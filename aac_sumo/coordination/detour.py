@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from aac_sumo.geometry import rect_distances
 from aac_sumo.kernels import grid_path
 from aac_sumo.references import PathReference
 
@@ -39,18 +40,6 @@ CHECK_SPACING = 0.1
 #: Within this distance [m] of its goal, a robot on a detour whose straight way to the goal is
 #: free goes straight there: a detour's last corner near the goal is a hook a car cannot follow.
 FINAL = 1.5
-
-
-def rect_distances(points: np.ndarray, rects: np.ndarray) -> np.ndarray:
-    """Distance [m] from each of ``points`` (k, 2) to the nearest of the rectangles ``rects``
-    (m, 5) ``[cx, cy, length, width, heading]`` (0 inside; inf without rectangles)."""
-    if len(rects) == 0:
-        return np.full(len(points), np.inf)
-    c, s = np.cos(rects[:, 4]), np.sin(rects[:, 4])
-    dx, dy = points[:, None, 0] - rects[None, :, 0], points[:, None, 1] - rects[None, :, 1]
-    qx = np.abs(c * dx + s * dy) - 0.5 * rects[:, 2]
-    qy = np.abs(-s * dx + c * dy) - 0.5 * rects[:, 3]
-    return np.hypot(np.maximum(qx, 0.0), np.maximum(qy, 0.0)).min(axis=1)
 
 
 def plan_detour(start, goal, rects, hard: float, clearance: float, cell: float) -> np.ndarray | None:
@@ -155,11 +144,15 @@ class Detours:
         for i in np.flatnonzero(done):
             self.routes[i], self.final[i] = None, False
         gap = np.hypot(*(states[:, :2] - np.array([t.points[-1] for t in self.tasks])).T)
+        rows = np.vstack([statics.reshape(-1, 5), footprints])
+        keep = np.r_[np.ones(len(rows) - len(footprints), dtype=bool), standing]
+
+        def standing_but(i: int) -> np.ndarray:  # the standing footprints but robot i's own
+            return rows[keep & (np.arange(len(rows)) != len(rows) - len(footprints) + i)]
+
         for i in np.flatnonzero(~done & ~parked):
             if self.routes[i] is not None and not self.final[i] and gap[i] <= FINAL:
-                others = standing.copy()
-                others[i] = False
-                rects = np.vstack([statics.reshape(-1, 5), footprints[others]])
+                rects = standing_but(i)
                 goal = self.tasks[i].points[-1]
                 line = states[i, :2] + np.linspace(0.0, 1.0, int(np.ceil(gap[i] / CHECK_SPACING)) + 1)[:, None] * (goal - states[i, :2])
                 if rect_distances(line, rects).min() >= self.hard:
@@ -170,9 +163,7 @@ class Detours:
             if not stalled and period < self.next_check[i]:
                 continue
             self.next_check[i] = period + self.check_periods
-            others = standing.copy()
-            others[i] = False
-            rects = np.vstack([statics.reshape(-1, 5), footprints[others]])
+            rects = standing_but(i)
             if not stalled and self.clear(i, states[i], rects):
                 continue
             task = self.tasks[i]
