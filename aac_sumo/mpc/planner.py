@@ -443,12 +443,12 @@ class MpcPlanner:
             if cfg.warm_start and guess is not None:
                 warm = (np.vstack([state[None], guess[0][1:]]), guess[1])
             cold = None
-            for last, envelope in enumerate(envelopes, start=1 - len(envelopes)):
+            for envelope in envelopes:
                 if warm is not None:
                     yield self.problem, warm, envelope
                 cold = self.coasting(robot, state) if cold is None else cold
                 yield self.problem, cold, envelope
-                if self.retry_problem is not None and last == 0:
+                if self.retry_problem is not None and envelope is envelopes[-1]:
                     yield self.retry_problem, warm if warm is not None else cold, envelope
 
         box = np.array([-np.inf, np.inf, -np.inf, np.inf]) if corridor is None or isinstance(corridor, LateralBand) else np.asarray(corridor, dtype=float)
