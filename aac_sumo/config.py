@@ -195,7 +195,7 @@ COMMON: dict[str, dict[str, Key]] = {
                       "and a new plan replaces it only when it keeps commit_margin from every other commitment (collision-free "
                       "by construction); false: the paper's stored plan, then the tracking law"),
         "authorities": Key(object, 1, "robots holding authority per period: 1 (the paper), a larger integer, or \"clusters\" "
-                           "(one per group of robots that can interact within the horizon; needs commit)",
+                           "(one per group of robots that can interact within the horizon), with committed or stored plans",
                            check=lambda a: a == "clusters" or (isinstance(a, int) and not isinstance(a, bool) and a >= 1),
                            expect="a positive integer or \"clusters\""),
         "tail_brake": Key(float, 0.5, "deceleration of a commitment's stopping tail, as a share of the strongest braking |robot.a_min|",

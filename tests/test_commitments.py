@@ -77,24 +77,26 @@ def group(x0: float, y0: float) -> tuple[list, list]:
     return starts, goals
 
 
-def swarm(starts, goals) -> list[str]:
-    return PLAIN + ['aac.authorities="clusters"', "aac.make_room=false", "swarm_rescue.start_jitter=0.0", "swarm_rescue.debris=[]",
+def swarm(starts, goals, commit: bool = True) -> list[str]:
+    return PLAIN + ['aac.authorities="clusters"', f"aac.commit={str(commit).lower()}", "aac.make_room=false", "swarm_rescue.start_jitter=0.0", "swarm_rescue.debris=[]",
                     f"swarm_rescue.starts={starts}", f"swarm_rescue.goals={goals}"]
 
 
-def test_far_apart_clusters_get_exactly_the_inputs_each_gets_alone():
+@pytest.mark.parametrize("commit", [True, False], ids=["committed", "stored_plans"])
+def test_far_apart_clusters_get_exactly_the_inputs_each_gets_alone(commit):
     (sa, ga), (sb, gb) = group(0.0, 0.0), group(100.0, 40.0)
-    together, _ = drive(config.load("swarm_rescue", swarm(sa + sb, ga + gb)), 40)
-    alone_a, _ = drive(config.load("swarm_rescue", swarm(sa, ga)), 40)
-    alone_b, _ = drive(config.load("swarm_rescue", swarm(sb, gb)), 40)
+    together, _ = drive(config.load("swarm_rescue", swarm(sa + sb, ga + gb, commit)), 40)
+    alone_a, _ = drive(config.load("swarm_rescue", swarm(sa, ga, commit)), 40)
+    alone_b, _ = drive(config.load("swarm_rescue", swarm(sb, gb, commit)), 40)
     np.testing.assert_array_equal(together[:, :3], alone_a)
     np.testing.assert_array_equal(together[:, 3:], alone_b)
     assert np.abs(alone_a).sum() > 0  # they did drive
 
 
-def test_one_authority_in_each_cluster_per_period():
+@pytest.mark.parametrize("commit", [True, False], ids=["committed", "stored_plans"])
+def test_one_authority_in_each_cluster_per_period(commit):
     (sa, ga), (sb, gb) = group(0.0, 0.0), group(100.0, 40.0)
-    setup = experiments.build(config.load("swarm_rescue", swarm(sa + sb, ga + gb)))
+    setup = experiments.build(config.load("swarm_rescue", swarm(sa + sb, ga + gb, commit)))
     world = setup.sim.observe()
     decision = setup.coordinator.decide(world)
     held = np.flatnonzero([r.authority for r in decision.robots])

@@ -12,7 +12,11 @@ Two ways of running it:
 * **The paper's stored plans** (``commit = false``), described below.
 
 With ``commit = false``, each control period exactly one active robot holds authority and
-solves MPC-(F)CBF:
+solves MPC-(F)CBF (the paper); with ``authorities`` k or ``"clusters"`` (beyond the paper),
+one in each of up to k groups of :meth:`AacCoordinator.groups`, or in every cluster of robots
+that can meet within the horizon, each planning around its own group only (robots of two
+clusters cannot come within reach of each other in N periods, whatever either does, so each
+authority gets the inputs it would get alone):
 
 1. **Close pairs** of active robots (centre distance below ``close_distance``, KD-tree). Active
    are the unfinished robots and those whose task goes on after finishing (a car that has
@@ -116,8 +120,6 @@ class AacParams:
         check_safety_options(self.safety_stop, self.fallback, self.ignore_followers)
         if self.authorities != "clusters" and not (isinstance(self.authorities, int) and self.authorities >= 1):
             raise ValueError("authorities must be a positive integer or 'clusters'")
-        if self.authorities != 1 and not self.commit:
-            raise ValueError("more than one authority per period needs committed plans (commit = true)")
         if self.detour and not self.commit:
             raise ValueError("detours need committed plans (commit = true)")
 
@@ -167,9 +169,11 @@ class AacCoordinator(Coordinator):
             return Decision(inputs, records, notes=dict(authority="", reason="all finished"))
 
         start = time.perf_counter()
-        authority, reason = self.choose_authority(world, active, records)
-        proximity_ms = (time.perf_counter() - start) * 1e3 if reason == "proximity" else 0.0
-        others = np.flatnonzero(world.on_road & (np.arange(n) != authority))  # robots off the road stand still, far away
+        turns = self.stored_turns(world, parked, active, records)
+        proximity_ms = (time.perf_counter() - start) * 1e3 if any(reason == "proximity" for _, reason, _ in turns) else 0.0
+        holding = np.zeros(n, dtype=bool)
+        holding[[i for i, _, _ in turns]] = True
+        others = np.flatnonzero(world.on_road & ~holding)  # robots off the road stand still, far away
         horizon_inputs = np.zeros((len(others), cfg.horizon + 2, 2))
         for row, j in enumerate(others):
             horizon_inputs[row], records[j].mode = self.intended_inputs(world, j, parked[j], cfg.horizon + 2)
@@ -189,7 +193,37 @@ class AacCoordinator(Coordinator):
                 self.used[j] = len(self.plans[j].inputs)
         traj = self.fleet.rollout(others, world.states[others], horizon_inputs, cfg.dt)
         self.used[others] += 1
+        stopped = int(stops.sum())
+        for authority, reason, members in turns:
+            stopped += self.stored_turn(world, authority, reason, others[np.isin(others, members)], traj[np.isin(others, members)],
+                                        records, inputs, safety)
+        notes.update(authority=" ".join(world.robots[i].name for i, _, _ in turns), reason=" ".join(sorted({r for _, r, _ in turns})),
+                     safety_stops=stopped, proximity_ms=proximity_ms, authorities=len(turns))
+        return Decision(inputs, records, notes=notes)
 
+    def stored_turns(self, world: WorldState, parked: np.ndarray, active: np.ndarray,
+                     records: list[RobotDecision]) -> list[tuple[int, str, np.ndarray]]:
+        """This period's authorities with stored plans: ``(robot, why, its group's members)``.
+        One authority (the paper): :meth:`choose_authority` among all active robots. Several
+        (``authorities`` k or ``"clusters"``): one per group of :meth:`groups`, chosen within it
+        as :meth:`choose_committed` does."""
+        if self.params.authorities == 1:
+            authority, reason = self.choose_authority(world, active, records)
+            return [(authority, reason, np.arange(len(world.robots)))]
+        out = []
+        for members, candidates in self.groups(world, parked):
+            i, reason = self.choose_committed(world, members, candidates, records, self.period)
+            out.append((i, reason, members))
+        self.period += 1
+        return out
+
+    def stored_turn(self, world: WorldState, authority: int, reason: str, others: np.ndarray, traj: np.ndarray,
+                    records: list[RobotDecision], inputs: np.ndarray, safety) -> int:
+        """The ``authority`` plans around the obstacles and the swept regions of ``others`` along
+        their known courses ``traj`` (m, N+3, 4), and applies its first input (``inputs`` and
+        ``records`` changed in place), through the safety stop when it is on. Returns 1 when the
+        safety stop changed that input, else 0."""
+        cfg = self.planner.config
         avoid = ~straight_behind(world, self.fleet, authority, others) if self.params.ignore_followers else np.ones(len(others), dtype=bool)
         regions = self.fleet.swept_regions(others[avoid], traj[avoid], cfg.horizon, cfg.barrier, cfg.fcbf)
         decided = self.solve(world, authority, world.obstacles + regions, reason)
@@ -197,22 +231,21 @@ class AacCoordinator(Coordinator):
         records[authority] = decided
         inputs[authority] = self.plans[authority].inputs[0]
         self.used[authority] = 1
-        stopped = int(stops.sum())
-        if safety is not None:
-            margin = 0.0  # its plan looks only N periods ahead: no contact beyond them
-            if decided.status != "solved" and self.params.fallback == "tracking":
-                inputs[authority] = track(world.robots[authority], world.states[authority], self.tasks[authority],
-                                          self.params.lookahead, self.params.speed_gain, self.last_inputs[authority, 1], cfg.dt,
-                                          target_speed=self.tracking_speed(world, authority, self.params.speed_gain))
-                self.used[authority] = len(self.plans[authority].inputs)  # no plan to follow: tracking until its next turn
-                decided.mode, margin = "tracking", self.params.safety_margin
-            checked = safety.safe_inputs(np.array([authority]), inputs, margin)
-            if np.any(checked[authority] != inputs[authority]):
-                inputs[authority], decided.mode = checked[authority], "safety_stop"
-                self.used[authority] = len(self.plans[authority].inputs)
-                stopped += 1
-        notes.update(authority=world.robots[authority].name, reason=reason, safety_stops=stopped, proximity_ms=proximity_ms)
-        return Decision(inputs, records, notes=notes)
+        if safety is None:
+            return 0
+        margin = 0.0  # its plan looks only N periods ahead: no contact beyond them
+        if decided.status != "solved" and self.params.fallback == "tracking":
+            inputs[authority] = track(world.robots[authority], world.states[authority], self.tasks[authority],
+                                      self.params.lookahead, self.params.speed_gain, self.last_inputs[authority, 1], cfg.dt,
+                                      target_speed=self.tracking_speed(world, authority, self.params.speed_gain))
+            self.used[authority] = len(self.plans[authority].inputs)  # no plan to follow: tracking until its next turn
+            decided.mode, margin = "tracking", self.params.safety_margin
+        checked = safety.safe_inputs(np.array([authority]), inputs, margin)
+        if np.any(checked[authority] != inputs[authority]):
+            inputs[authority], decided.mode = checked[authority], "safety_stop"
+            self.used[authority] = len(self.plans[authority].inputs)
+            return 1
+        return 0
 
     def choose_authority(self, world: WorldState, active: np.ndarray, records: list[RobotDecision]) -> tuple[int, str]:
         """The authority robot and why; candidates of a proximity decision get their scores recorded."""

@@ -98,8 +98,6 @@ def lfc_params(scenario: Scenario) -> LfcParams:
 
 def _check_safety_options(scenario: Scenario, section: str) -> None:
     """Exit-2 error when an option of ``section`` that relies on its safety stop is on without it."""
-    if section == "aac" and scenario["aac.authorities"] != 1 and not scenario["aac.commit"]:
-        raise ScenarioError(scenario.source, "aac.authorities", "1 unless aac.commit is true", scenario["aac.authorities"])
     if section == "aac" and scenario["aac.detour"] and not scenario["aac.commit"]:
         raise ScenarioError(scenario.source, "aac.detour", "false unless aac.commit is true", True)
     if scenario[f"{section}.safety_stop"]:
