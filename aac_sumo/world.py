@@ -7,6 +7,7 @@ speeds [m/s]. Robot states are ``[x, y, heading, v]`` at the rear-axle midpoint.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -85,17 +86,19 @@ class WorldState:
         """``present``, as a bool array (n,) also when it is None."""
         return np.ones(len(self.robots), dtype=bool) if self.present is None else np.asarray(self.present, dtype=bool)
 
+    @cached_property
+    def _shapes(self) -> np.ndarray:
+        """Per robot ``[centre_offset, length, width]`` (n, 3) [m], gathered once."""
+        return np.array([[r.centre_offset, r.length, r.width] for r in self.robots], dtype=float).reshape(-1, 3)
+
     def robot_centres(self) -> np.ndarray:
         """Footprint centres (n, 2) of the controlled robots."""
-        offsets = np.array([r.centre_offset for r in self.robots])
         heading = self.states[:, 2]
-        return self.states[:, :2] + offsets[:, None] * np.column_stack([np.cos(heading), np.sin(heading)])
+        return self.states[:, :2] + self._shapes[:, :1] * np.column_stack([np.cos(heading), np.sin(heading)])
 
     def robot_footprints(self) -> np.ndarray:
         """Rows ``[cx, cy, length, width, heading]`` (n, 5) of the controlled robots."""
-        centres = self.robot_centres()
-        dims = np.array([[r.length, r.width] for r in self.robots])
-        return np.column_stack([centres, dims, self.states[:, 2]])
+        return np.column_stack([self.robot_centres(), self._shapes[:, 1:], self.states[:, 2]])
 
     def robot_as_obstacle(self, i: int) -> Obstacle:
         """Controlled robot ``i`` seen by the others, moving at its current velocity."""

@@ -82,12 +82,14 @@ def swarm(starts, goals, commit: bool = True) -> list[str]:
                     f"swarm_rescue.starts={starts}", f"swarm_rescue.goals={goals}"]
 
 
-@pytest.mark.parametrize("commit", [True, False], ids=["committed", "stored_plans"])
-def test_far_apart_clusters_get_exactly_the_inputs_each_gets_alone(commit):
+@pytest.mark.parametrize("commit,safety", [(True, False), (False, False), (False, True)],
+                         ids=["committed", "stored_plans", "stored_plans_safety_stop"])
+def test_far_apart_clusters_get_exactly_the_inputs_each_gets_alone(commit, safety):
     (sa, ga), (sb, gb) = group(0.0, 0.0), group(100.0, 40.0)
-    together, _ = drive(config.load("swarm_rescue", swarm(sa + sb, ga + gb, commit)), 40)
-    alone_a, _ = drive(config.load("swarm_rescue", swarm(sa, ga, commit)), 40)
-    alone_b, _ = drive(config.load("swarm_rescue", swarm(sb, gb, commit)), 40)
+    layer = [f"aac.safety_stop={str(safety).lower()}"]
+    together, _ = drive(config.load("swarm_rescue", swarm(sa + sb, ga + gb, commit) + layer), 40)
+    alone_a, _ = drive(config.load("swarm_rescue", swarm(sa, ga, commit) + layer), 40)
+    alone_b, _ = drive(config.load("swarm_rescue", swarm(sb, gb, commit) + layer), 40)
     np.testing.assert_array_equal(together[:, :3], alone_a)
     np.testing.assert_array_equal(together[:, 3:], alone_b)
     assert np.abs(alone_a).sum() > 0  # they did drive

@@ -195,8 +195,10 @@ class AacCoordinator(Coordinator):
         self.used[others] += 1
         stopped = int(stops.sum())
         for authority, reason, members in turns:
-            stopped += self.stored_turn(world, authority, reason, others[np.isin(others, members)], traj[np.isin(others, members)],
-                                        records, inputs, safety)
+            mine = np.isin(others, members)
+            self.stored_turn(world, authority, reason, others[mine], traj[mine], records, inputs)
+        if safety is not None:
+            stopped += self.check_authorities(world, [i for i, _, _ in turns], records, inputs, safety)
         notes.update(authority=" ".join(world.robots[i].name for i, _, _ in turns), reason=" ".join(sorted({r for _, r, _ in turns})),
                      safety_stops=stopped, proximity_ms=proximity_ms, authorities=len(turns))
         return Decision(inputs, records, notes=notes)
@@ -218,11 +220,10 @@ class AacCoordinator(Coordinator):
         return out
 
     def stored_turn(self, world: WorldState, authority: int, reason: str, others: np.ndarray, traj: np.ndarray,
-                    records: list[RobotDecision], inputs: np.ndarray, safety) -> int:
+                    records: list[RobotDecision], inputs: np.ndarray) -> None:
         """The ``authority`` plans around the obstacles and the swept regions of ``others`` along
-        their known courses ``traj`` (m, N+3, 4), and applies its first input (``inputs`` and
-        ``records`` changed in place), through the safety stop when it is on. Returns 1 when the
-        safety stop changed that input, else 0."""
+        their known courses ``traj`` (m, N+3, 4), and takes its plan's first input (``inputs``
+        and ``records`` changed in place)."""
         cfg = self.planner.config
         avoid = ~straight_behind(world, self.fleet, authority, others) if self.params.ignore_followers else np.ones(len(others), dtype=bool)
         regions = self.fleet.swept_regions(others[avoid], traj[avoid], cfg.horizon, cfg.barrier, cfg.fcbf)
@@ -231,21 +232,32 @@ class AacCoordinator(Coordinator):
         records[authority] = decided
         inputs[authority] = self.plans[authority].inputs[0]
         self.used[authority] = 1
-        if safety is None:
-            return 0
-        margin = 0.0  # its plan looks only N periods ahead: no contact beyond them
-        if decided.status != "solved" and self.params.fallback == "tracking":
-            inputs[authority] = track(world.robots[authority], world.states[authority], self.tasks[authority],
-                                      self.params.lookahead, self.params.speed_gain, self.last_inputs[authority, 1], cfg.dt,
-                                      target_speed=self.tracking_speed(world, authority, self.params.speed_gain))
-            self.used[authority] = len(self.plans[authority].inputs)  # no plan to follow: tracking until its next turn
-            decided.mode, margin = "tracking", self.params.safety_margin
-        checked = safety.safe_inputs(np.array([authority]), inputs, margin)
-        if np.any(checked[authority] != inputs[authority]):
-            inputs[authority], decided.mode = checked[authority], "safety_stop"
-            self.used[authority] = len(self.plans[authority].inputs)
-            return 1
-        return 0
+
+    def check_authorities(self, world: WorldState, holders: list[int], records: list[RobotDecision], inputs: np.ndarray,
+                          safety) -> int:
+        """The safety stop on the first inputs of the authorities ``holders`` (``inputs`` and
+        ``records`` changed in place): against contact only, since each plan keeps its own margins
+        over its N periods; an authority whose solve failed applies, with ``fallback =
+        "tracking"``, the tracking law instead, checked with ``safety_margin`` as a robot without
+        a plan is. Returns how many inputs the stop changed."""
+        cfg = self.planner.config
+        margins = np.zeros(len(holders))
+        for row, i in enumerate(holders):
+            if records[i].status != "solved" and self.params.fallback == "tracking":
+                inputs[i] = track(world.robots[i], world.states[i], self.tasks[i], self.params.lookahead, self.params.speed_gain,
+                                  self.last_inputs[i, 1], cfg.dt, target_speed=self.tracking_speed(world, i, self.params.speed_gain))
+                self.used[i] = len(self.plans[i].inputs)  # no plan to follow: tracking until its next turn
+                records[i].mode, margins[row] = "tracking", self.params.safety_margin
+        stopped = 0
+        holders = np.asarray(holders, dtype=np.int64)
+        for margin in np.unique(margins):
+            group = holders[margins == margin]
+            checked = safety.safe_inputs(group, inputs, float(margin))
+            for i in group[np.any(checked[group] != inputs[group], axis=1)]:
+                inputs[i], records[i].mode = checked[i], "safety_stop"
+                self.used[i] = len(self.plans[i].inputs)
+                stopped += 1
+        return stopped
 
     def choose_authority(self, world: WorldState, active: np.ndarray, records: list[RobotDecision]) -> tuple[int, str]:
         """The authority robot and why; candidates of a proximity decision get their scores recorded."""
