@@ -206,10 +206,11 @@ AAC_SCENARIOS = ("swarm_rescue", "lane_change", "random_crossing", "highway_work
 #: the first SCALING_SECONDS of each run: the crowded part).
 SCALING = (15, 100)
 SCALING_SECONDS = 20.0
-#: The highway work zone's rows (N = 10, whole runs): AAC with one authority per cluster with 15
-#: controlled cars (the flow's first 15; SUMO drives the other 85) and with all 100, then the
-#: scenario's own AAC (the paper's one authority per period) with all 100.
-CLUSTERS = ["aac.commit=true", 'aac.authorities="clusters"']
+#: The highway work zone's rows (N = 10, whole runs): AAC with one authority per cluster (the
+#: scenario's stored plans and safety stop; committed plans are not fit for SUMO's traffic,
+#: docs/highway_work_zone.md) with 15 controlled cars (the flow's first 15; SUMO drives the other
+#: 85) and with all 100, then the scenario's own AAC (the paper's one authority per period) with all 100.
+CLUSTERS = ['aac.authorities="clusters"']
 HIGHWAY = (("highway_15", ["sumo.controlled_types=", "sumo.controlled_ids=aac.?,aac.1[0-4]", *CLUSTERS]),
            ("highway_100", CLUSTERS), ("highway_100_one_authority", []))
 
