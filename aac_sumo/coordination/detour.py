@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from aac_sumo.geometry import rect_distances
-from aac_sumo.kernels import grid_path
+from aac_sumo.kernels import distance_field, grid_path, shortcut
 from aac_sumo.references import PathReference
 
 #: Extra cost of a cell at distance ``hard`` from a standing footprint (none at ``clearance``).
@@ -54,16 +54,7 @@ def plan_detour(start, goal, rects, hard: float, clearance: float, cell: float) 
     hi = np.maximum(start, goal) + BORDER
     cols, rows = (np.ceil((hi - lo) / cell).astype(int) + 1)
     xs, ys = lo[0] + cell * np.arange(cols), lo[1] + cell * np.arange(rows)
-    dist = np.full((rows, cols), np.inf)
-    for rect in rects:  # each footprint only in its window: cells within clearance of it
-        reach = 0.5 * np.hypot(rect[2], rect[3]) + clearance
-        c0, r0 = np.floor((rect[:2] - reach - lo) / cell).astype(int).clip(0)
-        c1, r1 = np.ceil((rect[:2] + reach - lo) / cell).astype(int) + 1
-        if c0 >= cols or r0 >= rows or c1 <= 0 or r1 <= 0:
-            continue
-        gx, gy = np.meshgrid(xs[c0:c1], ys[r0:r1])
-        near = rect_distances(np.column_stack([gx.ravel(), gy.ravel()]), rect[None]).reshape(gx.shape)
-        dist[r0:r1, c0:c1] = np.minimum(dist[r0:r1, c0:c1], near)
+    dist = distance_field(lo, cell, rows, cols, rects, clearance)  # each footprint only within clearance of it
     cost = 1.0 + PENALTY * np.clip((clearance - dist) / max(clearance - hard, 1e-9), 0.0, 1.0)
     cost[dist < hard] = np.inf
     s_cell = np.round((start - lo) / cell).astype(int)[::-1]
@@ -77,31 +68,7 @@ def plan_detour(start, goal, rects, hard: float, clearance: float, cell: float) 
     r, c = np.divmod(cells, cols)
     path = np.column_stack([xs[c], ys[r]])
     path[0], path[-1] = start, goal
-    return _shortcut(path, np.minimum(dist.ravel()[cells], clearance), rects, hard, cell)
-
-
-def _shortcut(path: np.ndarray, kept: np.ndarray, rects: np.ndarray, hard: float, cell: float) -> np.ndarray:
-    """The corners of ``path`` (K, 2) it needs: from each kept point on, the farthest later
-    point up to which every straight segment keeps at least the smallest of ``kept`` (the
-    distances the grid path kept) over the same stretch, at least ``hard``, less half a cell."""
-    out = [path[0]]
-    i, last = 0, len(path) - 1
-    radius = 0.5 * np.hypot(rects[:, 2], rects[:, 3])  # each rectangle lies within this of its centre
-    while i < last:
-        j = i + 1
-        while j < last:
-            need = max(float(kept[i:j + 2].min()), hard) - 0.5 * cell
-            a, b = path[i], path[j + 1]
-            length = float(np.hypot(*(b - a)))
-            along = np.clip((rects[:, :2] - a) @ (b - a) / max(length * length, 1e-12), 0.0, 1.0)
-            near = np.hypot(*(a + along[:, None] * (b - a) - rects[:, :2]).T) < need + radius  # only these can be closer than need
-            t = np.linspace(0.0, 1.0, max(2, int(np.ceil(SAMPLES * length / cell)) + 1))
-            if near.any() and rect_distances(a + t[:, None] * (b - a), rects[near]).min() < need:
-                break
-            j += 1
-        out.append(path[j])
-        i = j
-    return np.array(out)
+    return path[shortcut(path, np.minimum(dist.ravel()[cells], clearance), rects, hard, cell, SAMPLES)]
 
 
 class Detours:
