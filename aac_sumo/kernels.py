@@ -10,8 +10,8 @@ and a test pins it to that definition: :func:`rollouts` and :func:`braking_cours
 gentler braking, :func:`grow_trees`, :func:`closest_on_polyline`, :func:`polyline_offsets` and
 :func:`times_to_collision` the loops of the proximity decision, path projection, the lateral
 band's offsets and the time to collision, :func:`tracking_course` the tracking law's rollout
-(:func:`aac_sumo.coordination.tracking.track`), and :func:`grid_path`, :func:`distance_field`
-and :func:`shortcut` the detour planner's (:mod:`aac_sumo.coordination.detour`). They import nothing else of this package.
+(:func:`aac_sumo.coordination.tracking.track`), and :func:`grid_path`, :func:`distance_field`,
+:func:`shortcut` and :func:`rects_within` the detour planner's (:mod:`aac_sumo.coordination.detour`). They import nothing else of this package.
 Units: m, s, rad. Numba caches the compiled code beside this file, so only the first run on a
 machine compiles it.
 """
@@ -781,3 +781,17 @@ def shortcut(path, kept, rects, hard, cell, samples):
         out.append(j)
         i = j
     return np.array(out)
+
+
+@numba.njit(cache=True)
+def rects_within(points, rects, reach):
+    """Whether each of ``rects`` (m, 5) comes closer than ``reach`` [m] to one of ``points`` (k,
+    2) [m] (by :func:`aac_sumo.geometry.rect_distances`), (m,)."""
+    out = np.zeros(len(rects), dtype=np.bool_)
+    for k in range(len(rects)):
+        c, s = math.cos(rects[k, 4]), math.sin(rects[k, 4])
+        for p in range(len(points)):
+            if _rect_distance(points[p, 0], points[p, 1], rects[k], c, s) < reach:
+                out[k] = True
+                break
+    return out

@@ -13,7 +13,7 @@ from aac_sumo import config, runner
 from aac_sumo.cli import main
 from aac_sumo.coordination.detour import SAMPLES, Detours, plan_detour
 from aac_sumo.geometry import rect_distances
-from aac_sumo.kernels import distance_field, shortcut
+from aac_sumo.kernels import distance_field, rects_within, shortcut
 from aac_sumo.references import PathReference
 
 HARD, CLEARANCE, CELL = 0.25, 0.5, 0.1
@@ -171,3 +171,38 @@ def test_near_its_goal_a_detour_goes_straight_there():
     detours.next_check[0] = 100
     detours.update(state, footprint, np.zeros(1, dtype=bool), np.zeros(1, dtype=bool), debris, period=2)
     assert len(detours.path(0).points) == 3
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 10_000), m=st.integers(0, 6), k=st.integers(1, 30))
+def test_rects_within_is_rect_distances_below_the_reach(seed, m, k):
+    rng = np.random.default_rng(seed)
+    rects, points = random_rects(rng, m), rng.uniform(-4, 4, (k, 2))
+    expected = [rect_distances(points, rect[None]).min() < CLEARANCE for rect in rects]
+    np.testing.assert_array_equal(rects_within(points, rects, CLEARANCE), np.array(expected, dtype=bool))
+
+
+def test_a_stalled_robot_replans_only_when_the_standing_set_near_its_detour_changes():
+    """Robot 0 stands on a detour round parked robot 1: a further stall re-plans nothing while
+    the footprints near its way stay; a robot that comes to stand on its way makes it re-plan."""
+    tasks = [PathReference([[-3.0, 0.0], [3.0, 0.0]], 1.0, approach=0.6),
+             PathReference([[-4.0, 4.0], [0.0, 0.0]], 1.0, approach=0.6),   # parked at its goal, on robot 0's way
+             PathReference([[4.0, 3.0], [1.5, 3.0]], 1.0, approach=0.6)]    # far from it, for now
+    detours = Detours(tasks, stall_periods=10, check_periods=10, hard=HARD, clearance=CLEARANCE, cell=CELL)
+    states = np.array([[-3.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.8, 0.0], [4.0, 3.0, np.pi, 0.0]])
+    done = np.array([False, True, False])
+
+    def run(periods, first):
+        footprints = np.column_stack([states[:, :2], np.full(3, 0.6), np.full(3, 0.4), states[:, 2]])
+        for period in range(first, first + periods):
+            detours.update(states, footprints, done, done, np.zeros((0, 5)), period)
+
+    run(1, 0)
+    assert detours.planned == 1
+    run(30, 1)  # robot 0 stalls three times, robot 2 stands far off: nothing new near the detour
+    assert detours.planned == 2  # and robot 2's own, at its first stall only
+    first = detours.path(0)
+    states[2, :2] = first.pose_at(np.array([1.0]))[0, :2]  # robot 2 now stands on robot 0's detour
+    run(30, 31)
+    assert detours.path(0) is not first
+    assert polyline_distance(detours.path(0).points, np.array([[*states[2, :2], 0.6, 0.4, np.pi]])) >= HARD - CELL
