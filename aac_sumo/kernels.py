@@ -9,8 +9,9 @@ and a test pins it to that definition: :func:`rollouts` and :func:`braking_cours
 :func:`stop_flags` and :func:`gentlest_stops` are the safety stop's rule and its rounds of
 gentler braking, :func:`grow_trees`, :func:`closest_on_polyline`, :func:`polyline_offsets` and
 :func:`times_to_collision` the loops of the proximity decision, path projection, the lateral
-band's offsets and the time to collision, and :func:`tracking_course` the tracking law's rollout
-(:func:`aac_sumo.coordination.tracking.track`). They import nothing else of this package.
+band's offsets and the time to collision, :func:`tracking_course` the tracking law's rollout
+(:func:`aac_sumo.coordination.tracking.track`), and :func:`grid_path`, :func:`distance_field`,
+:func:`shortcut` and :func:`rects_within` the detour planner's (:mod:`aac_sumo.coordination.detour`). They import nothing else of this package.
 Units: m, s, rad. Numba caches the compiled code beside this file, so only the first run on a
 machine compiles it.
 """
@@ -691,4 +692,106 @@ def grid_path(cost, start, goal):
     for i in range(k - 1, -1, -1):
         out[i] = u
         u = parent[u]
+    return out
+
+
+@numba.njit(cache=True)
+def _rect_distance(px, py, rect, c, s):
+    """Distance [m] from the point (``px``, ``py``) to the rectangle ``rect`` ``[cx, cy, length,
+    width, heading]`` whose heading has cosine ``c`` and sine ``s`` (0 inside)."""
+    dx, dy = px - rect[0], py - rect[1]
+    qx = abs(c * dx + s * dy) - 0.5 * rect[2]
+    qy = abs(-s * dx + c * dy) - 0.5 * rect[3]
+    return math.hypot(max(qx, 0.0), max(qy, 0.0))
+
+
+@numba.njit(cache=True)
+def distance_field(lo, cell, rows, cols, rects, reach):
+    """Distance [m] from the centre of each cell (``rows``, ``cols``) of the grid whose first cell
+    centre is ``lo`` (2,) [m] and whose side is ``cell`` [m] to the nearest of ``rects`` (m, 5),
+    for the cells within ``reach`` [m] of a rectangle's enclosing disc (the window of each
+    rectangle, whole cells; inf elsewhere). Each value is
+    :func:`aac_sumo.geometry.rect_distances` of the cell centre over the rectangles whose
+    window holds it."""
+    dist = np.full((rows, cols), np.inf)
+    for k in range(len(rects)):
+        rect = rects[k]
+        c, s = math.cos(rect[4]), math.sin(rect[4])
+        r = 0.5 * math.hypot(rect[2], rect[3]) + reach
+        c0 = max(int(math.floor((rect[0] - r - lo[0]) / cell)), 0)
+        r0 = max(int(math.floor((rect[1] - r - lo[1]) / cell)), 0)
+        c1 = min(int(math.ceil((rect[0] + r - lo[0]) / cell)) + 1, cols)
+        r1 = min(int(math.ceil((rect[1] + r - lo[1]) / cell)) + 1, rows)
+        for row in range(r0, r1):
+            py = lo[1] + cell * row
+            for col in range(c0, c1):
+                d = _rect_distance(lo[0] + cell * col, py, rect, c, s)
+                if d < dist[row, col]:
+                    dist[row, col] = d
+    return dist
+
+
+@numba.njit(cache=True)
+def shortcut(path, kept, rects, hard, cell, samples):
+    """Indices (J,) of the corners of ``path`` (K, 2) [m] it needs: from each kept point on, the
+    farthest later point up to which the straight segment, sampled ``samples`` times per ``cell``
+    [m], keeps from ``rects`` (m, 5) at least the smallest of ``kept`` (K,) [m] over the same
+    stretch, at least ``hard``, less half a cell. The first and the last point are always kept."""
+    m, last = len(rects), len(path) - 1
+    cos, sin, radius = np.empty(m), np.empty(m), np.empty(m)
+    for k in range(m):
+        cos[k], sin[k] = math.cos(rects[k, 4]), math.sin(rects[k, 4])
+        radius[k] = 0.5 * math.hypot(rects[k, 2], rects[k, 3])  # each rectangle lies within this of its centre
+    near = np.empty(m, dtype=np.int64)
+    out = [0]
+    i = 0
+    while i < last:
+        j = i + 1
+        low = min(kept[i], kept[i + 1])
+        while j < last:
+            low = min(low, kept[j + 1])
+            need = max(low, hard) - 0.5 * cell
+            ax, ay = path[i, 0], path[i, 1]
+            ux, uy = path[j + 1, 0] - ax, path[j + 1, 1] - ay
+            length = math.hypot(ux, uy)
+            scale = max(length * length, 1e-12)
+            count = 0
+            for k in range(m):  # only these can be closer than need
+                along = min(max(((rects[k, 0] - ax) * ux + (rects[k, 1] - ay) * uy) / scale, 0.0), 1.0)
+                if math.hypot(ax + along * ux - rects[k, 0], ay + along * uy - rects[k, 1]) < need + radius[k]:
+                    near[count] = k
+                    count += 1
+            blocked = False
+            if count > 0:
+                n = max(2, int(math.ceil(samples * length / cell)) + 1)
+                step = 1.0 / (n - 1)
+                for q in range(n):
+                    t = 1.0 if q == n - 1 else q * step
+                    px, py = ax + t * ux, ay + t * uy
+                    for e in range(count):
+                        k = near[e]
+                        if _rect_distance(px, py, rects[k], cos[k], sin[k]) < need:
+                            blocked = True
+                            break
+                    if blocked:
+                        break
+            if blocked:
+                break
+            j += 1
+        out.append(j)
+        i = j
+    return np.array(out)
+
+
+@numba.njit(cache=True)
+def rects_within(points, rects, reach):
+    """Whether each of ``rects`` (m, 5) comes closer than ``reach`` [m] to one of ``points`` (k,
+    2) [m] (by :func:`aac_sumo.geometry.rect_distances`), (m,)."""
+    out = np.zeros(len(rects), dtype=np.bool_)
+    for k in range(len(rects)):
+        c, s = math.cos(rects[k, 4]), math.sin(rects[k, 4])
+        for p in range(len(points)):
+            if _rect_distance(points[p, 0], points[p, 1], rects[k], c, s) < reach:
+                out[k] = True
+                break
     return out

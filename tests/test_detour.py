@@ -1,5 +1,6 @@
 """Detours of committed-plan AAC: the grid planner keeps clear of what stands, goes round a
-parked robot, and a random crossing that deadlocked without detours completes with them."""
+parked robot, its compiled distance field and shortcut are the numpy definitions, and a random
+crossing that deadlocked without detours completes with them."""
 
 from __future__ import annotations
 
@@ -10,8 +11,9 @@ from hypothesis import strategies as st
 
 from aac_sumo import config, runner
 from aac_sumo.cli import main
-from aac_sumo.coordination.detour import Detours, plan_detour
+from aac_sumo.coordination.detour import SAMPLES, Detours, plan_detour
 from aac_sumo.geometry import rect_distances
+from aac_sumo.kernels import distance_field, rects_within, shortcut
 from aac_sumo.references import PathReference
 
 HARD, CLEARANCE, CELL = 0.25, 0.5, 0.1
@@ -28,6 +30,64 @@ def test_rect_distances_is_the_exact_distance():
     rect = np.array([[1.0, 2.0, 2.0, 1.0, np.pi / 2]])  # 2 m along y, 1 m along x
     points = np.array([[1.0, 2.0], [2.0, 2.0], [1.0, 4.0], [2.5, 4.0]])
     np.testing.assert_allclose(rect_distances(points, rect), [0.0, 0.5, 1.0, np.hypot(1.0, 1.0)])
+
+
+def numpy_field(lo, cell, rows, cols, rects, reach):
+    """:func:`distance_field` by its definition: rect_distances of every cell centre, over the
+    rectangles whose window (enclosing disc grown by ``reach``, whole cells) holds it."""
+    xs, ys = lo[0] + cell * np.arange(cols), lo[1] + cell * np.arange(rows)
+    dist = np.full((rows, cols), np.inf)
+    for rect in rects:
+        r = 0.5 * np.hypot(rect[2], rect[3]) + reach
+        c0, r0 = np.floor((rect[:2] - r - lo) / cell).astype(int).clip(0)
+        c1, r1 = np.ceil((rect[:2] + r - lo) / cell).astype(int) + 1
+        if c0 >= cols or r0 >= rows or c1 <= 0 or r1 <= 0:
+            continue
+        gx, gy = np.meshgrid(xs[c0:c1], ys[r0:r1])
+        near = rect_distances(np.column_stack([gx.ravel(), gy.ravel()]), rect[None]).reshape(gx.shape)
+        dist[r0:r1, c0:c1] = np.minimum(dist[r0:r1, c0:c1], near)
+    return dist
+
+
+def numpy_shortcut(path, kept, rects, hard, cell):
+    """:func:`shortcut` by its definition (the Python loop it replaced), as point indices."""
+    out, i, last = [0], 0, len(path) - 1
+    while i < last:
+        j = i + 1
+        while j < last:
+            need = max(float(kept[i:j + 2].min()), hard) - 0.5 * cell
+            a, b = path[i], path[j + 1]
+            t = np.linspace(0.0, 1.0, max(2, int(np.ceil(SAMPLES * np.hypot(*(b - a)) / cell)) + 1))
+            if rect_distances(a + t[:, None] * (b - a), rects).min() < need:
+                break
+            j += 1
+        out.append(j)
+        i = j
+    return out
+
+
+def random_rects(rng, m):
+    return np.column_stack([rng.uniform(-3, 3, (m, 2)), rng.uniform(0.2, 1.2, (m, 2)), rng.uniform(-np.pi, np.pi, m)])
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 10_000), m=st.integers(0, 6))
+def test_distance_field_is_rect_distances_in_each_window(seed, m):
+    rng = np.random.default_rng(seed)
+    rects, lo, cell = random_rects(rng, m), rng.uniform(-4, -2, 2), rng.uniform(0.05, 0.3)
+    rows, cols = rng.integers(1, 60, 2)
+    field = distance_field(lo, cell, rows, cols, rects, 0.5)
+    np.testing.assert_array_equal(field, numpy_field(lo, cell, rows, cols, rects, 0.5))
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 10_000), m=st.integers(0, 6), k=st.integers(2, 40))
+def test_compiled_shortcut_keeps_the_corners_of_the_python_loop(seed, m, k):
+    rng = np.random.default_rng(seed)
+    rects = random_rects(rng, m)
+    path = np.cumsum(rng.uniform(-0.3, 0.3, (k, 2)), axis=0) + rng.uniform(-4, 4, 2)  # a random walk
+    kept = np.minimum(rect_distances(path, rects), CLEARANCE)
+    assert list(shortcut(path, kept, rects, HARD, CELL, SAMPLES)) == numpy_shortcut(path, kept, rects, HARD, CELL)
 
 
 def test_detour_goes_round_a_parked_robot_with_its_clearance():
@@ -111,3 +171,38 @@ def test_near_its_goal_a_detour_goes_straight_there():
     detours.next_check[0] = 100
     detours.update(state, footprint, np.zeros(1, dtype=bool), np.zeros(1, dtype=bool), debris, period=2)
     assert len(detours.path(0).points) == 3
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 10_000), m=st.integers(0, 6), k=st.integers(1, 30))
+def test_rects_within_is_rect_distances_below_the_reach(seed, m, k):
+    rng = np.random.default_rng(seed)
+    rects, points = random_rects(rng, m), rng.uniform(-4, 4, (k, 2))
+    expected = [rect_distances(points, rect[None]).min() < CLEARANCE for rect in rects]
+    np.testing.assert_array_equal(rects_within(points, rects, CLEARANCE), np.array(expected, dtype=bool))
+
+
+def test_a_stalled_robot_replans_only_when_the_standing_set_near_its_detour_changes():
+    """Robot 0 stands on a detour round parked robot 1: a further stall re-plans nothing while
+    the footprints near its way stay; a robot that comes to stand on its way makes it re-plan."""
+    tasks = [PathReference([[-3.0, 0.0], [3.0, 0.0]], 1.0, approach=0.6),
+             PathReference([[-4.0, 4.0], [0.0, 0.0]], 1.0, approach=0.6),   # parked at its goal, on robot 0's way
+             PathReference([[4.0, 3.0], [1.5, 3.0]], 1.0, approach=0.6)]    # far from it, for now
+    detours = Detours(tasks, stall_periods=10, check_periods=10, hard=HARD, clearance=CLEARANCE, cell=CELL)
+    states = np.array([[-3.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.8, 0.0], [4.0, 3.0, np.pi, 0.0]])
+    done = np.array([False, True, False])
+
+    def run(periods, first):
+        footprints = np.column_stack([states[:, :2], np.full(3, 0.6), np.full(3, 0.4), states[:, 2]])
+        for period in range(first, first + periods):
+            detours.update(states, footprints, done, done, np.zeros((0, 5)), period)
+
+    run(1, 0)
+    assert detours.planned == 1
+    run(30, 1)  # robot 0 stalls three times, robot 2 stands far off: nothing new near the detour
+    assert detours.planned == 2  # and robot 2's own, at its first stall only
+    first = detours.path(0)
+    states[2, :2] = first.pose_at(np.array([1.0]))[0, :2]  # robot 2 now stands on robot 0's detour
+    run(30, 31)
+    assert detours.path(0) is not first
+    assert polyline_distance(detours.path(0).points, np.array([[*states[2, :2], 0.6, 0.4, np.pi]])) >= HARD - CELL

@@ -13,6 +13,11 @@ the area:
   to the corners it needs: from each kept point, the farthest later path point whose straight
   segment keeps at least the smallest distance the grid path kept over the same stretch.
 
+Both the distance field and the shortcut are compiled (:mod:`aac_sumo.kernels`). A robot keeps
+its detour as long as nothing new stands near what is left of it: the detour was planned round
+what stood then, and a new plan from the same place round the same footprints differs at most by
+changes farther off (see :class:`Detours`).
+
 The path is for the robot's footprint centre, which the MPC tracks through the rear axle on
 straight pieces; ``clearance`` covers the corners. The detour is only a reference: safety is
 untouched, every course the robot drives still passes the commitments' exact check. Positions
@@ -24,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from aac_sumo.geometry import rect_distances
-from aac_sumo.kernels import grid_path
+from aac_sumo.kernels import distance_field, grid_path, rects_within, shortcut
 from aac_sumo.references import PathReference
 
 #: Extra cost of a cell at distance ``hard`` from a standing footprint (none at ``clearance``).
@@ -54,16 +59,7 @@ def plan_detour(start, goal, rects, hard: float, clearance: float, cell: float) 
     hi = np.maximum(start, goal) + BORDER
     cols, rows = (np.ceil((hi - lo) / cell).astype(int) + 1)
     xs, ys = lo[0] + cell * np.arange(cols), lo[1] + cell * np.arange(rows)
-    dist = np.full((rows, cols), np.inf)
-    for rect in rects:  # each footprint only in its window: cells within clearance of it
-        reach = 0.5 * np.hypot(rect[2], rect[3]) + clearance
-        c0, r0 = np.floor((rect[:2] - reach - lo) / cell).astype(int).clip(0)
-        c1, r1 = np.ceil((rect[:2] + reach - lo) / cell).astype(int) + 1
-        if c0 >= cols or r0 >= rows or c1 <= 0 or r1 <= 0:
-            continue
-        gx, gy = np.meshgrid(xs[c0:c1], ys[r0:r1])
-        near = rect_distances(np.column_stack([gx.ravel(), gy.ravel()]), rect[None]).reshape(gx.shape)
-        dist[r0:r1, c0:c1] = np.minimum(dist[r0:r1, c0:c1], near)
+    dist = distance_field(lo, cell, rows, cols, rects, clearance)  # each footprint only within clearance of it
     cost = 1.0 + PENALTY * np.clip((clearance - dist) / max(clearance - hard, 1e-9), 0.0, 1.0)
     cost[dist < hard] = np.inf
     s_cell = np.round((start - lo) / cell).astype(int)[::-1]
@@ -77,31 +73,7 @@ def plan_detour(start, goal, rects, hard: float, clearance: float, cell: float) 
     r, c = np.divmod(cells, cols)
     path = np.column_stack([xs[c], ys[r]])
     path[0], path[-1] = start, goal
-    return _shortcut(path, np.minimum(dist.ravel()[cells], clearance), rects, hard, cell)
-
-
-def _shortcut(path: np.ndarray, kept: np.ndarray, rects: np.ndarray, hard: float, cell: float) -> np.ndarray:
-    """The corners of ``path`` (K, 2) it needs: from each kept point on, the farthest later
-    point up to which every straight segment keeps at least the smallest of ``kept`` (the
-    distances the grid path kept) over the same stretch, at least ``hard``, less half a cell."""
-    out = [path[0]]
-    i, last = 0, len(path) - 1
-    radius = 0.5 * np.hypot(rects[:, 2], rects[:, 3])  # each rectangle lies within this of its centre
-    while i < last:
-        j = i + 1
-        while j < last:
-            need = max(float(kept[i:j + 2].min()), hard) - 0.5 * cell
-            a, b = path[i], path[j + 1]
-            length = float(np.hypot(*(b - a)))
-            along = np.clip((rects[:, :2] - a) @ (b - a) / max(length * length, 1e-12), 0.0, 1.0)
-            near = np.hypot(*(a + along[:, None] * (b - a) - rects[:, :2]).T) < need + radius  # only these can be closer than need
-            t = np.linspace(0.0, 1.0, max(2, int(np.ceil(SAMPLES * length / cell)) + 1))
-            if near.any() and rect_distances(a + t[:, None] * (b - a), rects[near]).min() < need:
-                break
-            j += 1
-        out.append(path[j])
-        i = j
-    return np.array(out)
+    return path[shortcut(path, np.minimum(dist.ravel()[cells], clearance), rects, hard, cell, SAMPLES)]
 
 
 class Detours:
@@ -112,7 +84,10 @@ class Detours:
     but its own, from its footprint centre to its goal, ``hard`` and ``clearance`` [m], grid
     ``cell`` [m]) when it has stood for ``stall_periods`` (and again after each further such
     stretch), and, every ``check_periods``, when what is left of its reference (from its
-    projection on) comes within ``clearance`` of a standing footprint. Within ``FINAL`` of its
+    projection on) comes within ``clearance`` of a standing footprint. A robot on a grid detour
+    re-plans only when something stands near what is left of it that its plan did not go round
+    (the same footprint row); after a stall, also when it has moved since the plan or a
+    footprint it went round there no longer stands. Within ``FINAL`` of its
     goal, a robot on a detour whose straight segment (rear axle to goal) keeps ``hard`` from
     every standing footprint goes straight there instead. A robot that has finished drops its
     detour. A detour keeps its task's speed, braking, goal approach and
@@ -127,6 +102,7 @@ class Detours:
         self.still = np.zeros(len(tasks), dtype=int)
         self.next_check = np.zeros(len(tasks), dtype=int)
         self.final = np.zeros(len(tasks), dtype=bool)  # on the straight way to the goal (FINAL)
+        self.basis: list[tuple[np.ndarray, np.ndarray] | None] = [None] * len(tasks)  # each detour's start and standing footprints
         self.planned = 0  # detours planned so far
 
     def path(self, i: int) -> PathReference:
@@ -142,7 +118,7 @@ class Detours:
         self.still = np.where(~done & (np.abs(states[:, 3]) < STILL_SPEED), self.still + 1, 0)
         standing = parked | (self.still >= self.stall_periods)
         for i in np.flatnonzero(done):
-            self.routes[i], self.final[i] = None, False
+            self.routes[i], self.final[i], self.basis[i] = None, False, None
         gap = np.hypot(*(states[:, :2] - np.array([t.points[-1] for t in self.tasks])).T)
         rows = np.vstack([statics.reshape(-1, 5), footprints])
         keep = np.r_[np.ones(len(rows) - len(footprints), dtype=bool), standing]
@@ -164,12 +140,13 @@ class Detours:
                 continue
             self.next_check[i] = period + self.check_periods
             rects = standing_but(i)
-            if not stalled and self.clear(i, states[i], rects):
+            if self.keeps(i, states[i], footprints[i, :2], rects[self.near(i, states[i], rects)], stalled):
                 continue
             task = self.tasks[i]
             waypoints = plan_detour(footprints[i, :2], task.points[-1], rects, self.hard, self.clearance, self.cell)
             if waypoints is not None and len(waypoints) >= 2:
                 self.routes[i], self.final[i] = self.route(i, waypoints), False
+                self.basis[i] = (footprints[i, :2].copy(), rects)
                 self.planned += 1
 
     def route(self, i: int, waypoints: np.ndarray) -> PathReference:
@@ -178,10 +155,28 @@ class Detours:
         task = self.tasks[i]
         return PathReference(waypoints, task.speed, task.decel, approach=task.approach, turn_radius=task.turn_radius, arrive=task.arrive)
 
-    def clear(self, i: int, state: np.ndarray, rects: np.ndarray) -> bool:
-        """Whether what is left of robot ``i``'s reference, from its projection to the goal,
-        keeps ``clearance`` from every footprint of ``rects`` (m, 5)."""
+    def near(self, i: int, state: np.ndarray, rects: np.ndarray) -> np.ndarray:
+        """Which of ``rects`` (m, 5) come within ``clearance`` of what is left of robot ``i``'s
+        reference, from its projection to the goal (samples every ``CHECK_SPACING``), (m,)."""
         path = self.path(i)
         s0, _ = path.project(state[:2])
         s = np.r_[np.arange(s0, path.length, CHECK_SPACING), path.length]
-        return bool(rect_distances(path.pose_at(s)[:, :2], rects).min() >= self.clearance)
+        return rects_within(path.pose_at(s)[:, :2], rects, self.clearance)
+
+    def keeps(self, i: int, state: np.ndarray, start: np.ndarray, near: np.ndarray, stalled: bool) -> bool:
+        """Whether robot ``i`` (rear axle ``state``, footprint centre ``start`` [m]) keeps its
+        reference, with ``near`` (k, 5) the standing footprints within ``clearance`` of what is
+        left of it: when none are and it has not stalled; or when it is on a grid detour that was
+        planned round each of them and, if it has stalled, planned from ``start`` round exactly
+        the footprints near the rest of it (a new plan would be the same but for changes
+        farther off)."""
+        if not stalled and len(near) == 0:
+            return True
+        if self.routes[i] is None or self.final[i] or self.basis[i] is None:
+            return False
+        planned_from, planned_round = self.basis[i]
+        if not (near[:, None, :] == planned_round[None, :, :]).all(axis=2).any(axis=1).all():
+            return False  # something new stands near it
+        if not stalled:
+            return True
+        return bool(np.array_equal(start, planned_from) and self.near(i, state, planned_round).sum() == len(near))
