@@ -176,14 +176,19 @@ class Coordinator(ABC):
 
     def tracking_speed(self, world: WorldState, i: int, speed_gain: float) -> float | None:
         """The speed [m/s] robot ``i``'s tracking law (gain ``speed_gain`` [1/s]) drives towards
-        when ``anticipation`` is set: its anticipated reference speed ``1 / speed_gain`` seconds
-        ahead, so that the law accelerates and brakes as the reference does; else None (its
-        task's speed)."""
+        when ``anticipation`` is set, so that the law accelerates and brakes as the reference
+        does: its anticipated reference speed ``1 / speed_gain`` seconds ahead, or, where the
+        reference's ramp ends sooner (a stop, or the speed it settles at), the speed that gives
+        the ramp's rate up to there; else None (its task's speed). (Aiming at the speed 1 s ahead,
+        a car below 1.5 m/s that had to stop braked at only its speed per second and crept on a
+        metre: into its gap to a standing car, whose region in the MPC then braked it at 4 m/s^2.)"""
         if self.anticipation is None:
             return None
         dt = self.planner.config.dt
         ahead = max(1, int(round(1.0 / (speed_gain * dt))))
-        return float(anticipated_reference(world, i, self.tasks[i], ahead, dt, self.anticipation, self.held[i])[-1, 3])
+        v = anticipated_reference(world, i, self.tasks[i], ahead, dt, self.anticipation, self.held[i])[:, 3]
+        ends = max(1, int(np.argmax(np.abs(v - v[-1]) < 1e-9)))  # the first stage at the ramp's last speed
+        return float(v[0] + (v[ends] - v[0]) / (ends * dt * speed_gain))
 
     def safety_check(self, world: WorldState) -> SafetyCheck:
         """The safety stop of this period: robots brake turning towards their reference's heading

@@ -233,8 +233,11 @@ class SafetyCheck:
         """The deceleration [m/s^2] (n,; NaN: none) with which each robot of ``check`` brakes now
         to stop before a walker's path (:meth:`walker_paths`): just as hard as that needs, and
         only once one more period of its input ``inputs`` (n, 2) and braking at its comfort
-        deceleration would no longer stop it there (comfort first). A standing robot gets 0: it
-        stays where it is."""
+        deceleration (at most the planner's ``comfort_accel`` when set: a calm driver's braking)
+        would no longer stop it there (comfort first; waiting for the full comfort deceleration, a
+        car that had set off near the zebra then braked at 2.2-3 m/s^2 for a walker, where
+        starting one period or two earlier stops it calmly). A standing robot gets 0: it stays
+        where it is."""
         out = np.full(len(self.world.robots), np.nan)
         _, need, enter, _ = self.walker_paths()
         check = np.asarray(check, dtype=np.int64)
@@ -242,7 +245,10 @@ class SafetyCheck:
             return out
         dt, v = self.config.dt, self.world.states[check, 3:4]
         v1 = np.maximum(v + np.asarray(inputs, dtype=float)[check, 0:1] * dt, 0.0)
-        late = np.isfinite(enter[check]) & (v1**2 / (2.0 * self.fleet.comfort[check, None]) + 0.5 * v1 * dt > enter[check] - v * dt)
+        calm = self.fleet.comfort[check, None]
+        if self.config.comfort_accel > 0.0:
+            calm = np.minimum(calm, self.config.comfort_accel)
+        late = np.isfinite(enter[check]) & (v1**2 / (2.0 * calm) + 0.5 * v1 * dt > enter[check] - v * dt)
         out[check] = np.where(late.any(axis=1), np.where(late, need[check], -np.inf).max(axis=1), np.nan)
         return out
 
