@@ -533,10 +533,12 @@ HIGHWAY_CAR = RobotSpec("car", 4.0, 1.8, BicycleModel(2.6, HIGHWAY_LIMITS))
 WALKERS = MpcConfig(dt=DT, pedestrian_reach=1.5, pedestrian_margin=1.0)
 
 
-def drive_past_walker(front: float, north: float, speed: float = 16.0, walk: float = 1.3, seconds: float = 12.0, accel: float = 0.0):
+def drive_past_walker(front: float, north: float, speed: float = 16.0, walk: float = 1.3, seconds: float = 12.0, accel: float = 0.0,
+                      config: MpcConfig = WALKERS):
     """A car (4 m x 1.8 m, a_comfort 3, a_min -6 m/s^2) in a lane along y = -1.75 m heading
     east at ``speed``, its front ``front`` metres before x = 0 [m], meant to drive on (input
-    ``accel`` [m/s^2] every period, up to 16 m/s), through the safety stop; a walker (0.3 m x 0.5 m) crossing at x = 0 from
+    ``accel`` [m/s^2] every period, up to 16 m/s), through the safety stop (the planner's
+    ``config``); a walker (0.3 m x 0.5 m) crossing at x = 0 from
     ``north`` [m] south at ``walk`` [m/s], as in the highway's seed 4. Returns the car's states
     (K+1, 4), the applied accelerations (K,) and the walker's centres (K+1, 2)."""
     state = np.array([-front - HIGHWAY_CAR.centre_offset - 2.0, -1.75, 0.0, speed])
@@ -546,7 +548,7 @@ def drive_past_walker(front: float, north: float, speed: float = 16.0, walk: flo
         person = Obstacle("p3", "pedestrian", walker, np.array([0.0, -walk]), -np.pi / 2, 0.3, 0.5)
         world = WorldState(k * DT, state[None, :], [HIGHWAY_CAR], [person])
         wanted = np.array([[min(accel, (16.0 - state[3]) / DT), 0.0]])
-        u = SafetyCheck(world, Fleet([HIGHWAY_CAR]), WALKERS, np.zeros(1), np.array([steer])).safe_inputs(np.array([0]), wanted, 0.3)[0]
+        u = SafetyCheck(world, Fleet([HIGHWAY_CAR]), config, np.zeros(1), np.array([steer])).safe_inputs(np.array([0]), wanted, 0.3)[0]
         steer = u[1]
         state = HIGHWAY_CAR.model.step(state, u, DT)
         walker = walker + DT * np.array([0.0, -walk])
@@ -591,6 +593,21 @@ def test_a_walker_stop_comes_as_late_as_comfort_allows_and_ends_once_she_is_gone
     assert states[:, 3].min() > 0.0  # it did not need to stand
     states, accels, _ = drive_past_walker(40.0, 20.0)
     assert np.all(accels == 0.0)
+
+
+def test_with_a_comfort_envelope_a_walker_stop_starts_early_enough_to_brake_calmly():
+    """The walker 80 m ahead again, with the planner's comfort envelope at 2 m/s^2
+    (``controller.comfort_accel``, as in the lane change): the car starts braking as soon as
+    braking at 2 m/s^2 is just enough, not at its 3 m/s^2 comfort deceleration, and stops no
+    harder than that (the aggressive-driving threshold); 40 m ahead, too late for that, it
+    still brakes just as hard as it needs (3.38 m/s^2)."""
+    calm = MpcConfig(dt=DT, pedestrian_reach=1.5, pedestrian_margin=1.0, comfort_accel=2.0)
+    states, accels, _ = drive_past_walker(80.0, 4.0, config=calm)
+    braking = np.flatnonzero(accels < 0.0)
+    assert braking.size and -accels.min() <= 2.0
+    assert -accels[braking[0]] == pytest.approx(2.0, abs=0.1)
+    _, late, _ = drive_past_walker(40.0, 4.25, config=calm)
+    assert -late.min() == pytest.approx(3.38, abs=0.005)
 
 
 def test_a_car_standing_at_the_edge_of_a_walkers_path_waits_for_her_rather_than_creep_into_it():
