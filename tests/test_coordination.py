@@ -18,7 +18,7 @@ from aac_sumo.coordination.lfc import LfcCoordinator, LfcParams
 from aac_sumo.coordination.tracking import track
 from aac_sumo.coordination.proximity import ProximityParams, close_pairs, proximity_decision
 from aac_sumo.coordination.regions import Fleet
-from aac_sumo.coordination.safety import BRAKING_TIE, SafetyCheck
+from aac_sumo.coordination.safety import BRAKING_TIE, SafetyCheck, WalkerSpeeds
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.kernels import STANDING_GAP
 from aac_sumo.geometry import containing_ellipse, convex_hull, ellipse_signed_distance, rect_clearance_rows, rect_corners
@@ -608,6 +608,31 @@ def test_with_a_comfort_envelope_a_walker_stop_starts_early_enough_to_brake_calm
     assert -accels[braking[0]] == pytest.approx(2.0, abs=0.1)
     _, late, _ = drive_past_walker(40.0, 4.25, config=calm)
     assert -late.min() == pytest.approx(3.38, abs=0.005)
+
+
+def test_a_walkers_speed_of_late_keeps_a_car_from_being_let_go_on_one_fast_reading():
+    """The lane change's seed 4 at N = 10, at 26.7 s: veh11 at 1.4 m/s, its front 0.6 m before
+    the strip of a walker who has just crossed its lane southwards, 2.8 m beyond it, at 0.97 to
+    1.14 m/s step by step (SUMO). Walking away at 1.14 m/s (this step's reading) she could not
+    come back within the margin before the car leaves her strip, so it was let go (it applied
+    +1.5 m/s^2) and on the next step, at 1.0 m/s, it had to stop before her strip at 2.9 m/s^2.
+    With her slowest speed of the last second (:class:`WalkerSpeeds`) it goes on stopping for
+    her, braking calmly (1.8 m/s^2)."""
+    readings = [1.139, 1.064, 0.991, 1.104, 0.972, 0.992, 1.145]
+    car = np.array([[233.53, -4.752, 0.0, 1.405]])
+    calm = MpcConfig(dt=DT, pedestrian_reach=1.5, pedestrian_margin=1.0, comfort_accel=2.0)
+    speeds = WalkerSpeeds()
+    for k, v in enumerate(readings):
+        walker = Obstacle("p0", "pedestrian", np.array([238.76, -8.09 - 0.105 * k]), np.array([0.0, -v]), -np.pi / 2, 0.3, 0.5)
+        world = WorldState(26.1 + k * DT, car, [HIGHWAY_CAR], [walker])
+        bounds = speeds.update(world)
+    assert bounds["p0"] == (0.972, 1.145)
+    wanted = np.array([[1.5, 0.0]])
+    now = SafetyCheck(world, Fleet([HIGHWAY_CAR]), calm, np.zeros(1), np.zeros(1))
+    assert now.walker_paths()[3][0, 0] and now.safe_inputs(np.array([0]), wanted, 0.3)[0, 0] == 1.5  # let go
+    late = SafetyCheck(world, Fleet([HIGHWAY_CAR]), calm, np.zeros(1), np.zeros(1), walker_speeds=bounds)
+    assert np.isfinite(late.walker_paths()[2][0, 0])
+    assert late.safe_inputs(np.array([0]), wanted, 0.3)[0, 0] == pytest.approx(-1.77, abs=0.01)
 
 
 def test_a_car_standing_at_the_edge_of_a_walkers_path_waits_for_her_rather_than_creep_into_it():

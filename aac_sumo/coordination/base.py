@@ -13,7 +13,7 @@ import numpy as np
 from aac_sumo.barriers import ObstaclePrediction, RegionTrack
 from aac_sumo.coordination.anticipation import Anticipation, anticipated_reference, near_pedestrian
 from aac_sumo.coordination.regions import Fleet
-from aac_sumo.coordination.safety import SafetyCheck
+from aac_sumo.coordination.safety import SafetyCheck, WalkerSpeeds
 from aac_sumo.mpc.planner import MpcPlanner, Plan
 from aac_sumo.prediction import SpeedHistory
 from aac_sumo.references import LateralBand, PathReference
@@ -109,6 +109,7 @@ class Coordinator(ABC):
         self.last_inputs = np.zeros((len(tasks), 2))
         self.fleet: Fleet | None = None
         self.held: list[dict] = [{} for _ in tasks]  # per robot, the walkers it yields to (anticipation.stop_points)
+        self.walker_speeds = WalkerSpeeds()  # the walkers' speeds of late, for the safety stop
         cfg = planner.config
         self.speeds = SpeedHistory(cfg.prediction_window, cfg.dt) if cfg.prediction == "constant_acceleration" else None
 
@@ -192,10 +193,11 @@ class Coordinator(ABC):
 
     def safety_check(self, world: WorldState) -> SafetyCheck:
         """The safety stop of this period: robots brake turning towards their reference's heading
-        where they are (a car brakes along its lane), as the planner's fallback does."""
+        where they are (a car brakes along its lane), as the planner's fallback does; the
+        walkers' speeds of late bound theirs (:class:`~aac_sumo.coordination.safety.WalkerSpeeds`)."""
         headings = np.array([task.heading_at(state[:2]) for task, state in zip(self.tasks, world.states)])
         return SafetyCheck(world, self.fleet, self.planner.config, headings, self.last_inputs[:, 1],
-                           followers=self.leaves_followers)
+                           followers=self.leaves_followers, walker_speeds=self.walker_speeds.update(world))
 
     def hold_inputs(self, world: WorldState, i: int, steps: int) -> np.ndarray:
         """Inputs (steps, 2) that bring robot ``i`` to a stop where it is, at its comfort
