@@ -12,13 +12,14 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from aac_sumo.barriers import FcbfParams, barrier_value
+from aac_sumo.coordination.anticipation import Anticipation
 from aac_sumo.coordination.aac import AacCoordinator, AacParams
 from aac_sumo.coordination.base import straight_behind
 from aac_sumo.coordination.lfc import LfcCoordinator, LfcParams
 from aac_sumo.coordination.tracking import track
 from aac_sumo.coordination.proximity import ProximityParams, close_pairs, proximity_decision
 from aac_sumo.coordination.regions import Fleet
-from aac_sumo.coordination.safety import BRAKING_TIE, SafetyCheck, WalkerSpeeds
+from aac_sumo.coordination.safety import BRAKING_TIE, STRIP_OVERSHOOT, SafetyCheck, WalkerSpeeds
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.kernels import STANDING_GAP
 from aac_sumo.geometry import containing_ellipse, convex_hull, ellipse_signed_distance, rect_clearance_rows, rect_corners
@@ -633,6 +634,29 @@ def test_a_walkers_speed_of_late_keeps_a_car_from_being_let_go_on_one_fast_readi
     late = SafetyCheck(world, Fleet([HIGHWAY_CAR]), calm, np.zeros(1), np.zeros(1), walker_speeds=bounds)
     assert np.isfinite(late.walker_paths()[2][0, 0])
     assert late.safe_inputs(np.array([0]), wanted, 0.3)[0, 0] == pytest.approx(-1.77, abs=0.01)
+
+
+def test_a_cars_reference_stops_where_the_safety_stop_holds_it_before_a_walkers_path():
+    """The lane change's seed 0 at N = 15, at 22.9 s: veh14 stands 0.37 m before the path of a
+    walker who crossed its lane and walks away, 1 m beyond it; the safety stop holds it before
+    her path. Its anticipated reference ignored her (walking away) and its tracking law aimed at
+    1.5 m/s: it set off, and its next solve braked at 2.8 m/s^2. Held before her path
+    (``hold_before_strips``), its reference creeps up to there and no further, and the law
+    barely moves it."""
+    config = MpcConfig(dt=DT, pedestrian_reach=1.5, pedestrian_margin=1.0, comfort_accel=2.0, comfort_lat=2.0)
+    task = PathReference([[0.0, -4.85], [500.0, -4.85]], 10.0, stop_at_end=False)
+    lfc = LfcCoordinator(MpcPlanner(config), [task], params=LfcParams(safety_stop=True, fallback="tracking", lookahead=10.0))
+    lfc.anticipation, lfc.fleet = Anticipation(pedestrian_reach=1.5, pedestrian_margin=1.0), Fleet([HIGHWAY_CAR])
+    walker = Obstacle("p0", "pedestrian", np.array([238.76, -6.92]), np.array([0.0, -1.06]), -np.pi / 2, 0.3, 0.5)
+    world = WorldState(22.9, np.array([[233.80, -4.85, 0.0, 0.0]]), [HIGHWAY_CAR], [walker])
+    assert lfc.tracking_speed(world, 0, 1.0) == pytest.approx(1.5)
+    safety = lfc.safety_check(world)
+    room = safety.walker_paths()[2][0, 0]
+    assert room == pytest.approx(0.37, abs=0.01)
+    lfc.hold_before_strips(safety)
+    ref = lfc.reference(world, 0)
+    assert ref[-1, 0] - ref[0, 0] <= room + STRIP_OVERSHOOT and ref[-1, 3] < 0.1  # (the stages ramp in steps)
+    assert lfc.tracking_speed(world, 0, 1.0) < 0.1
 
 
 def test_a_car_standing_at_the_edge_of_a_walkers_path_waits_for_her_rather_than_creep_into_it():

@@ -170,12 +170,14 @@ class AacCoordinator(Coordinator):
         authority, reason = self.choose_authority(world, active, records)
         proximity_ms = (time.perf_counter() - start) * 1e3 if reason == "proximity" else 0.0
         others = np.flatnonzero(world.on_road & (np.arange(n) != authority))  # robots off the road stand still, far away
+        safety = self.safety_check(world) if self.params.safety_stop else None
+        if safety is not None and self.anticipation is not None:
+            self.hold_before_strips(safety)
         horizon_inputs = np.zeros((len(others), cfg.horizon + 2, 2))
         for row, j in enumerate(others):
             horizon_inputs[row], records[j].mode = self.intended_inputs(world, j, parked[j], cfg.horizon + 2)
 
         inputs[others] = horizon_inputs[:, 0]
-        safety = self.safety_check(world) if self.params.safety_stop else None
         if safety is not None:
             inputs = safety.safe_inputs(others, inputs, self.params.safety_margin)
         first = inputs[others]
@@ -203,7 +205,8 @@ class AacCoordinator(Coordinator):
             if decided.status != "solved" and self.params.fallback == "tracking":
                 inputs[authority] = track(world.robots[authority], world.states[authority], self.tasks[authority],
                                           self.params.lookahead, self.params.speed_gain, self.last_inputs[authority, 1], cfg.dt,
-                                          target_speed=self.tracking_speed(world, authority, self.params.speed_gain))
+                                          target_speed=self.tracking_speed(world, authority, self.params.speed_gain),
+                                          a_lat=self.tracking_lat())
                 self.used[authority] = len(self.plans[authority].inputs)  # no plan to follow: tracking until its next turn
                 decided.mode, margin = "tracking", self.params.safety_margin
             checked = safety.safe_inputs(np.array([authority]), inputs, margin)
@@ -249,7 +252,7 @@ class AacCoordinator(Coordinator):
             out[: len(rest)] = rest
             return out, "plan"
         out[0] = track(world.robots[j], world.states[j], task, self.params.lookahead, self.params.speed_gain, self.last_inputs[j, 1],
-                       self.planner.config.dt, target_speed=self.tracking_speed(world, j, self.params.speed_gain))
+                       self.planner.config.dt, target_speed=self.tracking_speed(world, j, self.params.speed_gain), a_lat=self.tracking_lat())
         return out, "tracking"
 
     def reference(self, world: WorldState, i: int) -> np.ndarray:

@@ -110,6 +110,7 @@ class Coordinator(ABC):
         self.fleet: Fleet | None = None
         self.held: list[dict] = [{} for _ in tasks]  # per robot, the walkers it yields to (anticipation.stop_points)
         self.walker_speeds = WalkerSpeeds()  # the walkers' speeds of late, for the safety stop
+        self.strips: np.ndarray | None = None  # this period's distances to walkers' paths the safety stop holds robots before
         cfg = planner.config
         self.speeds = SpeedHistory(cfg.prediction_window, cfg.dt) if cfg.prediction == "constant_acceleration" else None
 
@@ -123,6 +124,7 @@ class Coordinator(ABC):
             self.speeds = SpeedHistory(cfg.prediction_window, cfg.dt)
         if self.speeds is not None:
             world = self.speeds.annotate(world)
+        self.strips = None
         decision = self._decide(world)
         decision.compute_ms = (time.perf_counter() - start) * 1e3
         self.last_inputs = decision.inputs.copy()
@@ -156,8 +158,31 @@ class Coordinator(ABC):
         anticipate what lies ahead on its path when ``anticipation`` is set."""
         cfg = self.planner.config
         if self.anticipation is not None and not np.isnan(self.tasks[i].horizon(world.states[i], 0, cfg.dt)[0, 2]):
-            return anticipated_reference(world, i, self.tasks[i], cfg.horizon, cfg.dt, self.anticipation, self.held[i])
+            return anticipated_reference(world, i, self.tasks[i], cfg.horizon, cfg.dt, self.anticipation, self.held[i],
+                                         self.strips_ahead(i))
         return self.tasks[i].horizon(world.states[i], cfg.horizon, cfg.dt)
+
+    def tracking_lat(self) -> float | None:
+        """The lateral acceleration [m/s^2] the tracking law keeps within besides the vehicle's
+        limit: the planner's comfort envelope (``comfort_lat``) when set, as a plan's first try
+        (a car catching up with its path on the law steered at 2.06 m/s^2); else None."""
+        lat = self.planner.config.comfort_lat
+        return lat if lat > 0.0 else None
+
+    def hold_before_strips(self, safety: SafetyCheck) -> None:
+        """From now on this period, every robot's anticipated reference also stops where
+        ``safety`` holds it before a walker's path (:meth:`~aac_sumo.coordination.safety.SafetyCheck.walker_paths`):
+        the reference and the safety stop then agree. (A car standing 0.4 m before a walker's
+        path, her 1 m beyond its lane walking away, had a reference at its cruise speed: its
+        tracking law set off at 1.5 m/s^2 and its next solve braked at 2.8 m/s^2 for her.)"""
+        self.strips = safety.walker_paths()[2]
+
+    def strips_ahead(self, i: int) -> np.ndarray:
+        """Distances [m] ahead of robot ``i`` to the walkers' paths it is held before this period
+        (:meth:`hold_before_strips`; none before it is called)."""
+        if self.strips is None:
+            return np.zeros(0)
+        return self.strips[i][np.isfinite(self.strips[i])]
 
     def corridor(self, world: WorldState, i: int):
         """Robot ``i``'s corridor this period: its lateral band hugs its reference near a
@@ -187,7 +212,7 @@ class Coordinator(ABC):
             return None
         dt = self.planner.config.dt
         ahead = max(1, int(round(1.0 / (speed_gain * dt))))
-        v = anticipated_reference(world, i, self.tasks[i], ahead, dt, self.anticipation, self.held[i])[:, 3]
+        v = anticipated_reference(world, i, self.tasks[i], ahead, dt, self.anticipation, self.held[i], self.strips_ahead(i))[:, 3]
         ends = max(1, int(np.argmax(np.abs(v - v[-1]) < 1e-9)))  # the first stage at the ramp's last speed
         return float(v[0] + (v[ends] - v[0]) / (ends * dt * speed_gain))
 

@@ -243,8 +243,8 @@ class SafetyCheck:
         speed_w = np.hypot(velocity[:, 0], velocity[:, 1])
         bounds = np.array([self.walker_speeds.get(o.name, (w, w)) for o, w in zip(walkers, speed_w)]).reshape(-1, 2)
         slowest, fastest = np.minimum(bounds[:, 0], speed_w), np.maximum(bounds[:, 1], speed_w)
-        heading_towards = -np.sign(offset) * (left @ path.T)  # her walking direction's share towards the robot's band
-        towards = heading_towards * np.where(heading_towards > 0.0, fastest[None, :], slowest[None, :])
+        towards = -np.sign(offset) * (left @ velocity.T)  # at her speed now, scaled to her fastest or slowest of late
+        towards = towards * np.where(towards > 0.0, (fastest / speed_w)[None, :], (slowest / speed_w)[None, :])
         gap = np.abs(offset) - across_extent(size[None, :, 0], size[None, :, 1], size[None, :, 2] - rows[:, 4:5]) - 0.5 * rows[:, 3:4]
         closing = towards + reach
         reaches = np.where(closing > 0.0, np.maximum(gap - margin, 0.0) / np.maximum(closing, 1e-9), np.inf)
