@@ -24,7 +24,7 @@ from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.kernels import STANDING_GAP
 from aac_sumo.geometry import containing_ellipse, convex_hull, ellipse_signed_distance, rect_clearance_rows, rect_corners
 from aac_sumo.metrics import authority_jain
-from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
+from aac_sumo.mpc.planner import MpcConfig, MpcPlanner, Plan
 from aac_sumo.references import PathReference
 from aac_sumo.sim.sumo_frames import body_from_sumo, collision_cover, lane_change_sweep, velocity_from_sumo
 from aac_sumo.world import Obstacle, RobotSpec, WorldState
@@ -657,6 +657,26 @@ def test_a_cars_reference_stops_where_the_safety_stop_holds_it_before_a_walkers_
     ref = lfc.reference(world, 0)
     assert ref[-1, 0] - ref[0, 0] <= room + STRIP_OVERSHOOT and ref[-1, 3] < 0.1  # (the stages ramp in steps)
     assert lfc.tracking_speed(world, 0, 1.0) < 0.1
+
+
+def test_a_stored_plan_brakes_at_least_as_the_anticipation_says():
+    """AAC with stored plans (``commit = false``): a car at 1.7 m/s whose stored plan brakes at
+    1 m/s^2, 2.4 m behind a standing car (within the 2 m standstill gap plus what the comfortable
+    rate needs), brakes as its tracking law would (1.5 m/s^2, the anticipation's rate); with the
+    road ahead clear it keeps to its plan, which accelerates more gently than the law would."""
+    config = MpcConfig(dt=DT, comfort_accel=2.0, comfort_lat=2.0)
+    task = PathReference([[0.0, 0.0], [500.0, 0.0]], 10.0, stop_at_end=False)
+    aac = AacCoordinator(MpcPlanner(config), [task], params=AacParams(commit=False, safety_stop=True, fallback="tracking",
+                                                                      lookahead=10.0))
+    aac.anticipation, aac.fleet = Anticipation(), Fleet([HIGHWAY_CAR])
+    front = HIGHWAY_CAR.centre_offset + 0.5 * HIGHWAY_CAR.length
+    ahead = Obstacle("veh7", "scripted", np.array([front + 2.4 + 2.0, 0.0]), np.zeros(2), 0.0, 4.0, 1.8)
+    state = np.array([[0.0, 0.0, 0.0, 1.7]])
+    for obstacles, plan_accel, wanted in [([ahead], -1.0, -1.5), ([], 0.5, 0.5)]:
+        aac.plans[0] = Plan(np.zeros((6, 4)), np.tile([plan_accel, 0.0], (5, 1)), "solved", 0.0, "fatrop")
+        aac.used[0] = 1
+        inputs, mode = aac.intended_inputs(WorldState(0.0, state, [HIGHWAY_CAR], obstacles), 0, False, 7)
+        assert mode == "plan" and inputs[0, 0] == pytest.approx(wanted) and np.all(inputs[1:4, 0] == plan_accel)
 
 
 def test_a_car_standing_at_the_edge_of_a_walkers_path_waits_for_her_rather_than_creep_into_it():
