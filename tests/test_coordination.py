@@ -12,18 +12,19 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from aac_sumo.barriers import FcbfParams, barrier_value
+from aac_sumo.coordination.anticipation import Anticipation
 from aac_sumo.coordination.aac import AacCoordinator, AacParams
 from aac_sumo.coordination.base import straight_behind
 from aac_sumo.coordination.lfc import LfcCoordinator, LfcParams
 from aac_sumo.coordination.tracking import track
 from aac_sumo.coordination.proximity import ProximityParams, close_pairs, proximity_decision
 from aac_sumo.coordination.regions import Fleet
-from aac_sumo.coordination.safety import BRAKING_TIE, SafetyCheck
+from aac_sumo.coordination.safety import BRAKING_TIE, STRIP_OVERSHOOT, SafetyCheck, WalkerSpeeds
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.kernels import STANDING_GAP
 from aac_sumo.geometry import containing_ellipse, convex_hull, ellipse_signed_distance, rect_clearance_rows, rect_corners
 from aac_sumo.metrics import authority_jain
-from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
+from aac_sumo.mpc.planner import MpcConfig, MpcPlanner, Plan
 from aac_sumo.references import PathReference
 from aac_sumo.sim.sumo_frames import body_from_sumo, collision_cover, lane_change_sweep, velocity_from_sumo
 from aac_sumo.world import Obstacle, RobotSpec, WorldState
@@ -533,10 +534,12 @@ HIGHWAY_CAR = RobotSpec("car", 4.0, 1.8, BicycleModel(2.6, HIGHWAY_LIMITS))
 WALKERS = MpcConfig(dt=DT, pedestrian_reach=1.5, pedestrian_margin=1.0)
 
 
-def drive_past_walker(front: float, north: float, speed: float = 16.0, walk: float = 1.3, seconds: float = 12.0, accel: float = 0.0):
+def drive_past_walker(front: float, north: float, speed: float = 16.0, walk: float = 1.3, seconds: float = 12.0, accel: float = 0.0,
+                      config: MpcConfig = WALKERS):
     """A car (4 m x 1.8 m, a_comfort 3, a_min -6 m/s^2) in a lane along y = -1.75 m heading
     east at ``speed``, its front ``front`` metres before x = 0 [m], meant to drive on (input
-    ``accel`` [m/s^2] every period, up to 16 m/s), through the safety stop; a walker (0.3 m x 0.5 m) crossing at x = 0 from
+    ``accel`` [m/s^2] every period, up to 16 m/s), through the safety stop (the planner's
+    ``config``); a walker (0.3 m x 0.5 m) crossing at x = 0 from
     ``north`` [m] south at ``walk`` [m/s], as in the highway's seed 4. Returns the car's states
     (K+1, 4), the applied accelerations (K,) and the walker's centres (K+1, 2)."""
     state = np.array([-front - HIGHWAY_CAR.centre_offset - 2.0, -1.75, 0.0, speed])
@@ -546,7 +549,7 @@ def drive_past_walker(front: float, north: float, speed: float = 16.0, walk: flo
         person = Obstacle("p3", "pedestrian", walker, np.array([0.0, -walk]), -np.pi / 2, 0.3, 0.5)
         world = WorldState(k * DT, state[None, :], [HIGHWAY_CAR], [person])
         wanted = np.array([[min(accel, (16.0 - state[3]) / DT), 0.0]])
-        u = SafetyCheck(world, Fleet([HIGHWAY_CAR]), WALKERS, np.zeros(1), np.array([steer])).safe_inputs(np.array([0]), wanted, 0.3)[0]
+        u = SafetyCheck(world, Fleet([HIGHWAY_CAR]), config, np.zeros(1), np.array([steer])).safe_inputs(np.array([0]), wanted, 0.3)[0]
         steer = u[1]
         state = HIGHWAY_CAR.model.step(state, u, DT)
         walker = walker + DT * np.array([0.0, -walk])
@@ -591,6 +594,89 @@ def test_a_walker_stop_comes_as_late_as_comfort_allows_and_ends_once_she_is_gone
     assert states[:, 3].min() > 0.0  # it did not need to stand
     states, accels, _ = drive_past_walker(40.0, 20.0)
     assert np.all(accels == 0.0)
+
+
+def test_with_a_comfort_envelope_a_walker_stop_starts_early_enough_to_brake_calmly():
+    """The walker 80 m ahead again, with the planner's comfort envelope at 2 m/s^2
+    (``controller.comfort_accel``, as in the lane change): the car starts braking as soon as
+    braking at 2 m/s^2 is just enough, not at its 3 m/s^2 comfort deceleration, and stops no
+    harder than that (the aggressive-driving threshold); 40 m ahead, too late for that, it
+    still brakes just as hard as it needs (3.38 m/s^2)."""
+    calm = MpcConfig(dt=DT, pedestrian_reach=1.5, pedestrian_margin=1.0, comfort_accel=2.0)
+    states, accels, _ = drive_past_walker(80.0, 4.0, config=calm)
+    braking = np.flatnonzero(accels < 0.0)
+    assert braking.size and -accels.min() <= 2.0
+    assert -accels[braking[0]] == pytest.approx(2.0, abs=0.1)
+    _, late, _ = drive_past_walker(40.0, 4.25, config=calm)
+    assert -late.min() == pytest.approx(3.38, abs=0.005)
+
+
+def test_a_walkers_speed_of_late_keeps_a_car_from_being_let_go_on_one_fast_reading():
+    """The lane change's seed 4 at N = 10, at 26.7 s: veh11 at 1.4 m/s, its front 0.6 m before
+    the strip of a walker who has just crossed its lane southwards, 2.8 m beyond it, at 0.97 to
+    1.14 m/s step by step (SUMO). Walking away at 1.14 m/s (this step's reading) she could not
+    come back within the margin before the car leaves her strip, so it was let go (it applied
+    +1.5 m/s^2) and on the next step, at 1.0 m/s, it had to stop before her strip at 2.9 m/s^2.
+    With her slowest speed of the last second (:class:`WalkerSpeeds`) it goes on stopping for
+    her, braking calmly (1.8 m/s^2)."""
+    readings = [1.139, 1.064, 0.991, 1.104, 0.972, 0.992, 1.145]
+    car = np.array([[233.53, -4.752, 0.0, 1.405]])
+    calm = MpcConfig(dt=DT, pedestrian_reach=1.5, pedestrian_margin=1.0, comfort_accel=2.0)
+    speeds = WalkerSpeeds()
+    for k, v in enumerate(readings):
+        walker = Obstacle("p0", "pedestrian", np.array([238.76, -8.09 - 0.105 * k]), np.array([0.0, -v]), -np.pi / 2, 0.3, 0.5)
+        world = WorldState(26.1 + k * DT, car, [HIGHWAY_CAR], [walker])
+        bounds = speeds.update(world)
+    assert bounds["p0"] == (0.972, 1.145)
+    wanted = np.array([[1.5, 0.0]])
+    now = SafetyCheck(world, Fleet([HIGHWAY_CAR]), calm, np.zeros(1), np.zeros(1))
+    assert now.walker_paths()[3][0, 0] and now.safe_inputs(np.array([0]), wanted, 0.3)[0, 0] == 1.5  # let go
+    late = SafetyCheck(world, Fleet([HIGHWAY_CAR]), calm, np.zeros(1), np.zeros(1), walker_speeds=bounds)
+    assert np.isfinite(late.walker_paths()[2][0, 0])
+    assert late.safe_inputs(np.array([0]), wanted, 0.3)[0, 0] == pytest.approx(-1.77, abs=0.01)
+
+
+def test_a_cars_reference_stops_where_the_safety_stop_holds_it_before_a_walkers_path():
+    """The lane change's seed 0 at N = 15, at 22.9 s: veh14 stands 0.37 m before the path of a
+    walker who crossed its lane and walks away, 1 m beyond it; the safety stop holds it before
+    her path. Its anticipated reference ignored her (walking away) and its tracking law aimed at
+    1.5 m/s: it set off, and its next solve braked at 2.8 m/s^2. Held before her path
+    (``hold_before_strips``), its reference creeps up to there and no further, and the law
+    barely moves it."""
+    config = MpcConfig(dt=DT, pedestrian_reach=1.5, pedestrian_margin=1.0, comfort_accel=2.0, comfort_lat=2.0)
+    task = PathReference([[0.0, -4.85], [500.0, -4.85]], 10.0, stop_at_end=False)
+    lfc = LfcCoordinator(MpcPlanner(config), [task], params=LfcParams(safety_stop=True, fallback="tracking", lookahead=10.0))
+    lfc.anticipation, lfc.fleet = Anticipation(pedestrian_reach=1.5, pedestrian_margin=1.0), Fleet([HIGHWAY_CAR])
+    walker = Obstacle("p0", "pedestrian", np.array([238.76, -6.92]), np.array([0.0, -1.06]), -np.pi / 2, 0.3, 0.5)
+    world = WorldState(22.9, np.array([[233.80, -4.85, 0.0, 0.0]]), [HIGHWAY_CAR], [walker])
+    assert lfc.tracking_speed(world, 0, 1.0) == pytest.approx(1.5)
+    safety = lfc.safety_check(world)
+    room = safety.walker_paths()[2][0, 0]
+    assert room == pytest.approx(0.37, abs=0.01)
+    lfc.hold_before_strips(safety)
+    ref = lfc.reference(world, 0)
+    assert ref[-1, 0] - ref[0, 0] <= room + STRIP_OVERSHOOT and ref[-1, 3] < 0.1  # (the stages ramp in steps)
+    assert lfc.tracking_speed(world, 0, 1.0) < 0.1
+
+
+def test_a_stored_plan_brakes_at_least_as_the_anticipation_says():
+    """AAC with stored plans (``commit = false``): a car at 1.7 m/s whose stored plan brakes at
+    1 m/s^2, 2.4 m behind a standing car (within the 2 m standstill gap plus what the comfortable
+    rate needs), brakes as its tracking law would (1.5 m/s^2, the anticipation's rate); with the
+    road ahead clear it keeps to its plan, which accelerates more gently than the law would."""
+    config = MpcConfig(dt=DT, comfort_accel=2.0, comfort_lat=2.0)
+    task = PathReference([[0.0, 0.0], [500.0, 0.0]], 10.0, stop_at_end=False)
+    aac = AacCoordinator(MpcPlanner(config), [task], params=AacParams(commit=False, safety_stop=True, fallback="tracking",
+                                                                      lookahead=10.0))
+    aac.anticipation, aac.fleet = Anticipation(), Fleet([HIGHWAY_CAR])
+    front = HIGHWAY_CAR.centre_offset + 0.5 * HIGHWAY_CAR.length
+    ahead = Obstacle("veh7", "scripted", np.array([front + 2.4 + 2.0, 0.0]), np.zeros(2), 0.0, 4.0, 1.8)
+    state = np.array([[0.0, 0.0, 0.0, 1.7]])
+    for obstacles, plan_accel, wanted in [([ahead], -1.0, -1.5), ([], 0.5, 0.5)]:
+        aac.plans[0] = Plan(np.zeros((6, 4)), np.tile([plan_accel, 0.0], (5, 1)), "solved", 0.0, "fatrop")
+        aac.used[0] = 1
+        inputs, mode = aac.intended_inputs(WorldState(0.0, state, [HIGHWAY_CAR], obstacles), 0, False, 7)
+        assert mode == "plan" and inputs[0, 0] == pytest.approx(wanted) and np.all(inputs[1:4, 0] == plan_accel)
 
 
 def test_a_car_standing_at_the_edge_of_a_walkers_path_waits_for_her_rather_than_creep_into_it():

@@ -13,8 +13,10 @@ from hypothesis import strategies as st
 
 from aac_sumo import config, runner
 from aac_sumo.coordination.anticipation import Anticipation, anticipated_reference, speed_cap, stop_points
+from aac_sumo.coordination.lfc import LfcCoordinator
 from aac_sumo.coordination.tracking import track
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
+from aac_sumo.experiments.lane_geometry import blend, smooth_reference
 from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
 from aac_sumo.references import PathReference, curve_speeds, smooth_path
 from aac_sumo.world import Obstacle, RobotSpec, WorldState
@@ -124,6 +126,22 @@ def test_a_straight_polyline_stays_straight():
     np.testing.assert_allclose(curvature, 0.0, atol=1e-9)
 
 
+def test_a_lane_change_reference_runs_on_along_the_road_beyond_its_end():
+    """Two cars that changed into neighbouring lanes of a straight 420 m road (3.2 m apart),
+    from different starts: beyond the road's end each reference runs on along its lane, within
+    5 cm of its centre line 300 m on, and joins that run-on without a kink. (The spline's own
+    end direction was up to 0.02 rad off: two such cars closed in 1 m across in 60 m, and
+    their safety stop braked them at 3 m/s^2, the lane change's seed 2 at N = 10.)"""
+    lanes = [np.array([[0.0, y], [420.0, y]]) for y in (-8.0, -4.8, -1.6)]
+    for start, target, s0 in [(0, 1, 150.0), (1, 2, 10.0), (2, 1, 50.0), (1, 2, 150.0)]:
+        task = smooth_reference(blend(lanes[start], lanes[target], s0, s0 + 5.0, 40.0), 10.0, 2.0, 600.0)
+        beyond = task.points[:, 0] > 420.0
+        assert task.points[-1, 0] > 1000.0
+        np.testing.assert_allclose(task.points[beyond, 1], lanes[target][0, 1], atol=0.05)
+        turn = np.abs(np.diff(task.seg_heading[task.points[:-1, 0] > 380.0]))
+        assert turn.max() < 2e-3
+
+
 # --- anticipation -------------------------------------------------------------------------------
 
 
@@ -189,6 +207,33 @@ def test_a_car_closer_to_its_leader_than_the_gap_it_keeps_falls_back_at_the_comf
     far, task = one_lane_world(behind + 40.0, velocity=(8.0, 0.0), kind="scripted")
     far.states[0, 3] = 8.0
     assert np.all(anticipated_reference(far, 0, task, 10, DT, params)[:, 3] >= 8.0 - 1e-9)
+
+
+def test_the_tracking_law_slows_to_a_stop_at_the_references_rate():
+    """A car at 1.2 m/s whose stop row (behind a cone) lies 0.48 m ahead, just what the
+    comfortable 1.5 m/s^2 needs: its tracking law (gain 1/s) brakes at that rate, as its
+    reference does, and stands at the row. (Aiming at the reference's speed 1 s
+    ahead, 0 here, it braked at 1.2 m/s^2 and less, and crept on 1.2 m, into its gap: in the lane
+    change the MPC's region of the car ahead then braked it at 4 m/s^2.) At 8 m/s with the
+    row far ahead, its target stays the reference's speed 1 s ahead."""
+    params = Anticipation()
+    front = CAR.centre_offset + 0.5 * CAR.length
+    world, task = one_lane_world(0.48 + front + params.gap + 0.2)
+    coordinator = LfcCoordinator(MpcPlanner(MpcConfig(dt=DT)), [task])
+    coordinator.anticipation = params
+    state, accels = np.array([0.0, 0.0, 0.0, 1.2]), []
+    for k in range(30):
+        world = WorldState(k * DT, state[None, :], [CAR], world.obstacles)
+        u = track(CAR, state, task, 10.0, 1.0, 0.0, DT, target_speed=coordinator.tracking_speed(world, 0, 1.0))
+        accels.append(u[0])
+        state = CAR.model.step(state, u, DT)
+    assert accels[0] == pytest.approx(-params.decel, abs=1e-6)
+    assert min(accels) >= -params.decel - 1e-6 and state[3] == 0.0
+    assert state[0] == pytest.approx(0.48 + 0.5 * 1.2 * DT, abs=0.02)  # the model's Euler steps add v dt / 2
+    world, _ = one_lane_world(200.0)
+    world.states[0, 3] = 8.0
+    ahead = anticipated_reference(world, 0, task, 10, DT, params)[-1, 3]
+    assert coordinator.tracking_speed(world, 0, 1.0) == pytest.approx(ahead)
 
 
 def test_a_braking_car_ahead_counts_also_where_it_will_stop():

@@ -174,12 +174,14 @@ class AacCoordinator(Coordinator):
         holding = np.zeros(n, dtype=bool)
         holding[[i for i, _, _ in turns]] = True
         others = np.flatnonzero(world.on_road & ~holding)  # robots off the road stand still, far away
+        safety = self.safety_check(world) if self.params.safety_stop else None
+        if safety is not None and self.anticipation is not None:
+            self.hold_before_strips(safety)
         horizon_inputs = np.zeros((len(others), cfg.horizon + 2, 2))
         for row, j in enumerate(others):
             horizon_inputs[row], records[j].mode = self.intended_inputs(world, j, parked[j], cfg.horizon + 2)
 
         inputs[others] = horizon_inputs[:, 0]
-        safety = self.safety_check(world) if self.params.safety_stop else None
         if safety is not None:
             inputs = safety.safe_inputs(others, inputs, self.params.safety_margin)
         first = inputs[others]
@@ -245,7 +247,8 @@ class AacCoordinator(Coordinator):
         for row, i in enumerate(holders):
             if records[i].status != "solved" and self.params.fallback == "tracking":
                 inputs[i] = track(world.robots[i], world.states[i], self.tasks[i], self.params.lookahead, self.params.speed_gain,
-                                  self.last_inputs[i, 1], cfg.dt, target_speed=self.tracking_speed(world, i, self.params.speed_gain))
+                                  self.last_inputs[i, 1], cfg.dt, target_speed=self.tracking_speed(world, i, self.params.speed_gain),
+                                  a_lat=self.tracking_lat())
                 self.used[i] = len(self.plans[i].inputs)  # no plan to follow: tracking until its next turn
                 records[i].mode, margins[row] = "tracking", self.params.safety_margin
         stopped = 0
@@ -283,7 +286,12 @@ class AacCoordinator(Coordinator):
     def intended_inputs(self, world: WorldState, j: int, parked: bool, steps: int) -> tuple[np.ndarray, str]:
         """Robot ``j``'s inputs (steps, 2) as far as they are known: the rest of its stored
         plan, then zero (constant velocity); the tracking law now when the plan is used up;
-        braking when it is ``parked`` (:meth:`~aac_sumo.coordination.base.Coordinator.parked`)."""
+        braking when it is ``parked`` (:meth:`~aac_sumo.coordination.base.Coordinator.parked`).
+        With ``anticipation``, a stored plan's next acceleration is at most the tracking law's
+        (:meth:`~aac_sumo.coordination.base.Coordinator.tracking_speed`, braking at most at the
+        comfort deceleration): the plan was made up to a horizon ago, and a car driving it closed
+        up on a car that had stopped since (seed 0, N = 5: 2.4 m behind a standing car at 1.7
+        m/s, braking at 1 m/s^2), and its next solve braked at 2.8 m/s^2."""
         out = np.zeros((steps, 2))
         task = self.tasks[j]
         if parked:
@@ -292,9 +300,13 @@ class AacCoordinator(Coordinator):
         if plan is not None and self.used[j] < len(plan.inputs):
             rest = plan.inputs[self.used[j]:][:steps]
             out[: len(rest)] = rest
+            speed = self.tracking_speed(world, j, self.params.speed_gain)
+            if speed is not None:
+                lawful = self.params.speed_gain * (speed - world.states[j, 3])
+                out[0, 0] = min(out[0, 0], max(lawful, -world.robots[j].model.limits.comfort_decel))
             return out, "plan"
         out[0] = track(world.robots[j], world.states[j], task, self.params.lookahead, self.params.speed_gain, self.last_inputs[j, 1],
-                       self.planner.config.dt, target_speed=self.tracking_speed(world, j, self.params.speed_gain))
+                       self.planner.config.dt, target_speed=self.tracking_speed(world, j, self.params.speed_gain), a_lat=self.tracking_lat())
         return out, "tracking"
 
     def reference(self, world: WorldState, i: int) -> np.ndarray:

@@ -196,19 +196,25 @@ def speed_cap(stops: np.ndarray, s, decel: float) -> np.ndarray:
 
 
 def anticipated_reference(world: WorldState, i: int, task: PathReference, steps: int, dt: float, params: Anticipation,
-                          held: dict | None = None) -> np.ndarray:
+                          held: dict | None = None, stop_ahead=()) -> np.ndarray:
     """Robot ``i``'s reference (steps+1, 4) along ``task``'s path: its speeds start at the
     robot's speed and change by at most ``accel`` / ``decel`` [m/s^2] from stage to stage
     towards the path's speed, capped by :func:`speed_cap` of :func:`stop_points`; with ``brake``
     above ``decel``, a stop it can no longer meet at ``decel`` (seen late) it meets braking
     harder, as hard as it needs up to ``brake`` and the robot's comfort deceleration
     (``robot.a_comfort``). Its positions follow the speeds.
-    ``held``: the walkers it yields to, as in :func:`stop_points`."""
+    ``held``: the walkers it yields to, as in :func:`stop_points`. ``stop_ahead`` [m]: more
+    places to stop at, as distances of the rear axle along the path from where it is (before a
+    walker's path, where the safety stop holds the robot)."""
     state = world.states[i]
+    s0 = task.project(state[:2])[0]
     stops = np.ascontiguousarray(stop_points(world, i, task, params, held), dtype=float).reshape(-1, 3)
+    ahead = np.asarray(stop_ahead, dtype=float).reshape(-1)
+    if ahead.size:
+        stops = np.vstack([stops, np.column_stack([s0 + ahead, np.zeros((ahead.size, 2))])])
     limits = task.limits if task.limits is not None else np.zeros(0)
     brake = max(params.decel, min(params.brake, world.robots[i].model.limits.comfort_decel))
-    s, v = ramped_speeds(task.project(state[:2])[0], float(state[3]), steps, dt, params.decel, params.accel, brake, stops, task.speed,
+    s, v = ramped_speeds(s0, float(state[3]), steps, dt, params.decel, params.accel, brake, stops, task.speed,
                          task.s, limits, task.stop_at_end, task.decel, task.length)  # speed_cap, stage by stage, compiled
     poses = task.pose_at(s)
     heading = state[2] + wrap_angle(poses[:, 2] - state[2])

@@ -13,7 +13,7 @@ import numpy as np
 from aac_sumo.barriers import ObstaclePrediction, RegionTrack
 from aac_sumo.coordination.anticipation import Anticipation, anticipated_reference, near_pedestrian
 from aac_sumo.coordination.regions import Fleet
-from aac_sumo.coordination.safety import SafetyCheck
+from aac_sumo.coordination.safety import SafetyCheck, WalkerSpeeds
 from aac_sumo.mpc.planner import MpcPlanner, Plan
 from aac_sumo.prediction import SpeedHistory
 from aac_sumo.references import LateralBand, PathReference
@@ -109,6 +109,8 @@ class Coordinator(ABC):
         self.last_inputs = np.zeros((len(tasks), 2))
         self.fleet: Fleet | None = None
         self.held: list[dict] = [{} for _ in tasks]  # per robot, the walkers it yields to (anticipation.stop_points)
+        self.walker_speeds = WalkerSpeeds()  # the walkers' speeds of late, for the safety stop
+        self.strips: np.ndarray | None = None  # this period's distances to walkers' paths the safety stop holds robots before
         cfg = planner.config
         self.speeds = SpeedHistory(cfg.prediction_window, cfg.dt) if cfg.prediction == "constant_acceleration" else None
 
@@ -122,6 +124,7 @@ class Coordinator(ABC):
             self.speeds = SpeedHistory(cfg.prediction_window, cfg.dt)
         if self.speeds is not None:
             world = self.speeds.annotate(world)
+        self.strips = None
         decision = self._decide(world)
         decision.compute_ms = (time.perf_counter() - start) * 1e3
         self.last_inputs = decision.inputs.copy()
@@ -155,8 +158,31 @@ class Coordinator(ABC):
         anticipate what lies ahead on its path when ``anticipation`` is set."""
         cfg = self.planner.config
         if self.anticipation is not None and not np.isnan(self.tasks[i].horizon(world.states[i], 0, cfg.dt)[0, 2]):
-            return anticipated_reference(world, i, self.tasks[i], cfg.horizon, cfg.dt, self.anticipation, self.held[i])
+            return anticipated_reference(world, i, self.tasks[i], cfg.horizon, cfg.dt, self.anticipation, self.held[i],
+                                         self.strips_ahead(i))
         return self.tasks[i].horizon(world.states[i], cfg.horizon, cfg.dt)
+
+    def tracking_lat(self) -> float | None:
+        """The lateral acceleration [m/s^2] the tracking law keeps within besides the vehicle's
+        limit: the planner's comfort envelope (``comfort_lat``) when set, as a plan's first try
+        (a car catching up with its path on the law steered at 2.06 m/s^2); else None."""
+        lat = self.planner.config.comfort_lat
+        return lat if lat > 0.0 else None
+
+    def hold_before_strips(self, safety: SafetyCheck) -> None:
+        """From now on this period, every robot's anticipated reference also stops where
+        ``safety`` holds it before a walker's path (:meth:`~aac_sumo.coordination.safety.SafetyCheck.walker_paths`):
+        the reference and the safety stop then agree. (A car standing 0.4 m before a walker's
+        path, her 1 m beyond its lane walking away, had a reference at its cruise speed: its
+        tracking law set off at 1.5 m/s^2 and its next solve braked at 2.8 m/s^2 for her.)"""
+        self.strips = safety.walker_paths()[2]
+
+    def strips_ahead(self, i: int) -> np.ndarray:
+        """Distances [m] ahead of robot ``i`` to the walkers' paths it is held before this period
+        (:meth:`hold_before_strips`; none before it is called)."""
+        if self.strips is None:
+            return np.zeros(0)
+        return self.strips[i][np.isfinite(self.strips[i])]
 
     def corridor(self, world: WorldState, i: int):
         """Robot ``i``'s corridor this period: its lateral band hugs its reference near a
@@ -176,21 +202,27 @@ class Coordinator(ABC):
 
     def tracking_speed(self, world: WorldState, i: int, speed_gain: float) -> float | None:
         """The speed [m/s] robot ``i``'s tracking law (gain ``speed_gain`` [1/s]) drives towards
-        when ``anticipation`` is set: its anticipated reference speed ``1 / speed_gain`` seconds
-        ahead, so that the law accelerates and brakes as the reference does; else None (its
-        task's speed)."""
+        when ``anticipation`` is set, so that the law accelerates and brakes as the reference
+        does: its anticipated reference speed ``1 / speed_gain`` seconds ahead, or, where the
+        reference's ramp ends sooner (a stop, or the speed it settles at), the speed that gives
+        the ramp's rate up to there; else None (its task's speed). (Aiming at the speed 1 s ahead,
+        a car below 1.5 m/s that had to stop braked at only its speed per second and crept on a
+        metre: into its gap to a standing car, whose region in the MPC then braked it at 4 m/s^2.)"""
         if self.anticipation is None:
             return None
         dt = self.planner.config.dt
         ahead = max(1, int(round(1.0 / (speed_gain * dt))))
-        return float(anticipated_reference(world, i, self.tasks[i], ahead, dt, self.anticipation, self.held[i])[-1, 3])
+        v = anticipated_reference(world, i, self.tasks[i], ahead, dt, self.anticipation, self.held[i], self.strips_ahead(i))[:, 3]
+        ends = max(1, int(np.argmax(np.abs(v - v[-1]) < 1e-9)))  # the first stage at the ramp's last speed
+        return float(v[0] + (v[ends] - v[0]) / (ends * dt * speed_gain))
 
     def safety_check(self, world: WorldState) -> SafetyCheck:
         """The safety stop of this period: robots brake turning towards their reference's heading
-        where they are (a car brakes along its lane), as the planner's fallback does."""
+        where they are (a car brakes along its lane), as the planner's fallback does; the
+        walkers' speeds of late bound theirs (:class:`~aac_sumo.coordination.safety.WalkerSpeeds`)."""
         headings = np.array([task.heading_at(state[:2]) for task, state in zip(self.tasks, world.states)])
         return SafetyCheck(world, self.fleet, self.planner.config, headings, self.last_inputs[:, 1],
-                           followers=self.leaves_followers)
+                           followers=self.leaves_followers, walker_speeds=self.walker_speeds.update(world))
 
     def hold_inputs(self, world: WorldState, i: int, steps: int) -> np.ndarray:
         """Inputs (steps, 2) that bring robot ``i`` to a stop where it is, at its comfort

@@ -61,6 +61,9 @@ class LfcCoordinator(Coordinator):
         parked = self.parked(world, self.finished(world))
         inputs = np.zeros((n, 2))
         records: list[RobotDecision] = [RobotDecision(False) for _ in range(n)]
+        safety = self.safety_check(world) if self.params.safety_stop else None
+        if safety is not None and self.anticipation is not None:
+            self.hold_before_strips(safety)
         # Everyone's known motion this period: constant velocity until a robot has planned.
         motion = self.fleet.rollout(np.arange(n), world.states, np.zeros((n, cfg.horizon + 1, 2)), cfg.dt)
         for i in range(n):
@@ -77,7 +80,8 @@ class LfcCoordinator(Coordinator):
             plan = self.plans[i]
             if plan.status != "solved" and self.params.fallback == "tracking":
                 inputs[i] = track(world.robots[i], world.states[i], self.tasks[i], self.params.lookahead, self.params.speed_gain,
-                                  self.last_inputs[i, 1], cfg.dt, target_speed=self.tracking_speed(world, i, self.params.speed_gain))
+                                  self.last_inputs[i, 1], cfg.dt, target_speed=self.tracking_speed(world, i, self.params.speed_gain),
+                                  a_lat=self.tracking_lat())
                 records[i].mode = "tracking"
                 once = np.zeros((1, cfg.horizon + 1, 2))
                 once[0, 0] = inputs[i]
@@ -89,7 +93,7 @@ class LfcCoordinator(Coordinator):
         stopped = 0
         if self.params.safety_stop:
             moving = np.flatnonzero([r.mode in ("mpc", "tracking") for r in records])
-            checked = self.safety_check(world).safe_inputs(moving, inputs, self.params.safety_margin)
+            checked = safety.safe_inputs(moving, inputs, self.params.safety_margin)
             for i in moving[np.any(checked[moving] != inputs[moving], axis=1)]:
                 records[i].mode = "safety_stop"
                 stopped += 1

@@ -34,6 +34,8 @@ comfort deceleration, came to stand 0.4 m from her path.
 
 from __future__ import annotations
 
+from collections import deque
+
 import numpy as np
 
 from aac_sumo.coordination.anticipation import across_extent
@@ -56,6 +58,36 @@ WALKER_STILL = 0.1
 #: How far [m] into a walker's strip a robot may be (the last braking step's overshoot) and still
 #: be held at its edge rather than drive on into her path.
 STRIP_OVERSHOOT = 0.05
+#: How long [s] the check remembers a walker's speeds (:class:`WalkerSpeeds`).
+WALKER_MEMORY = 1.0
+
+
+class WalkerSpeeds:
+    """Every walker's slowest and fastest speed [m/s] over the last ``WALKER_MEMORY`` seconds,
+    by name. SUMO's walkers change their speed from step to step (1.0, 1.14, 1.0 m/s); the
+    check takes the slowest for one walking away from a robot's path and the fastest for one
+    walking towards it. (On a single reading of 1.14 m/s, a car at the lane change's zebra was
+    let go towards a walker's path, and on the next, 1.0 m/s, it had to stop before it at 2.9
+    m/s^2.) A memory restarts when time goes backwards."""
+
+    def __init__(self):
+        self.seen: dict[str, deque] = {}
+
+    def update(self, world: WorldState) -> dict[str, tuple[float, float]]:
+        """Record ``world``'s walkers and return their speed bounds, by name."""
+        out = {}
+        for o in world.obstacles:
+            if o.kind != "pedestrian":
+                continue
+            history = self.seen.setdefault(o.name, deque())
+            if history and world.t < history[-1][0]:
+                history.clear()
+            history.append((world.t, float(np.hypot(*o.velocity))))
+            while world.t - history[0][0] > WALKER_MEMORY + 1e-9:
+                history.popleft()
+            speeds = [v for _, v in history]
+            out[o.name] = (min(speeds), max(speeds))
+        return out
 
 
 def following(world: WorldState) -> np.ndarray:
@@ -90,11 +122,14 @@ class SafetyCheck:
     (n,) [rad], from the steering ``previous_steer`` (n,) [rad] they applied the period before.
     With ``followers``, each robot leaves its uncontrolled followers out (:func:`following`);
     each always leaves out the walkers it stops before or passes (:meth:`walker_paths`).
-    ``ignored`` (n, 2 n + obstacles) says which targets each leaves out."""
+    ``ignored`` (n, 2 n + obstacles) says which targets each leaves out. ``walker_speeds``
+    (name -> slowest and fastest speed [m/s] of late, :class:`WalkerSpeeds`) bound the walkers'
+    speeds in :meth:`walker_paths`; without, each walks at her speed now."""
 
     def __init__(self, world: WorldState, fleet: Fleet, config: MpcConfig, headings: np.ndarray, previous_steer: np.ndarray,
-                 followers: bool = False):
+                 followers: bool = False, walker_speeds: dict[str, tuple[float, float]] | None = None):
         self.world, self.fleet, self.config, self.headings = world, fleet, config, np.asarray(headings, dtype=float)
+        self.walker_speeds = walker_speeds or {}
         self.previous_steer = np.asarray(previous_steer, dtype=float)
         self.ignored = following(world) if followers else np.zeros((len(world.robots), 2 * len(world.robots) + len(world.obstacles)), dtype=bool)
         self._walkers = None
@@ -162,7 +197,9 @@ class SafetyCheck:
         at her speed (too late to stop before her path, or able to pass even if she started
         towards it at her reach): she is left out too (braking, it would stop in her way). A
         robot goes along the heading its braking course turns to (its lane's: a car in a lane
-        change towards the footpath is not heading for a walker on it)."""
+        change towards the footpath is not heading for a walker on it). Her speed is bounded by
+        ``walker_speeds``: the slowest of late where she walks away from the robot's band (she
+        comes back the sooner), the fastest where she walks towards it."""
         if self._walkers is not None:
             return self._walkers
         world, fleet, cfg = self.world, self.fleet, self.config
@@ -203,7 +240,11 @@ class SafetyCheck:
         leave = np.where(through, out_of / np.maximum(v, a_go[:, 0] * dt)[:, None], 0.0)
         # her way to the band the robot sweeps: how far across it, how fast towards it
         offset = np.einsum("rmj,rj->rm", centre[None, :, :] - rows[:, None, :2], left)
-        towards = -np.sign(offset) * (left @ velocity.T)
+        speed_w = np.hypot(velocity[:, 0], velocity[:, 1])
+        bounds = np.array([self.walker_speeds.get(o.name, (w, w)) for o, w in zip(walkers, speed_w)]).reshape(-1, 2)
+        slowest, fastest = np.minimum(bounds[:, 0], speed_w), np.maximum(bounds[:, 1], speed_w)
+        towards = -np.sign(offset) * (left @ velocity.T)  # at her speed now, scaled to her fastest or slowest of late
+        towards = towards * np.where(towards > 0.0, (fastest / speed_w)[None, :], (slowest / speed_w)[None, :])
         gap = np.abs(offset) - across_extent(size[None, :, 0], size[None, :, 1], size[None, :, 2] - rows[:, 4:5]) - 0.5 * rows[:, 3:4]
         closing = towards + reach
         reaches = np.where(closing > 0.0, np.maximum(gap - margin, 0.0) / np.maximum(closing, 1e-9), np.inf)
@@ -212,8 +253,7 @@ class SafetyCheck:
         along_path = ahead @ path.T  # (r, m)
         behind = np.einsum("rkj,mj->rmk", corners, path).max(axis=2) - (centre * path).sum(axis=1)[None, :] + np.maximum(
             into * along_path, out_of * along_path)
-        speed_w = np.hypot(velocity[:, 0], velocity[:, 1])
-        ahead_of_her = behind >= -half[None, :] - np.maximum(reach - speed_w, 0.0)[None, :] * leave
+        ahead_of_her = behind >= -half[None, :] - np.maximum(reach - slowest, 0.0)[None, :] * leave
         blocked = through & ahead_of_her & (leave >= reaches)
         strongest = -fleet.a_min[moving, None]
         room = into - 0.5 * v[:, None] * dt - 0.125 * strongest * dt * dt  # Euler steps overshoot up to a dt^2 / 8
@@ -233,8 +273,13 @@ class SafetyCheck:
         """The deceleration [m/s^2] (n,; NaN: none) with which each robot of ``check`` brakes now
         to stop before a walker's path (:meth:`walker_paths`): just as hard as that needs, and
         only once one more period of its input ``inputs`` (n, 2) and braking at its comfort
-        deceleration would no longer stop it there (comfort first). A standing robot gets 0: it
-        stays where it is."""
+        deceleration (at most the planner's ``comfort_accel`` when set: a calm driver's braking)
+        would no longer stop it there (comfort first; waiting for the full comfort deceleration, a
+        car that had set off near the zebra then braked at 2.2-3 m/s^2 for a walker, where
+        starting one period or two earlier stops it calmly), with the room that
+        :meth:`walker_paths` leaves for the last braking step's overshoot (without it, a car at
+        1 m/s a quarter metre from her strip was let on and then needed 2.05 m/s^2). A standing
+        robot gets 0: it stays where it is."""
         out = np.full(len(self.world.robots), np.nan)
         _, need, enter, _ = self.walker_paths()
         check = np.asarray(check, dtype=np.int64)
@@ -242,7 +287,11 @@ class SafetyCheck:
             return out
         dt, v = self.config.dt, self.world.states[check, 3:4]
         v1 = np.maximum(v + np.asarray(inputs, dtype=float)[check, 0:1] * dt, 0.0)
-        late = np.isfinite(enter[check]) & (v1**2 / (2.0 * self.fleet.comfort[check, None]) + 0.5 * v1 * dt > enter[check] - v * dt)
+        calm = self.fleet.comfort[check, None]
+        if self.config.comfort_accel > 0.0:
+            calm = np.minimum(calm, self.config.comfort_accel)
+        overshoot = 0.125 * -self.fleet.a_min[check, None] * dt * dt  # as walker_paths allows for the Euler steps
+        late = np.isfinite(enter[check]) & (v1**2 / (2.0 * calm) + 0.5 * v1 * dt + overshoot > enter[check] - v * dt)
         out[check] = np.where(late.any(axis=1), np.where(late, need[check], -np.inf).max(axis=1), np.nan)
         return out
 

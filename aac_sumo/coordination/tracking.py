@@ -11,25 +11,29 @@ from aac_sumo.world import RobotSpec
 
 
 def track(robot: RobotSpec, state: np.ndarray, task: PathReference, lookahead: float, speed_gain: float,
-          previous_steer: float, dt: float, offset: float = 0.0, target_speed: float | None = None) -> np.ndarray:
+          previous_steer: float, dt: float, offset: float = 0.0, target_speed: float | None = None,
+          a_lat: float | None = None) -> np.ndarray:
     """Input ``[accel, steer]`` steering the rear axle toward the path point ``lookahead`` [m]
     ahead of its projection (moved ``offset`` [m] to the right of the path) and driving the
     speed toward the reference speed there (or ``target_speed`` [m/s] when given); within the task's ``approach`` distance of its
     goal, toward the goal at the speed that stops there. It brakes at most at the robot's
     comfort deceleration, and its steering keeps the vehicle limits (angle, lateral
     acceleration, and rate from ``previous_steer`` [rad], the steering applied the period ``dt``
-    [s] before)."""
-    return track_course(robot, state, task, lookahead, speed_gain, previous_steer, dt, 1, offset, target_speed)[0]
+    [s] before), and its lateral acceleration keeps within ``a_lat`` [m/s^2] too when given (a
+    comfort limit)."""
+    return track_course(robot, state, task, lookahead, speed_gain, previous_steer, dt, 1, offset, target_speed, a_lat)[0]
 
 
 def track_course(robot: RobotSpec, state: np.ndarray, task: PathReference, lookahead: float, speed_gain: float,
-                 previous_steer: float, dt: float, steps: int, offset: float = 0.0, target_speed: float | None = None) -> np.ndarray:
+                 previous_steer: float, dt: float, steps: int, offset: float = 0.0, target_speed: float | None = None,
+                 a_lat: float | None = None) -> np.ndarray:
     """Inputs (steps, 2) of :func:`track` applied for ``steps`` periods from ``state`` under the
     robot's model (compiled: :func:`~aac_sumo.kernels.tracking_course`)."""
     lim, model = robot.model.limits, robot.model
+    lateral = lim.a_lat_max if a_lat is None else min(lim.a_lat_max, a_lat)
     x, y, h, v = (float(c) for c in state[:4])
     return tracking_course(x, y, h, v, int(steps), float(dt), float(model.wheelbase), float(lim.a_min), float(lim.a_max),
-                           float(lim.steer_max), float(lim.v_min), float(lim.v_max), float(lim.a_lat_max), float(lim.steer_rate_max),
+                           float(lim.steer_max), float(lim.v_min), float(lim.v_max), float(lateral), float(lim.steer_rate_max),
                            float(lim.comfort_decel), float(previous_steer), *task.arrays(), float(task.speed), float(task.decel),
                            bool(task.stop_at_end), float(task.approach), float(lookahead), float(speed_gain), float(offset),
                            np.nan if target_speed is None else float(target_speed))

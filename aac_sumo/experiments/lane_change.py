@@ -208,8 +208,10 @@ def build_lane_change(scenario: Scenario) -> Setup:
         centre_lines = [PathReference(line, 1.0, stop_at_end=False) for line in rd.lanes]
         cone_lane = _cone_lane(rd, centre_lines, cones)
         targets = [target_lane(int(a), cone_lane, lanes) for a in start_lane]
+        run_on = lc["speed"] * scenario["scenario.duration"]  # beyond the road's end, along it: farther than any car gets
         tasks = [smooth_reference(lane_change_path(rd, int(a), b, s0[k], lc["change_start"], lc["change_length"]), lc["speed"],
-                                  min(lc["curve_lat_accel"], scenario["robot.a_lat_max"])) for k, (a, b) in enumerate(zip(start_lane, targets))]
+                                  min(lc["curve_lat_accel"], scenario["robot.a_lat_max"]), run_on)
+                 for k, (a, b) in enumerate(zip(start_lane, targets))]
         finish_s = []
         for k, b in enumerate(targets):
             line = centre_lines[b]

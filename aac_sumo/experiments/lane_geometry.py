@@ -16,6 +16,7 @@ CURVE_DECEL = 1.5  # a reference slows down for a curve at most this hard [m/s^2
 ROAD_MARGIN = 0.1  # the rear axle keeps half a car width plus this from the road edges [m]
 MIN_LANES = 2  # a lane change needs a second lane [lanes]
 BAND_SETTLE = 10.0  # beyond the end of its lane change a vehicle's band narrows to its target lane over this [m]
+SMOOTH_PAD = 20.0  # a reference's spline is fitted with this much of its straight run-on, so that it meets it without a kink [m]
 
 
 def smoothstep(x) -> np.ndarray:
@@ -49,11 +50,27 @@ def blend(line_a: np.ndarray, line_b: np.ndarray, s_from: float, s_begin: float,
     return (1.0 - w) * pa + w * pb
 
 
-def smooth_reference(waypoints: np.ndarray, speed: float, a_lat: float) -> PathReference:
+def smooth_reference(waypoints: np.ndarray, speed: float, a_lat: float, beyond: float = 0.0) -> PathReference:
     """The reference along a curvature-continuous version of ``waypoints`` (M, 2) [m]
     (:func:`~aac_sumo.references.smooth_path`) at ``speed`` [m/s], slower where its curvature
-    would need more than ``a_lat`` [m/s^2] of lateral acceleration."""
-    points, curvature = smooth_path(waypoints, SMOOTH_SPACING)
+    would need more than ``a_lat`` [m/s^2] of lateral acceleration. With ``beyond`` [m] it runs
+    on straight for that far along the waypoints' last direction (the road's, at its end): the
+    spline's own end direction, which a path beyond its end follows, was up to 0.02 rad off
+    (its free end), and two cars driving on in neighbouring lanes closed in 1 m across in 60 m.
+    The spline is then fitted with ``SMOOTH_PAD`` metres of that straight line, and meets it
+    without a kink."""
+    pts = np.asarray(waypoints, dtype=float)
+    if beyond <= 0.0:
+        points, curvature = smooth_path(pts, SMOOTH_SPACING)
+        return PathReference(points, speed, stop_at_end=False, limits=curve_speeds(curvature, SMOOTH_SPACING, speed, a_lat, CURVE_DECEL))
+    direction = (pts[-1] - pts[-2]) / np.hypot(*(pts[-1] - pts[-2]))
+    length = float(np.hypot(*np.diff(pts, axis=0).T).sum())
+    pad = np.arange(SAMPLE_STEP, SMOOTH_PAD + 1e-9, SAMPLE_STEP)
+    points, curvature = smooth_path(np.vstack([pts, pts[-1] + pad[:, None] * direction]), SMOOTH_SPACING)
+    keep = np.r_[0.0, np.cumsum(np.hypot(*np.diff(points, axis=0).T))] < length
+    tail = np.arange(SMOOTH_SPACING, beyond + 1e-9, SMOOTH_SPACING)
+    points = np.vstack([points[keep], points[keep][-1] + tail[:, None] * direction])
+    curvature = np.r_[curvature[keep], np.zeros(len(tail))]
     return PathReference(points, speed, stop_at_end=False, limits=curve_speeds(curvature, SMOOTH_SPACING, speed, a_lat, CURVE_DECEL))
 
 
