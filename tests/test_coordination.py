@@ -701,13 +701,15 @@ def test_a_car_standing_at_the_edge_of_a_walkers_path_waits_for_her_rather_than_
 @settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 100_000))
 @example(seed=675)  # a robot at 0.02 m/s answers a walker with 1.2e-6 m/s^2: 180,000 periods to stand
+@example(seed=672)  # a robot at 15 m/s that even its strongest braking stops 1 cm inside her strip
 def test_braking_as_a_walker_stop_says_stands_before_her_strip_and_she_is_left_out_of_the_check(seed):
     """On random worlds (cars at random headings and speeds, walkers at random velocities, some
     standing): a robot answers a walker only when she walks, her strip lies ahead of it, and it
     cannot pass her (driving on, its rear leaves her strip no sooner than she could come within
     the margin of its path at her speed towards it plus the reach); braking from now at the
-    deceleration it answers her with, it comes to stand with its footprint outside her strip,
-    within its strongest braking; exactly those walkers are left out of its check."""
+    deceleration it answers her with, at most its strongest braking, it comes to stand with its
+    footprint outside her strip unless even that braking is too late; exactly those walkers are
+    left out of its check."""
     rng = np.random.default_rng(seed)
     n, m = 4, 3
     robots = [HIGHWAY_CAR] * n
@@ -743,7 +745,8 @@ def test_braking_as_a_walker_stop_says_stands_before_her_strip_and_she_is_left_o
         # a straight course: every corner's side of her strip changes linearly, so its ends bound it
         sides = np.array([(rect_corners(WorldState(0.0, s[None, :], [HIGHWAY_CAR]).robot_footprints())[0] - w.centre) @ across
                           for s in (states[i], end)])
-        assert np.all(sides.min(axis=1) > half - 1e-6) or np.all(sides.max(axis=1) < -half + 1e-6)  # never in her strip
+        if a < 6.0 - 1e-9:  # at its strongest braking (6 m/s^2) it may be too late: it brakes as hard as it can
+            assert np.all(sides.min(axis=1) > half - 1e-6) or np.all(sides.max(axis=1) < -half + 1e-6)  # never in her strip
 
 
 #: Seed 1 of the highway at 218.4-219.4 s: SUMO's bg.16 (4.5 m x 1.8 m) pulls out of the
