@@ -8,7 +8,7 @@ Two ways of running it:
   construction). One authority per period among all robots (``authorities = 1``), or per
   cluster of robots that can meet within the horizon (``"clusters"``); close pairs, the
   proximity decision and round robin pick it within its group, with the conflict-resolution
-  rules of :meth:`AacCoordinator.choose_committed` and :mod:`~aac_sumo.coordination.make_room`.
+  rules of :meth:`AacCoordinator.choose_in_group` and :mod:`~aac_sumo.coordination.make_room`.
 * **The paper's stored plans** (``commit = false``), described below.
 
 With ``commit = false``, each control period exactly one active robot holds authority and
@@ -210,13 +210,13 @@ class AacCoordinator(Coordinator):
         """This period's authorities with stored plans: ``(robot, why, its group's members)``.
         One authority (the paper): :meth:`choose_authority` among all active robots. Several
         (``authorities`` k or ``"clusters"``): one per group of :meth:`groups`, chosen within it
-        as :meth:`choose_committed` does."""
+        by :meth:`choose_in_group`."""
         if self.params.authorities == 1:
             authority, reason = self.choose_authority(world, active, records)
             return [(authority, reason, np.arange(len(world.robots)))]
         out = []
         for members, candidates in self.groups(world, parked):
-            i, reason = self.choose_committed(world, members, candidates, records, self.period)
+            i, reason = self.choose_in_group(world, members, candidates, records, self.period)
             out.append((i, reason, members))
         self.period += 1
         return out
@@ -400,7 +400,7 @@ class AacCoordinator(Coordinator):
                                         np.maximum(self.extra_shift - SHIFT_DECAY * cfg.dt, 0.0))
         holders, reasons, cuts, kept = [], [], 0, 0
         for members, candidates in self.groups(world, parked):
-            i, reason = self.choose_committed(world, members, candidates, records, period)
+            i, reason = self.choose_in_group(world, members, candidates, records, period)
             others = members[members != i]
             decided, cut, keep = self.plan_committed(world, i, others, reason, period, statics)
             decided.score, decided.progress = records[i].score, records[i].progress
@@ -453,7 +453,7 @@ class AacCoordinator(Coordinator):
             out.sort(key=lambda gc: gc[0][0])
         return out
 
-    def choose_committed(self, world: WorldState, members: np.ndarray, candidates: np.ndarray, records: list[RobotDecision],
+    def choose_in_group(self, world: WorldState, members: np.ndarray, candidates: np.ndarray, records: list[RobotDecision],
                          period: int) -> tuple[int, str]:
         """The authority among ``candidates`` and why: with close pairs among them, the proximity
         decision (blockers: the group's ``members`` and the obstacles; its samples seeded by the
