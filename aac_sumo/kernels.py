@@ -9,7 +9,7 @@ and a test pins it to that definition: :func:`rollouts` and :func:`braking_cours
 :func:`stop_flags` and :func:`gentlest_stops` are the safety stop's rule and its rounds of
 gentler braking, :func:`grow_trees`, :func:`closest_on_polyline`, :func:`polyline_offsets` and
 :func:`times_to_collision` the loops of the proximity decision, path projection, the lateral
-band's offsets and the time to collision, :func:`tracking_course` the tracking law's rollout
+band's offsets and the time to collision, :func:`stop_rows` the anticipation's stop rows (:func:`aac_sumo.coordination.anticipation.stop_points`, pinned to its numpy form in ``tests/test_stop_points.py``), :func:`tracking_course` the tracking law's rollout
 (:func:`aac_sumo.coordination.tracking.track`), and :func:`grid_path`, :func:`distance_field`,
 :func:`shortcut` and :func:`rects_within` the detour planner's (:mod:`aac_sumo.coordination.detour`). They import nothing else of this package.
 Units: m, s, rad. Numba caches the compiled code beside this file, so only the first run on a
@@ -795,3 +795,94 @@ def rects_within(points, rects, reach):
                 out[k] = True
                 break
     return out
+
+
+@numba.njit(cache=True)
+def stop_rows(points, seg_len, cum, seg_dir, seg_heading, t_max, chunk_centre, chunk_radius, chunk, stop_at_end,
+              ego, s0, off0, centres, headings, lengths, widths, velocity, walker, accel, skip, held_since, t, rules):
+    """The loop form of :func:`aac_sumo.coordination.anticipation.stop_points` for one robot on
+    one path (the path's arrays as :meth:`aac_sumo.references.PathReference.arrays` gives them).
+
+    ``ego`` = ``[x, y, v, length, width, centre_offset, comfort_decel]`` of the robot (rear
+    axle [m], speed [m/s], footprint [m], deceleration [m/s^2]), projected at arc length ``s0``
+    [m], ``off0`` [m] off the path. The agents (K rows: footprint centres, headings, lengths,
+    widths, velocities, walker flags, accelerations) are everything on the road; row ``skip`` is
+    the robot itself. ``held_since`` (K,) [s]: when each walker last counted (-inf: never).
+    ``rules`` = ``[look, lateral_margin, cut_in, pedestrian_margin, pedestrian_reach, decel,
+    gap, time_gap, hold]`` (:class:`~aac_sumo.coordination.anticipation.Anticipation`).
+
+    Returns the stop rows (R, 3) ``[s_stop, v_lead, grow]``, those of braking vehicles' stopping
+    points last, and per agent whether it counted as a walker near the path at time ``t`` [s]
+    before the hold and the point of no return (the caller's ``held`` is set to ``t`` there)."""
+    look, lateral_margin, cut_in, ped_margin, ped_reach, decel, gap, time_gap, hold = (
+        rules[0], rules[1], rules[2], rules[3], rules[4], rules[5], rules[6], rules[7], rules[8])
+    x, y, v, length, width, centre_offset = ego[0], ego[1], abs(ego[2]), ego[3], ego[4], ego[5]
+    comfort = ego[6]
+    front = centre_offset + 0.5 * length
+    k_count = centres.shape[0]
+    n_seg = seg_len.shape[0]
+    rows = np.empty((2 * k_count, 3))
+    extra = np.empty((k_count, 3))
+    counted = np.zeros(k_count, dtype=np.bool_)
+    n_rows = 0
+    n_extra = 0
+    pace = max(v, 1.0)
+    arrive_max = look / pace
+    for k in range(k_count):
+        if k == skip:
+            continue
+        vx, vy = velocity[k, 0], velocity[k, 1]
+        speed = math.hypot(vx, vy)
+        reach_max = speed * arrive_max + ped_reach * arrive_max if walker[k] else speed * cut_in
+        bound = (off0 + look + max(ped_margin, lateral_margin) + 0.5 * math.hypot(lengths[k], widths[k]) + 0.5 * width + reach_max)
+        cx, cy = centres[k, 0], centres[k, 1]
+        if not math.hypot(cx - x, cy - y) <= bound + 1e-6:
+            continue
+        i, frac, off = closest_on_polyline(points, seg_len, t_max, cx, cy, chunk_centre, chunk_radius, chunk)
+        s = cum[i] + frac * seg_len[i]
+        ahead = s - s0
+        if not (ahead > 0.0 and ahead <= look):
+            continue
+        # the path's pose at s (PathReference.pose_at)
+        j = min(max(np.searchsorted(cum, s, side="right") - 1, 0), n_seg - 1)
+        local = s - cum[j]
+        if stop_at_end:
+            local = min(max(local, 0.0), seg_len[j])
+        px, py = points[j, 0] + local * seg_dir[j, 0], points[j, 1] + local * seg_dir[j, 1]
+        direction = seg_heading[j]
+        rel = headings[k] - direction
+        tx, ty = math.cos(direction), math.sin(direction)
+        nx, ny = -ty, tx
+        side = -1.0 if nx * (cx - px) + ny * (cy - py) < 0.0 else 1.0
+        sin_rel, cos_rel = abs(math.sin(rel)), abs(math.cos(rel))
+        gap_across = off - (0.5 * lengths[k] * sin_rel + 0.5 * widths[k] * cos_rel) - 0.5 * width
+        across = -side * (vx * nx + vy * ny)
+        toward = max(0.0, across)
+        arrive = ahead / pace
+        if walker[k]:
+            reach = toward * arrive + ped_reach * min(arrive, v / decel)
+            counts = gap_across - reach <= ped_margin
+            if counts:
+                counted[k] = True
+            elif t - held_since[k] <= hold and across >= 0.0:
+                counts = True
+            lead, keep, grow = 0.0, ped_margin, ped_reach / decel
+        else:
+            counts = gap_across - toward * cut_in <= lateral_margin
+            lead, keep, grow = max(vx * tx + vy * ty, 0.0), 0.0, 0.0
+        along = 0.5 * lengths[k] * cos_rel + 0.5 * widths[k] * sin_rel
+        behind_it = s - along - front - gap
+        s_stop = behind_it - keep - time_gap * lead
+        if walker[k] and counts and gap_across > ped_margin and v * v > 2.0 * comfort * max(s_stop - s0, 0.0):
+            clear = (ahead + along + 0.5 * length - centre_offset + ped_margin) / pace
+            if gap_across - toward * clear > ped_margin:  # past the point of no return
+                counts = False
+        if not counts:
+            continue
+        rows[n_rows, 0], rows[n_rows, 1], rows[n_rows, 2] = s_stop, lead, grow
+        n_rows += 1
+        if not walker[k] and accel[k] < 0.0 and lead > 0.0:
+            extra[n_extra, 0], extra[n_extra, 1], extra[n_extra, 2] = behind_it + lead * lead / (-2.0 * accel[k]), 0.0, 0.0
+            n_extra += 1
+    rows[n_rows:n_rows + n_extra] = extra[:n_extra]
+    return rows[:n_rows + n_extra], counted

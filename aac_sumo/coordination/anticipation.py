@@ -38,11 +38,12 @@ walker stepping towards the path), and its positions follow these speeds along t
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
 from aac_sumo.geometry import wrap_angle
-from aac_sumo.kernels import ramped_speeds
+from aac_sumo.kernels import ramped_speeds, stop_rows
 from aac_sumo.references import PathReference
 from aac_sumo.world import WorldState
 
@@ -68,15 +69,16 @@ class Anticipation:
     yield_band: float = 0.25
     hold: float = 2.0
 
+    @cached_property
+    def rules(self) -> np.ndarray:
+        """The rules as :func:`aac_sumo.kernels.stop_rows` takes them."""
+        return np.array([self.look, self.lateral_margin, self.cut_in, self.pedestrian_margin, self.pedestrian_reach, self.decel,
+                         self.gap, self.time_gap, self.hold])
+
 
 def across_extent(length, width, relative_heading) -> np.ndarray:
     """Half extent [m] of rectangles (length, width) across a direction at ``relative_heading``."""
     return 0.5 * np.abs(length * np.sin(relative_heading)) + 0.5 * np.abs(width * np.cos(relative_heading))
-
-
-def _along_extent(length, width, relative_heading) -> np.ndarray:
-    """Half extent [m] of rectangles (length, width) along a direction at ``relative_heading``."""
-    return 0.5 * np.abs(length * np.cos(relative_heading)) + 0.5 * np.abs(width * np.sin(relative_heading))
 
 
 def agents(world: WorldState) -> tuple[np.ndarray, ...]:
@@ -97,85 +99,49 @@ def agents(world: WorldState) -> tuple[np.ndarray, ...]:
                   np.r_[[world.robots[j].width for j in robots], [o.width for o in obstacles]],
                   np.vstack([world.states[robots, 3:4] * np.column_stack([np.cos(heading), np.sin(heading)])]
                             + [np.asarray(o.velocity, dtype=float)[None, :] for o in obstacles]).reshape(-1, 2),
-                  np.r_[np.zeros(len(robots), dtype=bool), [o.kind == "pedestrian" for o in obstacles]],
+                  np.array([False] * len(robots) + [o.kind == "pedestrian" for o in obstacles], dtype=bool),
                   np.r_[np.zeros(len(robots)), [o.accel for o in obstacles]])
         world.__dict__["_agents"] = cached
     return cached
 
 
-def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipation, held: dict | None = None) -> np.ndarray:
+def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipation, held: dict | None = None,
+                projected: tuple[float, float] | None = None) -> np.ndarray:
     """Rows ``[s_stop, v_lead, grow]`` (K, 3) of what robot ``i`` must stay behind on ``task``'s
     path: the arc length [m] where its rear axle must be able to come down to the speed
     ``v_lead`` [m/s] (>= 0) of what lies ahead, and how much room [m] per m/s of the robot's
     speed it keeps on top (a walker's reach while the robot brakes: ``pedestrian_reach / decel``
     [s]). ``held`` (walker name -> the time [s] it last counted, updated here) keeps a walker
     counting for ``hold`` seconds after it last did, while it is still ahead on the path and not
-    walking away from it: a walker who pauses on the crossing for a moment is yielded to still."""
+    walking away from it: a walker who pauses on the crossing for a moment is yielded to still.
+    ``projected``: the robot's ``task.project`` when the caller has it. The loop is compiled
+    (:func:`aac_sumo.kernels.stop_rows`)."""
     robot, state = world.robots[i], world.states[i]
-    s0, off0 = task.project(state[:2])
-    front = robot.centre_offset + 0.5 * robot.length  # rear axle to front bumper [m]
-    index = agents(world)[0]
-    others = np.flatnonzero(index != i)
-    _, centres, headings, lengths, widths, velocity, walker, accel = (a[others] for a in agents(world))
-    if len(centres) == 0:
-        return np.zeros((0, 3))
-    # what lies farther from the robot than its path's look-ahead plus the most the agent could
-    # reach across cannot count (below), and is not projected at all
-    speed = np.hypot(velocity[:, 0], velocity[:, 1])
-    arrive_max = params.look / max(abs(state[3]), 1.0)
-    reach_max = np.where(walker, speed * arrive_max + params.pedestrian_reach * arrive_max, speed * params.cut_in)
-    bound = (off0 + params.look + max(params.pedestrian_margin, params.lateral_margin) + 0.5 * np.hypot(lengths, widths)
-             + 0.5 * robot.width + reach_max)
-    candidate = np.flatnonzero(np.hypot(*(centres - state[:2]).T) <= bound + 1e-6)
-    s, off = task.project_many(centres[candidate])
-    ahead = s - s0
-    near_c = (ahead > 0.0) & (ahead <= params.look)
-    near = np.zeros(len(centres), dtype=bool)
-    near[candidate[near_c]] = True
-    if not near.any():
-        return np.zeros((0, 3))
-    s, off, ahead = s[near_c], off[near_c], ahead[near_c]
-    c, vel, walker = centres[near], velocity[near], walker[near]
-    poses = task.pose_at(s)
-    direction = poses[:, 2]
-    rel = headings[near] - direction
-    tangent = np.column_stack([np.cos(direction), np.sin(direction)])
-    normal = np.column_stack([-tangent[:, 1], tangent[:, 0]])
-    side = np.where(np.einsum("ij,ij->i", normal, c - poses[:, :2]) < 0.0, -1.0, 1.0)
-    gap_across = off - across_extent(lengths[near], widths[near], rel) - 0.5 * robot.width
-    across = -side * np.einsum("ij,ij->i", vel, normal)  # speed towards the path (negative: away from it)
-    toward = np.maximum(0.0, across)  # walking towards the path, or cutting in
-    arrive = ahead / max(abs(state[3]), 1.0)
-    reach = np.where(walker, toward * arrive + params.pedestrian_reach * np.minimum(arrive, abs(state[3]) / params.decel),
-                     toward * params.cut_in)
-    counts = gap_across - reach <= np.where(walker, params.pedestrian_margin, params.lateral_margin)
-    if held is not None and walker.any():
-        first = int(np.sum(index >= 0))  # agents: the robots on the road, then the obstacles
-        names = [world.obstacles[a - first].name if w else "" for a, w in zip(others[near], walker)]
-        for k, name in enumerate(names):
-            if not name:
-                continue
-            if counts[k]:
+    s0, off0 = task.project(state[:2]) if projected is None else projected
+    index, centres, headings, lengths, widths, velocity, walker, accel = agents(world)
+    rows = np.flatnonzero(index == i)
+    held_since = np.full(len(index), -np.inf)
+    walkers = _walker_rows(world) if held else ()
+    for row, name in walkers:
+        held_since[row] = held.get(name, -np.inf)
+    ego = np.array([state[0], state[1], state[3], robot.length, robot.width, robot.centre_offset, robot.model.limits.comfort_decel])
+    stops, counted = stop_rows(*task.arrays()[:-1], task.stop_at_end, ego, s0, off0, centres, headings, lengths, widths, velocity,
+                               walker, accel, rows[0] if rows.size else -1, held_since, world.t, params.rules)
+    if held is not None and counted.any():
+        for row, name in walkers or _walker_rows(world):
+            if counted[row]:
                 held[name] = world.t
-            elif world.t - held.get(name, -np.inf) <= params.hold and across[k] >= 0.0:
-                counts[k] = True
-    lead = np.where(walker, 0.0, np.maximum(np.einsum("ij,ij->i", vel, tangent), 0.0))
-    keep = np.where(walker, params.pedestrian_margin, 0.0)
-    grow = np.where(walker, params.pedestrian_reach / params.decel, 0.0)
-    along = _along_extent(lengths[near], widths[near], rel)
-    behind_it = s - along - front - params.gap
-    s_stop = behind_it - keep - params.time_gap * lead
-    # past the point of no return: a walker not yet near the path whom the robot can no longer
-    # stop for at its comfort deceleration, and who cannot reach the path at its own speed before
-    # the robot's rear has passed it, does not count (the robot goes on rather than stop in its way)
-    v = abs(state[3])
-    late = walker & (gap_across > params.pedestrian_margin) & (v * v > 2.0 * robot.model.limits.comfort_decel * np.maximum(s_stop - s0, 0.0))
-    clear = (ahead + along + 0.5 * robot.length - robot.centre_offset + params.pedestrian_margin) / max(v, 1.0)
-    counts &= ~(late & (gap_across - toward * clear > params.pedestrian_margin))
-    rows = np.column_stack([s_stop, lead, grow])[counts]
-    braking = counts & ~walker & (accel[near] < 0.0) & (lead > 0.0)  # a vehicle braking: also where it stops at its rate
-    stopped_at = behind_it[braking] + lead[braking] ** 2 / (-2.0 * accel[near][braking])
-    return np.vstack([rows, np.column_stack([stopped_at, np.zeros((len(stopped_at), 2))])])
+    return stops
+
+
+def _walker_rows(world: WorldState) -> list[tuple[int, str]]:
+    """``(row, name)`` of every walker among :func:`agents`' rows (cached per world)."""
+    cached = world.__dict__.get("_walker_rows")
+    if cached is None:
+        first = int(np.sum(agents(world)[0] >= 0))  # agents: the robots on the road, then the obstacles
+        cached = [(first + k, o.name) for k, o in enumerate(world.obstacles) if o.kind == "pedestrian"]
+        world.__dict__["_walker_rows"] = cached
+    return cached
 
 
 def speed_cap(stops: np.ndarray, s, decel: float) -> np.ndarray:
@@ -207,18 +173,26 @@ def anticipated_reference(world: WorldState, i: int, task: PathReference, steps:
     places to stop at, as distances of the rear axle along the path from where it is (before a
     walker's path, where the safety stop holds the robot)."""
     state = world.states[i]
-    s0 = task.project(state[:2])[0]
-    stops = np.ascontiguousarray(stop_points(world, i, task, params, held), dtype=float).reshape(-1, 3)
+    s, v = anticipated_speeds(world, i, task, steps, dt, params, held, stop_ahead)
+    poses = task.pose_at(s)
+    heading = state[2] + wrap_angle(poses[:, 2] - state[2])
+    return np.column_stack([poses[:, :2], heading, v])
+
+
+def anticipated_speeds(world: WorldState, i: int, task: PathReference, steps: int, dt: float, params: Anticipation,
+                       held: dict | None = None, stop_ahead=()) -> tuple[np.ndarray, np.ndarray]:
+    """The arc lengths [m] and speeds [m/s] (steps+1,) of :func:`anticipated_reference`."""
+    state = world.states[i]
+    projected = task.project(state[:2])
+    s0 = projected[0]
+    stops = stop_points(world, i, task, params, held, projected)
     ahead = np.asarray(stop_ahead, dtype=float).reshape(-1)
     if ahead.size:
         stops = np.vstack([stops, np.column_stack([s0 + ahead, np.zeros((ahead.size, 2))])])
     limits = task.limits if task.limits is not None else np.zeros(0)
     brake = max(params.decel, min(params.brake, world.robots[i].model.limits.comfort_decel))
-    s, v = ramped_speeds(s0, float(state[3]), steps, dt, params.decel, params.accel, brake, stops, task.speed,
+    return ramped_speeds(s0, float(state[3]), steps, dt, params.decel, params.accel, brake, stops, task.speed,
                          task.s, limits, task.stop_at_end, task.decel, task.length)  # speed_cap, stage by stage, compiled
-    poses = task.pose_at(s)
-    heading = state[2] + wrap_angle(poses[:, 2] - state[2])
-    return np.column_stack([poses[:, :2], heading, v])
 
 
 def near_pedestrian(world: WorldState, i: int, distance: float) -> bool:

@@ -11,7 +11,7 @@ from typing import Callable
 import numpy as np
 
 from aac_sumo.barriers import ObstaclePrediction, RegionTrack
-from aac_sumo.coordination.anticipation import Anticipation, anticipated_reference, near_pedestrian
+from aac_sumo.coordination.anticipation import Anticipation, anticipated_reference, anticipated_speeds, near_pedestrian
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.coordination.safety import SafetyCheck, WalkerSpeeds
 from aac_sumo.mpc.planner import MpcPlanner, Plan
@@ -212,7 +212,7 @@ class Coordinator(ABC):
             return None
         dt = self.planner.config.dt
         ahead = max(1, int(round(1.0 / (speed_gain * dt))))
-        v = anticipated_reference(world, i, self.tasks[i], ahead, dt, self.anticipation, self.held[i], self.strips_ahead(i))[:, 3]
+        v = anticipated_speeds(world, i, self.tasks[i], ahead, dt, self.anticipation, self.held[i], self.strips_ahead(i))[1]
         ends = max(1, int(np.argmax(np.abs(v - v[-1]) < 1e-9)))  # the first stage at the ramp's last speed
         return float(v[0] + (v[ends] - v[0]) / (ends * dt * speed_gain))
 
