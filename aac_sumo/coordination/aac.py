@@ -514,14 +514,22 @@ class AacCoordinator(Coordinator):
         the old commitment was kept."""
         cfg, book = self.planner.config, self.book
         traj = book.courses(period, others, cfg.horizon + 1)
-        regions = self.fleet.swept_regions(others, traj, cfg.horizon, cfg.barrier, cfg.fcbf)
+        obstacles = world.obstacles
+        if len(others) + len(obstacles) > cfg.slots:  # the planner's slots only: rank by stage 0, sweep the nearest
+            first = self.fleet.swept_regions(others, traj[:, :2], 0, cfg.barrier, cfg.fcbf)
+            ranked = self.planner.nearest(world.states[i], obstacles + first)  # into obstacles + first, nearest first
+            robots = ranked[ranked >= len(obstacles)] - len(obstacles)
+            swept = iter(self.fleet.swept_regions(others[robots], traj[robots], cfg.horizon, cfg.barrier, cfg.fcbf))
+            obstacles = [obstacles[k] if k < len(obstacles) else next(swept) for k in ranked]
+        else:
+            obstacles = obstacles + self.fleet.swept_regions(others, traj, cfg.horizon, cfg.barrier, cfg.fcbf)
         ref = self.reference(world, i)
         own = book.items[i]
         guess = (own.course(period, cfg.horizon), own.inputs_ahead(period, cfg.horizon))
         if own.stage(period) == "hold":  # standing: a standing guess keeps it standing; start from the tracking law instead
             inputs = self.tracking_inputs(world, i, cfg.horizon)
             guess = (self.fleet.rollout(np.array([i]), world.states[[i]], inputs[None], cfg.dt)[0], inputs)
-        plan = self.planner.plan(world.robots[i], world.states[i], ref, self.last_inputs[i], world.obstacles + regions, None,
+        plan = self.planner.plan(world.robots[i], world.states[i], ref, self.last_inputs[i], obstacles, None,
                                  self.corridors[i], guess=guess)
         self.plans[i] = plan
         record = RobotDecision(True, plan.status, plan.solve_ms, plan.solver, ref, reason=reason, mode=own.stage(period),

@@ -19,7 +19,7 @@ Frames and units: world frame [m], headings [rad], speeds [m/s], periods of ``dt
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.sparse import coo_matrix
@@ -43,6 +43,7 @@ class Commitment:
     states: np.ndarray
     inputs: np.ndarray
     planned: int
+    rows: np.ndarray | None = field(default=None, repr=False, compare=False)  # footprint rows (T+1, 5) of ``states``, once asked for
 
     def input_at(self, period: int) -> np.ndarray:
         """The input [accel, steer] of ``period``: zero once the commitment has ended."""
@@ -109,7 +110,15 @@ class CommitmentBook:
 
     def courses(self, period: int, idx: np.ndarray, steps: int) -> np.ndarray:
         """States (m, steps+1, 4) of robots ``idx`` along their commitments from ``period``."""
-        return np.array([self.items[j].course(period, steps) for j in idx]).reshape(len(idx), steps + 1, 4)
+        out = np.empty((len(idx), steps + 1, 4))
+        for row, j in enumerate(idx):
+            c = self.items[j]
+            k, last = period - c.start, len(c.states) - 1
+            if 0 <= k and k + steps <= last:
+                out[row] = c.states[k: k + steps + 1]
+            else:
+                out[row] = c.course(period, steps)
+        return out
 
     def replace(self, i: int, commitment: Commitment, period: int) -> None:
         """Commit robot ``i`` to ``commitment`` (checked by the caller) from ``period`` on."""
@@ -120,10 +129,10 @@ class CommitmentBook:
 
     def footprints(self, i: int, commitment: Commitment, period: int) -> np.ndarray:
         """Footprint rows (remaining + 1, 5) of robot ``i`` along ``commitment`` from ``period``
-        to the stage where it stands."""
-        steps = commitment.remaining(period)
-        return footprint_rows(commitment.course(period, steps)[None], self.fleet.offset[[i]], self.fleet.length[[i]],
-                              self.fleet.width[[i]])[0]
+        to the stage where it stands (rows of the whole commitment, computed once, then sliced)."""
+        if commitment.rows is None:
+            commitment.rows = footprint_rows(commitment.states[None], self.fleet.offset[[i]], self.fleet.length[[i]], self.fleet.width[[i]])[0]
+        return commitment.rows[min(max(period - commitment.start, 0), len(commitment.inputs)):]
 
     def clearance(self, i: int, candidate: Commitment, period: int, statics: np.ndarray) -> float:
         """Least footprint clearance [m] of robot ``i`` along ``candidate`` to every other
