@@ -102,7 +102,7 @@ class CommitmentBook:
         self.fleet, self.items, self.margin = fleet, list(commitments), float(margin)
         self._period: int | None = None
         self._rows: list[np.ndarray] = []
-        self._flat: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._flat: tuple | None = None  # (rows, starts, lengths, the statics they hold)
 
     def inputs(self, period: int) -> np.ndarray:
         """Every robot's committed input (n, 2) of ``period``."""
@@ -137,23 +137,19 @@ class CommitmentBook:
     def clearance(self, i: int, candidate: Commitment, period: int, statics: np.ndarray) -> float:
         """Least footprint clearance [m] of robot ``i`` along ``candidate`` to every other
         robot along its commitment and to the standing obstacles ``statics`` (S, 5), from
-        ``period`` until all stand still (exact below ``margin``)."""
+        ``period`` until all stand still (exact below ``margin``). The standing obstacles ride
+        in the same flat array as the commitments (courses of one row), so a check is one pass."""
         if self._period != period:
             self._period = period
             self._rows = [self.footprints(j, c, period) for j, c in enumerate(self.items)]
             self._flat = None
-        if self._flat is None:
-            lengths = np.array([len(r) for r in self._rows], dtype=np.int64)
-            starts = np.r_[0, np.cumsum(lengths)[:-1]].astype(np.int64)
-            self._flat = (np.concatenate(self._rows) if self._rows else np.empty((0, 5)), starts, lengths)
-        flat, starts, lengths = self._flat
-        own = self.footprints(i, candidate, period)
-        gap = ragged_clearance(own, flat, starts, lengths, i, self.margin)
         fixed = np.asarray(statics, dtype=float).reshape(-1, 5)
-        if len(fixed):
-            gap = min(gap, ragged_clearance(own, fixed, np.arange(len(fixed), dtype=np.int64), np.ones(len(fixed), dtype=np.int64),
-                                            -1, self.margin))
-        return gap
+        if self._flat is None or self._flat[3] is not statics:
+            lengths = np.r_[[len(r) for r in self._rows], np.ones(len(fixed))].astype(np.int64)
+            starts = np.r_[0, np.cumsum(lengths)[:-1]].astype(np.int64)
+            self._flat = (np.concatenate(self._rows + [fixed]), starts, lengths, statics)
+        flat, starts, lengths, _ = self._flat
+        return ragged_clearance(self.footprints(i, candidate, period), flat, starts, lengths, i, self.margin)
 
     def pairwise_clearance(self, period: int, statics: np.ndarray | None = None) -> np.ndarray:
         """Least clearance [m] (n, n) between every two commitments from ``period`` on (inf on
