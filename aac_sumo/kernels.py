@@ -565,7 +565,14 @@ def ragged_clearance(own, flat, starts, lengths, skip, margin):
     ``starts[j] + lengths[j] - 1``, and each course (``own`` too) stands at its last row once it
     has ended. Course ``skip`` is left out (-1: none). Each pair is compared over the stages
     until both have ended."""
-    best = np.inf
+    return ragged_nearest(own, flat, starts, lengths, skip, margin)[0]
+
+
+@numba.njit(cache=True)
+def ragged_nearest(own, flat, starts, lengths, skip, margin):
+    """:func:`ragged_clearance` and the course that gives it (the first on ties; -1 without
+    courses)."""
+    best, nearest = np.inf, -1
     r_own = 0.5 * math.hypot(own[0, 2], own[0, 3])
     n_own = own.shape[0]
     for j in range(starts.shape[0]):
@@ -577,11 +584,10 @@ def ragged_clearance(own, flat, starts, lengths, skip, margin):
             a = own[min(k, n_own - 1)]
             b = flat[first + min(k, count - 1)]
             apart = math.hypot(a[0] - b[0], a[1] - b[1]) - r_own - r_other
-            if apart >= margin:
-                best = min(best, apart)
-            else:
-                best = min(best, rect_clearance(a, b))
-    return best
+            gap = apart if apart >= margin else rect_clearance(a, b)
+            if gap < best:
+                best, nearest = gap, j
+    return best, nearest
 
 
 @numba.njit(cache=True)

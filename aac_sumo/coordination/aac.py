@@ -569,18 +569,24 @@ class AacCoordinator(Coordinator):
                 continue  # making room: it moves aside on its turns, not back onto its path
             if c.stage(period) == "plan" and c.start + c.planned - period > 1:
                 continue
-            if np.isnan(self.path(j).horizon(world.states[j], 0, cfg.dt)[0, 2]):
-                continue  # approaching its goal off its path: a manoeuvre for its MPC, not for the forward-only law
             if movers and np.any(np.hypot(*(mover_centres - centres[j]).T) < reach[j] + mover_extent + mover_speed * len(c.inputs) * cfg.dt):
                 continue  # an uncontrolled agent (walker, scripted or SUMO-driven car) may meet it: only the MPC drives it on
+            key = (self.path(j), float(self.last_inputs[j, 1]), self.keep_right_shift(world, j))  # with its state: the course it tries
+            if book.refused_again(j, world.states[j], key, statics):  # the same course against the same standing footprint
+                self.next_extension[j] = period + EXTENSION_RETRY
+                continue
+            if np.isnan(self.path(j).horizon(world.states[j], 0, cfg.dt)[0, 2]):
+                continue  # approaching its goal off its path: a manoeuvre for its MPC, not for the forward-only law
             head = self.tracking_inputs(world, j, cfg.horizon)
             candidate = self.commitment(world, j, period, head)
-            if book.clearance(j, candidate, period, statics) >= book.margin:
+            gap, blocker = book.check(j, candidate, period, statics)
+            if gap >= book.margin:
                 book.replace(j, candidate, period)
                 records[j].mode = "tracking"
                 extended += 1
             else:
                 self.next_extension[j] = period + EXTENSION_RETRY
+                book.refuse(j, world.states[j], key, blocker, period, statics)
         return extended
 
     def tracking_inputs(self, world: WorldState, j: int, steps: int) -> np.ndarray:

@@ -27,7 +27,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from aac_sumo.coordination.regions import Fleet
-from aac_sumo.kernels import braking_tail, course_clearance, footprint_rows, ragged_clearance
+from aac_sumo.kernels import braking_tail, course_clearance, footprint_rows, ragged_nearest
 
 #: Time constant [s] with which a stopping tail turns the heading towards the reference's.
 TAIL_TURN_TIME = 0.5
@@ -96,13 +96,14 @@ class CommitmentBook:
 
     The footprints of every commitment from the current period to its end are kept in one
     array, recomputed once per period and for a robot whose commitment is replaced, so that a
-    check costs one compiled pass (:func:`~aac_sumo.kernels.ragged_clearance`)."""
+    check costs one compiled pass (:func:`~aac_sumo.kernels.ragged_nearest`)."""
 
     def __init__(self, fleet: Fleet, commitments: list[Commitment], margin: float):
         self.fleet, self.items, self.margin = fleet, list(commitments), float(margin)
         self._period: int | None = None
         self._rows: list[np.ndarray] = []
         self._flat: tuple | None = None  # (rows, starts, lengths, the statics they hold)
+        self._refused: dict[int, tuple | None] = {}  # per robot, its last refusal by something standing (see refuse)
 
     def inputs(self, period: int) -> np.ndarray:
         """Every robot's committed input (n, 2) of ``period``."""
@@ -137,8 +138,13 @@ class CommitmentBook:
     def clearance(self, i: int, candidate: Commitment, period: int, statics: np.ndarray) -> float:
         """Least footprint clearance [m] of robot ``i`` along ``candidate`` to every other
         robot along its commitment and to the standing obstacles ``statics`` (S, 5), from
-        ``period`` until all stand still (exact below ``margin``). The standing obstacles ride
-        in the same flat array as the commitments (courses of one row), so a check is one pass."""
+        ``period`` until all stand still (exact below ``margin``)."""
+        return self.check(i, candidate, period, statics)[0]
+
+    def check(self, i: int, candidate: Commitment, period: int, statics: np.ndarray) -> tuple[float, int]:
+        """:meth:`clearance` and what gives it: a robot's index, ``n`` + the row of ``statics``
+        for a standing obstacle, -1 for nothing. The standing obstacles ride in the same flat
+        array as the commitments (courses of one row), so a check is one compiled pass."""
         if self._period != period:
             self._period = period
             self._rows = [self.footprints(j, c, period) for j, c in enumerate(self.items)]
@@ -149,7 +155,38 @@ class CommitmentBook:
             starts = np.r_[0, np.cumsum(lengths)[:-1]].astype(np.int64)
             self._flat = (np.concatenate(self._rows + [fixed]), starts, lengths, statics)
         flat, starts, lengths, _ = self._flat
-        return ragged_clearance(self.footprints(i, candidate, period), flat, starts, lengths, i, self.margin)
+        gap, nearest = ragged_nearest(self.footprints(i, candidate, period), flat, starts, lengths, i, self.margin)
+        return float(gap), int(nearest)
+
+    def refuse(self, i: int, state: np.ndarray, key: tuple, blocker: int, period: int, statics: np.ndarray) -> None:
+        """Remember that robot ``i``, standing at ``state`` (4,), had a candidate (made from
+        ``state`` and ``key``, compared with ``is`` or ``==``) refused by ``blocker`` (from
+        :meth:`check`), when that blocker stands for good: a robot holding at the end of its
+        commitment, or a standing obstacle. Anything else forgets what was remembered."""
+        n = len(self.items)
+        what = None
+        if state[3] == 0.0 and 0 <= blocker < n and self.items[blocker].stage(period) == "hold":
+            what = self.items[blocker]
+        elif state[3] == 0.0 and blocker >= n:
+            what = np.array(statics[blocker - n], dtype=float)
+        self._refused[i] = None if what is None else (np.array(state, dtype=float), key, blocker, what)
+
+    def refused_again(self, i: int, state: np.ndarray, key: tuple, statics: np.ndarray) -> bool:
+        """Whether :meth:`check` would refuse robot ``i``'s candidate again, known without
+        computing it: ``i`` stands at the same ``state`` with the same ``key`` as when it was
+        refused (so the candidate is the same course), and the blocker is still the same
+        holding commitment or standing obstacle (the same footprint at every stage). The pair's
+        clearance is then the same number below the margin."""
+        memo = self._refused.get(i)
+        if memo is None:
+            return False
+        before, known, blocker, what = memo
+        if not (np.array_equal(before, state) and len(known) == len(key) and all(a is b or a == b for a, b in zip(known, key))):
+            return False
+        n, fixed = len(self.items), np.asarray(statics, dtype=float).reshape(-1, 5)
+        if blocker < n:
+            return self.items[blocker] is what
+        return blocker - n < len(fixed) and np.array_equal(fixed[blocker - n], what)
 
     def pairwise_clearance(self, period: int, statics: np.ndarray | None = None) -> np.ndarray:
         """Least clearance [m] (n, n) between every two commitments from ``period`` on (inf on
