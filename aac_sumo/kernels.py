@@ -794,7 +794,15 @@ def rects_within(points, rects, reach):
     """Whether each of ``rects`` (m, 5) comes closer than ``reach`` [m] to one of ``points`` (k,
     2) [m] (by :func:`aac_sumo.geometry.rect_distances`), (m,)."""
     out = np.zeros(len(rects), dtype=np.bool_)
+    if len(points) == 0:
+        return out
+    x_lo, x_hi = points[:, 0].min(), points[:, 0].max()
+    y_lo, y_hi = points[:, 1].min(), points[:, 1].max()
     for k in range(len(rects)):
+        # a rectangle lies within its half diagonal of its centre: one that far beyond the points' box is out of reach
+        outside = math.hypot(max(x_lo - rects[k, 0], rects[k, 0] - x_hi, 0.0), max(y_lo - rects[k, 1], rects[k, 1] - y_hi, 0.0))
+        if outside > reach + 0.5 * math.hypot(rects[k, 2], rects[k, 3]) + 1e-9:
+            continue
         c, s = math.cos(rects[k, 4]), math.sin(rects[k, 4])
         for p in range(len(points)):
             if _rect_distance(points[p, 0], points[p, 1], rects[k], c, s) < reach:
