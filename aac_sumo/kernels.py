@@ -900,3 +900,28 @@ def stop_rows(points, seg_len, cum, seg_dir, seg_heading, t_max, chunk_centre, c
             n_extra += 1
     rows[n_rows:n_rows + n_extra] = extra[:n_extra]
     return rows[:n_rows + n_extra], counted
+
+
+@numba.njit(cache=True)
+def disc_components(centres, radii, margin):
+    """Component label (n,) of each disc (``centres`` (n, 2), ``radii`` (n,) [m]) in the graph
+    whose edges join discs closer than ``margin`` [m] (centre distance less both radii): the
+    least index in its component."""
+    n = centres.shape[0]
+    root = np.arange(n)
+    for i in range(n):
+        for j in range(i + 1, n):
+            if math.hypot(centres[i, 0] - centres[j, 0], centres[i, 1] - centres[j, 1]) - radii[i] - radii[j] < margin:
+                a, b = i, j
+                while root[a] != a:
+                    a = root[a]
+                while root[b] != b:
+                    b = root[b]
+                if a != b:
+                    root[max(a, b)] = min(a, b)
+    for i in range(n):
+        a = i
+        while root[a] != a:
+            a = root[a]
+        root[i] = a
+    return root
