@@ -925,3 +925,33 @@ def disc_components(centres, radii, margin):
             a = root[a]
         root[i] = a
     return root
+
+
+@numba.njit(cache=True)
+def stopping_course(state, head, previous_steer, heading, decel, wheelbase, v_min, v_max, steer_limits, dt, turn_time, points, seg_len,
+                    cum, seg_heading, t_max, chunk_centre, chunk_radius, chunk):
+    """States (T+1, 4) and inputs (T, 2) of one robot from ``state`` (4,): the inputs ``head``
+    (m, 2) (:func:`rollouts`), then :func:`braking_tail` at ``decel`` [m/s^2] from the head's
+    last steering (``previous_steer`` without a head), turning towards ``heading`` [rad], or,
+    when the path ``points`` (M, 2) is not empty, towards the heading of the path's segment where
+    the head ends (of the later segment at a vertex; the path as
+    :meth:`~aac_sumo.references.PathReference.arrays` gives it), for at most
+    ``ceil(|v| / decel / dt) + 2`` periods."""
+    states = rollouts(state.reshape(1, 4), head.reshape(1, head.shape[0], 2), dt, np.array([wheelbase]), np.array([v_min]),
+                      np.array([v_max]))[0]
+    last = states[states.shape[0] - 1]
+    if points.shape[0] > 0:
+        i, t, _ = closest_on_polyline(points, seg_len, t_max, last[0], last[1], chunk_centre, chunk_radius, chunk)
+        if i + 1 < seg_len.shape[0] and cum[i] + t * seg_len[i] >= cum[i + 1]:
+            i += 1  # at the vertex that ends segment i
+        heading = seg_heading[i]
+    steer = head[head.shape[0] - 1, 1] if head.shape[0] > 0 else previous_steer
+    max_steps = int(math.ceil(abs(last[3]) / decel / dt)) + 2
+    tail_states, tail_inputs = braking_tail(last, steer, heading, decel, wheelbase, v_min, v_max, steer_limits, dt, turn_time, max_steps)
+    out_states = np.empty((states.shape[0] + tail_states.shape[0] - 1, 4))
+    out_states[: states.shape[0]] = states
+    out_states[states.shape[0]:] = tail_states[1:]
+    out_inputs = np.empty((head.shape[0] + tail_inputs.shape[0], 2))
+    out_inputs[: head.shape[0]] = head
+    out_inputs[head.shape[0]:] = tail_inputs
+    return out_states, out_inputs

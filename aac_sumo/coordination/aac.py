@@ -430,9 +430,8 @@ class AacCoordinator(Coordinator):
     def commitment(self, world: WorldState, i: int, period: int, head: np.ndarray):
         """Robot ``i``'s commitment from now: the inputs ``head`` (m, 2), then its stopping tail
         turning towards its reference's heading where the head ends."""
-        task = self.path(i)
-        return stopping_commitment(self.fleet, i, period, world.states[i], head, lambda end: task.heading_at(end[:2]),
-                                   self.tail_decel()[i], self.last_inputs[i, 1], self.planner.config.dt)
+        return stopping_commitment(self.fleet, i, period, world.states[i], head, self.path(i), self.tail_decel()[i], self.last_inputs[i, 1],
+                                   self.planner.config.dt)
 
     def groups(self, world: WorldState, parked: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
         """``(members, candidates)`` per authority of this period: with one authority, every

@@ -24,7 +24,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from aac_sumo.coordination.regions import Fleet
-from aac_sumo.kernels import braking_tail, course_clearance, disc_components, footprint_rows, ragged_nearest
+from aac_sumo.kernels import course_clearance, disc_components, footprint_rows, ragged_nearest, stopping_course
+from aac_sumo.references import PathReference
 
 #: Time constant [s] with which a stopping tail turns the heading towards the reference's.
 TAIL_TURN_TIME = 0.5
@@ -70,22 +71,27 @@ class Commitment:
         return out
 
 
-def stopping_commitment(fleet: Fleet, i: int, start: int, state: np.ndarray, head: np.ndarray, heading,
+def stopping_commitment(fleet: Fleet, i: int, start: int, state: np.ndarray, head: np.ndarray, heading: float | PathReference,
                         tail_decel: float, previous_steer: float, dt: float) -> Commitment:
     """Robot ``i``'s commitment from ``state`` at period ``start``: the inputs ``head`` (m, 2),
-    then a stopping tail at ``tail_decel`` turning towards ``heading`` [rad], or towards
-    ``heading(end)`` when it is a function of the state (4,) where the head ends, within the
-    robot's steering limits from the head's last steering (``previous_steer`` [rad], the
-    steering applied before ``start``, when the head is empty)."""
-    head = np.asarray(head, dtype=float).reshape(-1, 2)
-    states = fleet.rollout(np.array([i]), np.asarray(state, dtype=float)[None], head[None], dt)[0]
-    last = states[-1]
-    max_steps = int(np.ceil(abs(last[3]) / tail_decel / dt)) + 2
-    heading = heading(last) if callable(heading) else heading
-    steer = head[-1, 1] if len(head) else previous_steer
-    tail_states, tail_inputs = braking_tail(last, float(steer), float(heading), float(tail_decel), fleet.wheelbase[i], fleet.v_min[i],
-                                            fleet.v_max[i], fleet.steer_limits[i], dt, TAIL_TURN_TIME, max_steps)
-    return Commitment(start, np.vstack([states, tail_states[1:]]), np.vstack([head, tail_inputs]), len(head))
+    then a stopping tail at ``tail_decel`` turning towards ``heading`` [rad], or, for a path,
+    towards the path's heading where the head ends, within the robot's steering limits from
+    the head's last steering (``previous_steer`` [rad], the steering applied before ``start``,
+    when the head is empty). One compiled call (:func:`~aac_sumo.kernels.stopping_course`)."""
+    head = np.ascontiguousarray(np.asarray(head, dtype=float).reshape(-1, 2))
+    if isinstance(heading, PathReference):
+        points, seg_len, cum, _, seg_heading, t_max, centres, radii, chunk, _ = heading.arrays()
+        heading = np.nan
+    else:
+        points, seg_len, cum, seg_heading, t_max, centres, radii, chunk = _NO_PATH
+    states, inputs = stopping_course(np.asarray(state, dtype=float), head, float(previous_steer), float(heading), float(tail_decel),
+                                     fleet.wheelbase[i], fleet.v_min[i], fleet.v_max[i], fleet.steer_limits[i], dt, TAIL_TURN_TIME,
+                                     points, seg_len, cum, seg_heading, t_max, centres, radii, chunk)
+    return Commitment(start, states, inputs, len(head))
+
+
+#: The path arguments of :func:`~aac_sumo.kernels.stopping_course` when the tail's heading is given.
+_NO_PATH = (np.empty((0, 2)), np.empty(0), np.empty(1), np.empty(0), np.empty(0), np.empty((0, 2)), np.empty(0), 1)
 
 
 class CommitmentBook:
