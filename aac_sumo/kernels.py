@@ -565,7 +565,14 @@ def ragged_clearance(own, flat, starts, lengths, skip, margin):
     ``starts[j] + lengths[j] - 1``, and each course (``own`` too) stands at its last row once it
     has ended. Course ``skip`` is left out (-1: none). Each pair is compared over the stages
     until both have ended."""
-    best = np.inf
+    return ragged_nearest(own, flat, starts, lengths, skip, margin)[0]
+
+
+@numba.njit(cache=True)
+def ragged_nearest(own, flat, starts, lengths, skip, margin):
+    """:func:`ragged_clearance` and the course that gives it (the first on ties; -1 without
+    courses)."""
+    best, nearest = np.inf, -1
     r_own = 0.5 * math.hypot(own[0, 2], own[0, 3])
     n_own = own.shape[0]
     for j in range(starts.shape[0]):
@@ -577,11 +584,10 @@ def ragged_clearance(own, flat, starts, lengths, skip, margin):
             a = own[min(k, n_own - 1)]
             b = flat[first + min(k, count - 1)]
             apart = math.hypot(a[0] - b[0], a[1] - b[1]) - r_own - r_other
-            if apart >= margin:
-                best = min(best, apart)
-            else:
-                best = min(best, rect_clearance(a, b))
-    return best
+            gap = apart if apart >= margin else rect_clearance(a, b)
+            if gap < best:
+                best, nearest = gap, j
+    return best, nearest
 
 
 @numba.njit(cache=True)
@@ -788,7 +794,15 @@ def rects_within(points, rects, reach):
     """Whether each of ``rects`` (m, 5) comes closer than ``reach`` [m] to one of ``points`` (k,
     2) [m] (by :func:`aac_sumo.geometry.rect_distances`), (m,)."""
     out = np.zeros(len(rects), dtype=np.bool_)
+    if len(points) == 0:
+        return out
+    x_lo, x_hi = points[:, 0].min(), points[:, 0].max()
+    y_lo, y_hi = points[:, 1].min(), points[:, 1].max()
     for k in range(len(rects)):
+        # a rectangle lies within its half diagonal of its centre: one that far beyond the points' box is out of reach
+        outside = math.hypot(max(x_lo - rects[k, 0], rects[k, 0] - x_hi, 0.0), max(y_lo - rects[k, 1], rects[k, 1] - y_hi, 0.0))
+        if outside > reach + 0.5 * math.hypot(rects[k, 2], rects[k, 3]) + 1e-9:
+            continue
         c, s = math.cos(rects[k, 4]), math.sin(rects[k, 4])
         for p in range(len(points)):
             if _rect_distance(points[p, 0], points[p, 1], rects[k], c, s) < reach:
@@ -886,3 +900,58 @@ def stop_rows(points, seg_len, cum, seg_dir, seg_heading, t_max, chunk_centre, c
             n_extra += 1
     rows[n_rows:n_rows + n_extra] = extra[:n_extra]
     return rows[:n_rows + n_extra], counted
+
+
+@numba.njit(cache=True)
+def disc_components(centres, radii, margin):
+    """Component label (n,) of each disc (``centres`` (n, 2), ``radii`` (n,) [m]) in the graph
+    whose edges join discs closer than ``margin`` [m] (centre distance less both radii): the
+    least index in its component."""
+    n = centres.shape[0]
+    root = np.arange(n)
+    for i in range(n):
+        for j in range(i + 1, n):
+            if math.hypot(centres[i, 0] - centres[j, 0], centres[i, 1] - centres[j, 1]) - radii[i] - radii[j] < margin:
+                a, b = i, j
+                while root[a] != a:
+                    a = root[a]
+                while root[b] != b:
+                    b = root[b]
+                if a != b:
+                    root[max(a, b)] = min(a, b)
+    for i in range(n):
+        a = i
+        while root[a] != a:
+            a = root[a]
+        root[i] = a
+    return root
+
+
+@numba.njit(cache=True)
+def stopping_course(state, head, previous_steer, heading, decel, wheelbase, v_min, v_max, steer_limits, dt, turn_time, points, seg_len,
+                    cum, seg_heading, t_max, chunk_centre, chunk_radius, chunk):
+    """States (T+1, 4) and inputs (T, 2) of one robot from ``state`` (4,): the inputs ``head``
+    (m, 2) (:func:`rollouts`), then :func:`braking_tail` at ``decel`` [m/s^2] from the head's
+    last steering (``previous_steer`` without a head), turning towards ``heading`` [rad], or,
+    when the path ``points`` (M, 2) is not empty, towards the heading of the path's segment where
+    the head ends (of the later segment at a vertex; the path as
+    :meth:`~aac_sumo.references.PathReference.arrays` gives it), for at most
+    ``ceil(|v| / decel / dt) + 2`` periods."""
+    states = rollouts(state.reshape(1, 4), head.reshape(1, head.shape[0], 2), dt, np.array([wheelbase]), np.array([v_min]),
+                      np.array([v_max]))[0]
+    last = states[states.shape[0] - 1]
+    if points.shape[0] > 0:
+        i, t, _ = closest_on_polyline(points, seg_len, t_max, last[0], last[1], chunk_centre, chunk_radius, chunk)
+        if i + 1 < seg_len.shape[0] and cum[i] + t * seg_len[i] >= cum[i + 1]:
+            i += 1  # at the vertex that ends segment i
+        heading = seg_heading[i]
+    steer = head[head.shape[0] - 1, 1] if head.shape[0] > 0 else previous_steer
+    max_steps = int(math.ceil(abs(last[3]) / decel / dt)) + 2
+    tail_states, tail_inputs = braking_tail(last, steer, heading, decel, wheelbase, v_min, v_max, steer_limits, dt, turn_time, max_steps)
+    out_states = np.empty((states.shape[0] + tail_states.shape[0] - 1, 4))
+    out_states[: states.shape[0]] = states
+    out_states[states.shape[0]:] = tail_states[1:]
+    out_inputs = np.empty((head.shape[0] + tail_inputs.shape[0], 2))
+    out_inputs[: head.shape[0]] = head
+    out_inputs[head.shape[0]:] = tail_inputs
+    return out_states, out_inputs

@@ -11,11 +11,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from aac_sumo import config, experiments
-from aac_sumo.coordination.commitments import clusters, reach_radii, stopping_commitment
+from aac_sumo.coordination.commitments import CommitmentBook, clusters, reach_radii, stopping_commitment
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.geometry import pairwise_rect_clearance
-from aac_sumo.kernels import course_clearance, footprint_rows, ragged_clearance
+from aac_sumo.kernels import course_clearance, footprint_rows, ragged_clearance, ragged_nearest
 from aac_sumo.world import RobotSpec
 
 #: Every emergency layer off: safety comes from the commitments alone.
@@ -187,3 +187,29 @@ def test_ragged_clearance_equals_the_padded_courses(seed, margin):
     starts = np.r_[0, np.cumsum(lengths)[:-1]].astype(np.int64)
     got = ragged_clearance(own, np.concatenate(courses), starts, lengths.astype(np.int64), skip, margin)
     assert got == course_clearance(pad(own), padded, margin)
+    gap, nearest = ragged_nearest(own, np.concatenate(courses), starts, lengths.astype(np.int64), skip, margin)
+    assert gap == got and nearest != skip
+    assert gap == course_clearance(pad(own), pad(courses[nearest])[None], margin)  # the course that gives it
+
+
+def test_a_refusal_is_remembered_only_while_the_same_course_meets_the_same_standing_footprint():
+    """A standing robot whose candidate ran into a robot holding at the end of its commitment is
+    refused again, without a check, only while both are unchanged; then the check agrees."""
+    robots = [small_robot(i) for i in range(3)]
+    fleet, dt = Fleet(robots), 0.1
+    states = np.array([[0.0, 0.0, 0.0, 0.0], [0.9, 0.0, 0.0, 0.0], [0.0, 5.0, 0.0, 0.0]])
+    stand = [stopping_commitment(fleet, i, 0, states[i], np.zeros((0, 2)), 0.0, 1.0, 0.0, dt) for i in range(3)]
+    book = CommitmentBook(fleet, stand, 0.05)
+    statics = np.empty((0, 5))
+    forward = stopping_commitment(fleet, 0, 0, states[0], np.tile([1.0, 0.0], (5, 1)), 0.0, 1.0, 0.0, dt)  # into robot 1
+    gap, blocker = book.check(0, forward, 0, statics)
+    assert gap < book.margin and blocker == 1
+    key = ("path", 0.0, 0.0)
+    book.refuse(0, states[0], key, blocker, 0, statics)
+    assert book.refused_again(0, states[0], key, statics)
+    assert not book.refused_again(0, states[0] + [0.01, 0.0, 0.0, 0.0], key, statics)  # elsewhere: another course
+    assert not book.refused_again(0, states[0], ("path", 0.1, 0.0), statics)
+    book.replace(1, stopping_commitment(fleet, 1, 0, states[1], np.zeros((0, 2)), 0.0, 1.0, 0.0, dt), 0)
+    assert not book.refused_again(0, states[0], key, statics)  # a new commitment of the blocker: check again
+    book.refuse(0, np.array([0.0, 0.0, 0.0, 0.5]), key, 1, 0, statics)  # moving: nothing remembered
+    assert not book.refused_again(0, np.array([0.0, 0.0, 0.0, 0.5]), key, statics)

@@ -430,9 +430,8 @@ class AacCoordinator(Coordinator):
     def commitment(self, world: WorldState, i: int, period: int, head: np.ndarray):
         """Robot ``i``'s commitment from now: the inputs ``head`` (m, 2), then its stopping tail
         turning towards its reference's heading where the head ends."""
-        task = self.path(i)
-        return stopping_commitment(self.fleet, i, period, world.states[i], head, lambda end: task.heading_at(end[:2]),
-                                   self.tail_decel()[i], self.last_inputs[i, 1], self.planner.config.dt)
+        return stopping_commitment(self.fleet, i, period, world.states[i], head, self.path(i), self.tail_decel()[i], self.last_inputs[i, 1],
+                                   self.planner.config.dt)
 
     def groups(self, world: WorldState, parked: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
         """``(members, candidates)`` per authority of this period: with one authority, every
@@ -514,14 +513,22 @@ class AacCoordinator(Coordinator):
         the old commitment was kept."""
         cfg, book = self.planner.config, self.book
         traj = book.courses(period, others, cfg.horizon + 1)
-        regions = self.fleet.swept_regions(others, traj, cfg.horizon, cfg.barrier, cfg.fcbf)
+        obstacles = world.obstacles
+        if len(others) + len(obstacles) > cfg.slots:  # the planner's slots only: rank by stage 0, sweep the nearest
+            first = self.fleet.swept_regions(others, traj[:, :2], 0, cfg.barrier, cfg.fcbf)
+            ranked = self.planner.nearest(world.states[i], obstacles + first)  # into obstacles + first, nearest first
+            robots = ranked[ranked >= len(obstacles)] - len(obstacles)
+            swept = iter(self.fleet.swept_regions(others[robots], traj[robots], cfg.horizon, cfg.barrier, cfg.fcbf))
+            obstacles = [obstacles[k] if k < len(obstacles) else next(swept) for k in ranked]
+        else:
+            obstacles = obstacles + self.fleet.swept_regions(others, traj, cfg.horizon, cfg.barrier, cfg.fcbf)
         ref = self.reference(world, i)
         own = book.items[i]
         guess = (own.course(period, cfg.horizon), own.inputs_ahead(period, cfg.horizon))
         if own.stage(period) == "hold":  # standing: a standing guess keeps it standing; start from the tracking law instead
             inputs = self.tracking_inputs(world, i, cfg.horizon)
             guess = (self.fleet.rollout(np.array([i]), world.states[[i]], inputs[None], cfg.dt)[0], inputs)
-        plan = self.planner.plan(world.robots[i], world.states[i], ref, self.last_inputs[i], world.obstacles + regions, None,
+        plan = self.planner.plan(world.robots[i], world.states[i], ref, self.last_inputs[i], obstacles, None,
                                  self.corridors[i], guess=guess)
         self.plans[i] = plan
         record = RobotDecision(True, plan.status, plan.solve_ms, plan.solver, ref, reason=reason, mode=own.stage(period),
@@ -561,18 +568,24 @@ class AacCoordinator(Coordinator):
                 continue  # making room: it moves aside on its turns, not back onto its path
             if c.stage(period) == "plan" and c.start + c.planned - period > 1:
                 continue
-            if np.isnan(self.path(j).horizon(world.states[j], 0, cfg.dt)[0, 2]):
-                continue  # approaching its goal off its path: a manoeuvre for its MPC, not for the forward-only law
             if movers and np.any(np.hypot(*(mover_centres - centres[j]).T) < reach[j] + mover_extent + mover_speed * len(c.inputs) * cfg.dt):
                 continue  # an uncontrolled agent (walker, scripted or SUMO-driven car) may meet it: only the MPC drives it on
+            key = (self.path(j), float(self.last_inputs[j, 1]), self.keep_right_shift(world, j))  # with its state: the course it tries
+            if book.refused_again(j, world.states[j], key, statics):  # the same course against the same standing footprint
+                self.next_extension[j] = period + EXTENSION_RETRY
+                continue
+            if np.isnan(self.path(j).horizon(world.states[j], 0, cfg.dt)[0, 2]):
+                continue  # approaching its goal off its path: a manoeuvre for its MPC, not for the forward-only law
             head = self.tracking_inputs(world, j, cfg.horizon)
             candidate = self.commitment(world, j, period, head)
-            if book.clearance(j, candidate, period, statics) >= book.margin:
+            gap, blocker = book.check(j, candidate, period, statics)
+            if gap >= book.margin:
                 book.replace(j, candidate, period)
                 records[j].mode = "tracking"
                 extended += 1
             else:
                 self.next_extension[j] = period + EXTENSION_RETRY
+                book.refuse(j, world.states[j], key, blocker, period, statics)
         return extended
 
     def tracking_inputs(self, world: WorldState, j: int, steps: int) -> np.ndarray:

@@ -19,15 +19,13 @@ Frames and units: world frame [m], headings [rad], speeds [m/s], periods of ``dt
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
 
 from aac_sumo.coordination.regions import Fleet
-from aac_sumo.kernels import braking_tail, course_clearance, footprint_rows, ragged_clearance
+from aac_sumo.kernels import course_clearance, disc_components, footprint_rows, ragged_nearest, stopping_course
+from aac_sumo.references import PathReference
 
 #: Time constant [s] with which a stopping tail turns the heading towards the reference's.
 TAIL_TURN_TIME = 0.5
@@ -43,6 +41,7 @@ class Commitment:
     states: np.ndarray
     inputs: np.ndarray
     planned: int
+    rows: np.ndarray | None = field(default=None, repr=False, compare=False)  # footprint rows (T+1, 5) of ``states``, once asked for
 
     def input_at(self, period: int) -> np.ndarray:
         """The input [accel, steer] of ``period``: zero once the commitment has ended."""
@@ -72,22 +71,27 @@ class Commitment:
         return out
 
 
-def stopping_commitment(fleet: Fleet, i: int, start: int, state: np.ndarray, head: np.ndarray, heading,
+def stopping_commitment(fleet: Fleet, i: int, start: int, state: np.ndarray, head: np.ndarray, heading: float | PathReference,
                         tail_decel: float, previous_steer: float, dt: float) -> Commitment:
     """Robot ``i``'s commitment from ``state`` at period ``start``: the inputs ``head`` (m, 2),
-    then a stopping tail at ``tail_decel`` turning towards ``heading`` [rad], or towards
-    ``heading(end)`` when it is a function of the state (4,) where the head ends, within the
-    robot's steering limits from the head's last steering (``previous_steer`` [rad], the
-    steering applied before ``start``, when the head is empty)."""
-    head = np.asarray(head, dtype=float).reshape(-1, 2)
-    states = fleet.rollout(np.array([i]), np.asarray(state, dtype=float)[None], head[None], dt)[0]
-    last = states[-1]
-    max_steps = int(np.ceil(abs(last[3]) / tail_decel / dt)) + 2
-    heading = heading(last) if callable(heading) else heading
-    steer = head[-1, 1] if len(head) else previous_steer
-    tail_states, tail_inputs = braking_tail(last, float(steer), float(heading), float(tail_decel), fleet.wheelbase[i], fleet.v_min[i],
-                                            fleet.v_max[i], fleet.steer_limits[i], dt, TAIL_TURN_TIME, max_steps)
-    return Commitment(start, np.vstack([states, tail_states[1:]]), np.vstack([head, tail_inputs]), len(head))
+    then a stopping tail at ``tail_decel`` turning towards ``heading`` [rad], or, for a path,
+    towards the path's heading where the head ends, within the robot's steering limits from
+    the head's last steering (``previous_steer`` [rad], the steering applied before ``start``,
+    when the head is empty). One compiled call (:func:`~aac_sumo.kernels.stopping_course`)."""
+    head = np.ascontiguousarray(np.asarray(head, dtype=float).reshape(-1, 2))
+    if isinstance(heading, PathReference):
+        points, seg_len, cum, _, seg_heading, t_max, centres, radii, chunk, _ = heading.arrays()
+        heading = np.nan
+    else:
+        points, seg_len, cum, seg_heading, t_max, centres, radii, chunk = _NO_PATH
+    states, inputs = stopping_course(np.asarray(state, dtype=float), head, float(previous_steer), float(heading), float(tail_decel),
+                                     fleet.wheelbase[i], fleet.v_min[i], fleet.v_max[i], fleet.steer_limits[i], dt, TAIL_TURN_TIME,
+                                     points, seg_len, cum, seg_heading, t_max, centres, radii, chunk)
+    return Commitment(start, states, inputs, len(head))
+
+
+#: The path arguments of :func:`~aac_sumo.kernels.stopping_course` when the tail's heading is given.
+_NO_PATH = (np.empty((0, 2)), np.empty(0), np.empty(1), np.empty(0), np.empty(0), np.empty((0, 2)), np.empty(0), 1)
 
 
 class CommitmentBook:
@@ -95,13 +99,14 @@ class CommitmentBook:
 
     The footprints of every commitment from the current period to its end are kept in one
     array, recomputed once per period and for a robot whose commitment is replaced, so that a
-    check costs one compiled pass (:func:`~aac_sumo.kernels.ragged_clearance`)."""
+    check costs one compiled pass (:func:`~aac_sumo.kernels.ragged_nearest`)."""
 
     def __init__(self, fleet: Fleet, commitments: list[Commitment], margin: float):
         self.fleet, self.items, self.margin = fleet, list(commitments), float(margin)
         self._period: int | None = None
         self._rows: list[np.ndarray] = []
-        self._flat: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._flat: tuple | None = None  # (rows, starts, lengths, the statics they hold)
+        self._refused: dict[int, tuple | None] = {}  # per robot, its last refusal by something standing (see refuse)
 
     def inputs(self, period: int) -> np.ndarray:
         """Every robot's committed input (n, 2) of ``period``."""
@@ -109,7 +114,15 @@ class CommitmentBook:
 
     def courses(self, period: int, idx: np.ndarray, steps: int) -> np.ndarray:
         """States (m, steps+1, 4) of robots ``idx`` along their commitments from ``period``."""
-        return np.array([self.items[j].course(period, steps) for j in idx]).reshape(len(idx), steps + 1, 4)
+        out = np.empty((len(idx), steps + 1, 4))
+        for row, j in enumerate(idx):
+            c = self.items[j]
+            k, last = period - c.start, len(c.states) - 1
+            if 0 <= k and k + steps <= last:
+                out[row] = c.states[k: k + steps + 1]
+            else:
+                out[row] = c.course(period, steps)
+        return out
 
     def replace(self, i: int, commitment: Commitment, period: int) -> None:
         """Commit robot ``i`` to ``commitment`` (checked by the caller) from ``period`` on."""
@@ -120,31 +133,63 @@ class CommitmentBook:
 
     def footprints(self, i: int, commitment: Commitment, period: int) -> np.ndarray:
         """Footprint rows (remaining + 1, 5) of robot ``i`` along ``commitment`` from ``period``
-        to the stage where it stands."""
-        steps = commitment.remaining(period)
-        return footprint_rows(commitment.course(period, steps)[None], self.fleet.offset[[i]], self.fleet.length[[i]],
-                              self.fleet.width[[i]])[0]
+        to the stage where it stands (rows of the whole commitment, computed once, then sliced)."""
+        if commitment.rows is None:
+            commitment.rows = footprint_rows(commitment.states[None], self.fleet.offset[[i]], self.fleet.length[[i]], self.fleet.width[[i]])[0]
+        return commitment.rows[min(max(period - commitment.start, 0), len(commitment.inputs)):]
 
     def clearance(self, i: int, candidate: Commitment, period: int, statics: np.ndarray) -> float:
         """Least footprint clearance [m] of robot ``i`` along ``candidate`` to every other
         robot along its commitment and to the standing obstacles ``statics`` (S, 5), from
         ``period`` until all stand still (exact below ``margin``)."""
+        return self.check(i, candidate, period, statics)[0]
+
+    def check(self, i: int, candidate: Commitment, period: int, statics: np.ndarray) -> tuple[float, int]:
+        """:meth:`clearance` and what gives it: a robot's index, ``n`` + the row of ``statics``
+        for a standing obstacle, -1 for nothing. The standing obstacles ride in the same flat
+        array as the commitments (courses of one row), so a check is one compiled pass."""
         if self._period != period:
             self._period = period
             self._rows = [self.footprints(j, c, period) for j, c in enumerate(self.items)]
             self._flat = None
-        if self._flat is None:
-            lengths = np.array([len(r) for r in self._rows], dtype=np.int64)
-            starts = np.r_[0, np.cumsum(lengths)[:-1]].astype(np.int64)
-            self._flat = (np.concatenate(self._rows) if self._rows else np.empty((0, 5)), starts, lengths)
-        flat, starts, lengths = self._flat
-        own = self.footprints(i, candidate, period)
-        gap = ragged_clearance(own, flat, starts, lengths, i, self.margin)
         fixed = np.asarray(statics, dtype=float).reshape(-1, 5)
-        if len(fixed):
-            gap = min(gap, ragged_clearance(own, fixed, np.arange(len(fixed), dtype=np.int64), np.ones(len(fixed), dtype=np.int64),
-                                            -1, self.margin))
-        return gap
+        if self._flat is None or self._flat[3] is not statics:
+            lengths = np.r_[[len(r) for r in self._rows], np.ones(len(fixed))].astype(np.int64)
+            starts = np.r_[0, np.cumsum(lengths)[:-1]].astype(np.int64)
+            self._flat = (np.concatenate(self._rows + [fixed]), starts, lengths, statics)
+        flat, starts, lengths, _ = self._flat
+        gap, nearest = ragged_nearest(self.footprints(i, candidate, period), flat, starts, lengths, i, self.margin)
+        return float(gap), int(nearest)
+
+    def refuse(self, i: int, state: np.ndarray, key: tuple, blocker: int, period: int, statics: np.ndarray) -> None:
+        """Remember that robot ``i``, standing at ``state`` (4,), had a candidate (made from
+        ``state`` and ``key``, compared with ``is`` or ``==``) refused by ``blocker`` (from
+        :meth:`check`), when that blocker stands for good: a robot holding at the end of its
+        commitment, or a standing obstacle. Anything else forgets what was remembered."""
+        n = len(self.items)
+        what = None
+        if state[3] == 0.0 and 0 <= blocker < n and self.items[blocker].stage(period) == "hold":
+            what = self.items[blocker]
+        elif state[3] == 0.0 and blocker >= n:
+            what = np.array(statics[blocker - n], dtype=float)
+        self._refused[i] = None if what is None else (np.array(state, dtype=float), key, blocker, what)
+
+    def refused_again(self, i: int, state: np.ndarray, key: tuple, statics: np.ndarray) -> bool:
+        """Whether :meth:`check` would refuse robot ``i``'s candidate again, known without
+        computing it: ``i`` stands at the same ``state`` with the same ``key`` as when it was
+        refused (so the candidate is the same course), and the blocker is still the same
+        holding commitment or standing obstacle (the same footprint at every stage). The pair's
+        clearance is then the same number below the margin."""
+        memo = self._refused.get(i)
+        if memo is None:
+            return False
+        before, known, blocker, what = memo
+        if not (np.array_equal(before, state) and len(known) == len(key) and all(a is b or a == b for a, b in zip(known, key))):
+            return False
+        n, fixed = len(self.items), np.asarray(statics, dtype=float).reshape(-1, 5)
+        if blocker < n:
+            return self.items[blocker] is what
+        return blocker - n < len(fixed) and np.array_equal(fixed[blocker - n], what)
 
     def pairwise_clearance(self, period: int, statics: np.ndarray | None = None) -> np.ndarray:
         """Least clearance [m] (n, n) between every two commitments from ``period`` on (inf on
@@ -184,14 +229,8 @@ def clusters(centres: np.ndarray, radii: np.ndarray, margin: float) -> list[np.n
     graph whose edges join robots whose reach discs (``centres`` (n, 2), ``radii`` (n,)) come
     within ``margin`` of each other: robots in different components cannot interact over the
     courses they can commit to now."""
-    n = len(centres)
-    if n == 0:
+    if len(centres) == 0:
         return []
-    pairs = cKDTree(centres).query_pairs(2.0 * float(radii.max()) + margin, output_type="ndarray")
-    if len(pairs):
-        gap = np.hypot(*(centres[pairs[:, 0]] - centres[pairs[:, 1]]).T) - radii[pairs[:, 0]] - radii[pairs[:, 1]]
-        pairs = pairs[gap < margin]
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)) if len(pairs) else coo_matrix((n, n))
-    _, label = connected_components(graph, directed=False)
-    groups = [np.flatnonzero(label == c) for c in np.unique(label)]
-    return sorted(groups, key=lambda g: g[0])
+    label = disc_components(np.asarray(centres, dtype=float), np.asarray(radii, dtype=float), float(margin))
+    order = np.argsort(label, kind="stable")  # by component (its least index), each in increasing order
+    return np.split(order, np.flatnonzero(np.diff(label[order])) + 1)
