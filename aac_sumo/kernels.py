@@ -58,15 +58,34 @@ def _heading_hold(heading, h, v, wheelbase, gain, dt):
 
 
 @numba.njit(cache=True)
-def braking_courses(states, first, use_first, previous_steer, headings, wheelbase, a_min, a_max, v_min, v_max, steer_limits,
-                    dt, turn_time, steps):
+def heading_along(row, spacing, distance):
+    """Heading [rad] ``distance`` [m] along a path whose headings ``row`` (L,) [rad, unwrapped]
+    are sampled every ``spacing`` [m] from where the robot is: linear between samples, the
+    first before them and the last beyond them (one sample: a constant heading)."""
+    last = row.shape[0] - 1
+    if last == 0 or distance <= 0.0:
+        return row[0]
+    x = distance / spacing
+    j = int(x)
+    if j >= last:
+        return row[last]
+    return row[j] + (x - j) * (row[j + 1] - row[j])
+
+
+@numba.njit(cache=True)
+def braking_courses(states, first, use_first, previous_steer, headings, spacing, wheelbase, a_min, a_max, v_min, v_max,
+                    steer_limits, dt, turn_time, steps):
     """Rear-axle states (m, steps+1, 4) of robots starting from ``states`` (m, 4): each applies
     ``first`` (m, 2) once when ``use_first``, then brakes to a stop, its acceleration
-    ``clip(-v / dt, a_min, a_max)`` and its steering turning its heading towards ``headings``
-    (m,) with time constant ``turn_time``, within :func:`limited_steer` of ``steer_limits``
-    (m, 3) from the steering before (``previous_steer`` (m,) at the start, zero at
-    standstill); after every Euler bicycle step the speed is clipped into ``[v_min, v_max]``.
-    Per-robot constants are arrays (m,)."""
+    ``clip(-v / dt, a_min, a_max)`` and its steering turning its heading with time constant
+    ``turn_time`` towards its path's: ``headings`` (m, L) sampled every ``spacing`` [m] along
+    it from where the robot starts (:func:`heading_along`), taken ``|v| turn_time`` beyond the
+    distance it has covered, where the heading it turns to now will have been reached (so it
+    follows a curved lane instead of running off it along a tangent; L = 1: one constant
+    heading). Steering stays within :func:`limited_steer` of ``steer_limits`` (m, 3) from the
+    steering before (``previous_steer`` (m,) at the start, zero at standstill); after every
+    Euler bicycle step the speed is clipped into ``[v_min, v_max]``. Per-robot constants are
+    arrays (m,)."""
     m = states.shape[0]
     out = np.empty((m, steps + 1, 4))
     gain = min(1.0, dt / turn_time)
@@ -74,13 +93,15 @@ def braking_courses(states, first, use_first, previous_steer, headings, wheelbas
         x, y, h, v = states[i, 0], states[i, 1], states[i, 2], states[i, 3]
         out[i, 0, 0], out[i, 0, 1], out[i, 0, 2], out[i, 0, 3] = x, y, h, v
         steer = previous_steer[i]
+        covered = 0.0
         for k in range(steps):
             if k == 0 and use_first:
                 accel, steer = first[i, 0], first[i, 1]
             else:
                 accel = min(max(-v / dt, a_min[i]), a_max[i])
-                wanted = _heading_hold(headings[i], h, v, wheelbase[i], gain, dt)
+                wanted = _heading_hold(heading_along(headings[i], spacing, covered + abs(v) * turn_time), h, v, wheelbase[i], gain, dt)
                 steer = limited_steer(wanted, v, accel, steer, wheelbase[i], steer_limits[i], dt)
+            covered += abs(v) * dt
             x, y, h, v = _bicycle_step(x, y, h, v, accel, steer, dt, wheelbase[i], v_min[i], v_max[i])
             out[i, k + 1, 0], out[i, k + 1, 1], out[i, k + 1, 2], out[i, k + 1, 3] = x, y, h, v
     return out
@@ -356,17 +377,17 @@ def stop_flags(check, rows, fixed, standing, growing, margin, tie, ignored):
 
 
 @numba.njit(cache=True)
-def gentlest_stops(check, inputs, steer, states, headings, wheelbase, a_min, a_max, v_min, v_max, steer_limits, offset,
+def gentlest_stops(check, inputs, steer, states, headings, spacing, wheelbase, a_min, a_max, v_min, v_max, steer_limits, offset,
                    length, width, dt, turn_time, steps, fixed, standing, growing, margin, tie, a_level, ignored):
     """The safety stop's choice for robots ``check`` (m,) given every robot's ``inputs`` (n, 2):
     a robot that fails :func:`stop_flags` on its :func:`braking_courses` course (``steps``
     stages, footprints by :func:`footprint_rows`, braking at ``a_min``) gets
     ``[min(input, share * a_level), steer]`` for share 0, 1/3 and 2/3 in turn, until it passes
-    (``ignored`` as for :func:`stop_flags`);
-    after each round every robot of ``check`` still flagged is checked again against the
+    (``ignored`` as for :func:`stop_flags`; ``headings`` (n, L) every ``spacing`` [m] as for
+    :func:`braking_courses`); after each round every robot of ``check`` still flagged is checked again against the
     others' new courses. Returns the inputs (n, 2) and which robots of ``check`` still fail
     (bool, m). Per-robot arrays are (n,), ``steer_limits`` (n, 3)."""
-    rows = footprint_rows(braking_courses(states, inputs, True, inputs[:, 1], headings, wheelbase, a_min, a_max, v_min, v_max,
+    rows = footprint_rows(braking_courses(states, inputs, True, inputs[:, 1], headings, spacing, wheelbase, a_min, a_max, v_min, v_max,
                                           steer_limits, dt, turn_time, steps), offset, length, width)
     chosen = inputs.copy()
     flagged = stop_flags(check, rows, fixed, standing, growing, margin, tie, ignored)
@@ -378,7 +399,7 @@ def gentlest_stops(check, inputs, steer, states, headings, wheelbase, a_min, a_m
                 i = check[r]
                 chosen[i, 0], chosen[i, 1] = min(inputs[i, 0], share * a_level[i]), steer[i]
                 course = braking_courses(states[i:i + 1], chosen[i:i + 1], True, chosen[i:i + 1, 1], headings[i:i + 1],
-                                         wheelbase[i:i + 1], a_min[i:i + 1], a_max[i:i + 1], v_min[i:i + 1], v_max[i:i + 1],
+                                         spacing, wheelbase[i:i + 1], a_min[i:i + 1], a_max[i:i + 1], v_min[i:i + 1], v_max[i:i + 1],
                                          steer_limits[i:i + 1], dt, turn_time, steps)
                 rows[i] = footprint_rows(course, offset[i:i + 1], length[i:i + 1], width[i:i + 1])[0]
         flagged &= stop_flags(check, rows, fixed, standing, growing, margin, tie, ignored)

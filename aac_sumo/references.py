@@ -141,6 +141,12 @@ class PathReference:
             i += 1  # at the vertex that ends segment i (the projection never passes it)
         return float(self.seg_heading[i])
 
+    def headings_ahead(self, point, count: int, spacing: float) -> np.ndarray:
+        """Headings (count,) [rad, unwrapped] of the path every ``spacing`` [m] from where
+        ``point`` [m] projects on: the first is :meth:`heading_at`'s."""
+        s0 = self.project(point)[0]
+        return np.unwrap(self.pose_at(s0 + spacing * np.arange(count))[:, 2])
+
     def _segment(self, s):
         """Index of the segment each arc length ``s`` [m] lies on (the first or last beyond the ends)."""
         return np.minimum(np.maximum(np.searchsorted(self.s, s, side="right") - 1, 0), len(self.seg_len) - 1)

@@ -839,3 +839,39 @@ def test_a_car_too_late_to_stop_before_a_walker_passes_her_when_it_clears_her_pa
     assert check.safe_inputs(np.array([0]), np.zeros((1, 2)), 0.3)[0, 0] == 0.0
     states, accels, _ = drive_past_walker(12.0, 4.0)
     assert np.all(accels == 0.0)
+
+
+def _arc_headings(radius: float, count: int) -> np.ndarray:
+    """Headings every metre along a left-turning arc of ``radius`` [m] that starts heading east."""
+    return np.arange(count) / radius
+
+
+def test_the_safety_stops_braking_course_follows_a_curved_lane():
+    """A car at 10 m/s on a 150 m arc (the curved sidewalk road): braking along the path's
+    headings ahead, its course stays within 0.1 m of the arc; holding the heading where it is, it
+    ran off along the tangent by about 1 m (and braked for the cones of the lane beside it)."""
+    radius = 150.0
+    state = np.array([[0.0, -radius, 0.0, 10.0]])  # on the circle about the origin, heading east (counter-clockwise)
+    world = WorldState(0.0, state, [HIGHWAY_CAR], [])
+    for table, worst in ((_arc_headings(radius, 60)[None, :], 0.1), (np.zeros(1), None)):
+        check = SafetyCheck(world, Fleet([HIGHWAY_CAR]), WALKERS, table, np.zeros(1))
+        course = check.stopping_course(None, 40, -check.fleet.comfort)[0]
+        off = np.abs(np.hypot(course[:, 0], course[:, 1]) - radius).max()
+        assert off < worst if worst else off > 0.8
+
+
+def test_a_walker_walking_along_a_curved_sidewalk_beside_the_lane_is_no_crossing():
+    """The curved sidewalk road at 0 s: a walker walks along the sidewalk 2.6 m outside a car's
+    lane on a 150 m arc, 20 m ahead of the car at 10 m/s. With its path unbent she walks beside
+    its course and it does not stop before her "path" (on the tangent her line crossed the
+    car's course ahead, and it braked at 3.4 m/s^2); a walker crossing the road is still answered."""
+    radius = 150.0
+    state = np.array([[0.0, -radius, 0.0, 10.0]])
+    at = 20.0 / radius  # her angle along the arc
+    out = radius + 2.6
+    for course, answered in ((at, False), (at + np.pi / 2, True)):
+        walker = Obstacle("w0", "pedestrian", out * np.array([np.sin(at), -np.cos(at)]),
+                          1.3 * np.array([np.cos(course), np.sin(course)]), course, 0.3, 0.5)
+        check = SafetyCheck(WorldState(0.0, state, [HIGHWAY_CAR], [walker]), Fleet([HIGHWAY_CAR]), WALKERS,
+                            _arc_headings(radius, 60)[None, :], np.zeros(1))
+        assert bool(check.walker_paths()[1][0, 0] > 0.0) == answered

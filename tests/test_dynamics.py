@@ -332,7 +332,7 @@ def test_compiled_braking_courses_step_the_bicycle_model_under_the_braking_law(s
     a_lat, rate = np.where(rng.random(m) < 0.3, np.inf, rng.uniform(0.5, 5.0, m)), np.where(rng.random(m) < 0.3, np.inf, rng.uniform(0.1, 3.0, m))
     previous = rng.uniform(-0.5, 0.5, m)
     models = [BicycleModel(wheelbase[i], VehicleLimits(a_min[i], a_max[i], steer_max[i], v_min[i], v_max[i], a_lat[i], rate[i])) for i in range(m)]
-    got = braking_courses(states, first, use_first, previous, headings, wheelbase, a_min, a_max, v_min, v_max,
+    got = braking_courses(states, first, use_first, previous, headings[:, None], 1.0, wheelbase, a_min, a_max, v_min, v_max,
                           np.column_stack([steer_max, a_lat, rate]), dt, 0.5, steps)
 
     x = states.copy()

@@ -14,12 +14,14 @@ from aac_sumo.barriers import ObstaclePrediction, RegionTrack
 from aac_sumo.coordination.anticipation import Anticipation, anticipated_reference, anticipated_speeds, near_pedestrian
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.coordination.safety import SafetyCheck, WalkerSpeeds
-from aac_sumo.mpc.planner import MpcPlanner, Plan
+from aac_sumo.mpc.planner import FALLBACK_TURN_TIME, MpcPlanner, Plan
 from aac_sumo.prediction import SpeedHistory
 from aac_sumo.references import LateralBand, PathReference
 from aac_sumo.world import Obstacle, WorldState
 
 Finished = Callable[[WorldState], np.ndarray]
+#: Spacing [m] of the path headings the safety stop's braking courses follow.
+HEADING_SPACING = 1.0
 #: What a robot whose solve failed applies: the planner's braking fallback, or the tracking law
 #: through the coordinator's safety stop.
 FALLBACKS = ("brake", "tracking")
@@ -218,11 +220,17 @@ class Coordinator(ABC):
 
     def safety_check(self, world: WorldState) -> SafetyCheck:
         """The safety stop of this period: robots brake turning towards their reference's heading
-        where they are (a car brakes along its lane), as the planner's fallback does; the
-        walkers' speeds of late bound theirs (:class:`~aac_sumo.coordination.safety.WalkerSpeeds`)."""
-        headings = np.array([task.heading_at(state[:2]) for task, state in zip(self.tasks, world.states)])
-        return SafetyCheck(world, self.fleet, self.planner.config, headings, self.last_inputs[:, 1],
-                           followers=self.leaves_followers, walker_speeds=self.walker_speeds.update(world))
+        (a car brakes along its lane, as the planner's fallback does), following the path's
+        headings every ``HEADING_SPACING`` metres ahead as far as their comfortable stops and the
+        turn's lead reach; the walkers' speeds of late bound theirs
+        (:class:`~aac_sumo.coordination.safety.WalkerSpeeds`)."""
+        fleet, dt = self.fleet, self.planner.config.dt
+        v = float(np.max(np.abs(world.states[:, 3]) + fleet.a_max * dt)) if len(world.robots) else 0.0
+        reach = v * v / (2.0 * float(np.min(fleet.comfort))) + v * (FALLBACK_TURN_TIME + dt)
+        count = int(np.ceil(reach / HEADING_SPACING)) + 2
+        headings = np.array([task.headings_ahead(state[:2], count, HEADING_SPACING) for task, state in zip(self.tasks, world.states)])
+        return SafetyCheck(world, fleet, self.planner.config, headings.reshape(len(world.robots), count), self.last_inputs[:, 1],
+                           followers=self.leaves_followers, walker_speeds=self.walker_speeds.update(world), spacing=HEADING_SPACING)
 
     def hold_inputs(self, world: WorldState, i: int, steps: int) -> np.ndarray:
         """Inputs (steps, 2) that bring robot ``i`` to a stop where it is, at its comfort

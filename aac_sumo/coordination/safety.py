@@ -42,7 +42,7 @@ from aac_sumo.coordination.anticipation import across_extent
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.dynamics import heading_hold_steer
 from aac_sumo.geometry import rect_corners
-from aac_sumo.kernels import braking_courses, gentlest_stops, stop_flags
+from aac_sumo.kernels import braking_courses, gentlest_stops, heading_along, stop_flags
 from aac_sumo.mpc.planner import FALLBACK_TURN_TIME, MpcConfig
 from aac_sumo.world import WorldState
 
@@ -119,7 +119,9 @@ def following(world: WorldState) -> np.ndarray:
 class SafetyCheck:
     """The safety stop of one period of ``world``, for robots of ``fleet`` driven with the
     planner's ``config`` (period, pedestrian reach); robots brake turning towards ``headings``
-    (n,) [rad], from the steering ``previous_steer`` (n,) [rad] they applied the period before.
+    [rad]: (n,), one heading each, or (n, L), their paths' headings every ``spacing`` [m] from
+    where they are (:func:`~aac_sumo.kernels.braking_courses`: a car brakes along its curved
+    lane), from the steering ``previous_steer`` (n,) [rad] they applied the period before.
     With ``followers``, each robot leaves its uncontrolled followers out (:func:`following`);
     each always leaves out the walkers it stops before or passes (:meth:`walker_paths`).
     ``ignored`` (n, 2 n + obstacles) says which targets each leaves out. ``walker_speeds``
@@ -127,8 +129,10 @@ class SafetyCheck:
     speeds in :meth:`walker_paths`; without, each walks at her speed now."""
 
     def __init__(self, world: WorldState, fleet: Fleet, config: MpcConfig, headings: np.ndarray, previous_steer: np.ndarray,
-                 followers: bool = False, walker_speeds: dict[str, tuple[float, float]] | None = None):
-        self.world, self.fleet, self.config, self.headings = world, fleet, config, np.asarray(headings, dtype=float)
+                 followers: bool = False, walker_speeds: dict[str, tuple[float, float]] | None = None, spacing: float = 1.0):
+        self.world, self.fleet, self.config = world, fleet, config
+        self.table = np.ascontiguousarray(np.asarray(headings, dtype=float).reshape(len(world.robots), -1))
+        self.headings, self.spacing = self.table[:, 0], float(spacing)
         self.walker_speeds = walker_speeds or {}
         self.previous_steer = np.asarray(previous_steer, dtype=float)
         self.ignored = following(world) if followers else np.zeros((len(world.robots), 2 * len(world.robots) + len(world.obstacles)), dtype=bool)
@@ -142,7 +146,8 @@ class SafetyCheck:
         """Steering (n,) [rad] of every robot braking at its comfort deceleration from ``states``
         (n, 4), within its steering limits."""
         fleet, dt = self.fleet, self.config.dt
-        wanted = heading_hold_steer(states, self.headings, dt, fleet.wheelbase, fleet.steer_limits[:, 0], FALLBACK_TURN_TIME)
+        target = np.array([heading_along(row, self.spacing, abs(v) * FALLBACK_TURN_TIME) for row, v in zip(self.table, states[:, 3])])
+        wanted = heading_hold_steer(states, target, dt, fleet.wheelbase, fleet.steer_limits[:, 0], FALLBACK_TURN_TIME)
         accel = np.clip(-states[:, 3] / dt, -fleet.comfort, fleet.comfort)
         return fleet.limit_steer(wanted, states, accel, self.previous_steer, dt)
 
@@ -219,16 +224,16 @@ class SafetyCheck:
         ahead = np.column_stack([np.cos(self.headings[moving]), np.sin(self.headings[moving])])  # (r, 2): where its braking course goes
         left = np.column_stack([-ahead[:, 1], ahead[:, 0]])
         walkers = [world.obstacles[j] for j in index]
-        centre = np.array([o.centre for o in walkers])  # (m, 2)
-        velocity = np.array([o.velocity for o in walkers])
         size = np.array([[o.length, o.width, o.heading] for o in walkers])
-        course = np.arctan2(velocity[:, 1], velocity[:, 0])
-        path = np.column_stack([np.cos(course), np.sin(course)])
-        across_path = np.column_stack([-path[:, 1], path[:, 0]])
+        # each walker as robot r sees her (r, m): in the frame where its path runs straight on along its heading
+        centre, velocity, turned = self.unbent(moving, np.array([o.centre for o in walkers]), np.array([o.velocity for o in walkers]))
+        course = np.arctan2(velocity[..., 1], velocity[..., 0])
+        path = np.stack([np.cos(course), np.sin(course)], axis=-1)  # (r, m, 2)
+        across_path = np.stack([-path[..., 1], path[..., 0]], axis=-1)
         half = 0.5 * np.hypot(size[:, 0], size[:, 1]) + margin  # (m,) half the strip's width: her footprint turned any way
         # the strip along the robot's heading: how far until its footprint enters it, and has left it
-        side = np.einsum("rkj,mj->rmk", corners, across_path) - (centre * across_path).sum(axis=1)[None, :, None]  # (r, m, 4)
-        rate = ahead @ across_path.T  # (r, m): change of those offsets per metre ahead
+        side = np.einsum("rkj,rmj->rmk", corners, across_path) - (centre * across_path).sum(axis=2)[:, :, None]  # (r, m, 4)
+        rate = np.einsum("rj,rmj->rm", ahead, across_path)  # (r, m): change of those offsets per metre ahead
         lo, hi = side.min(axis=2), side.max(axis=2)
         per_metre = np.maximum(np.abs(rate), 1e-9)
         into = np.where(rate < 0.0, lo - half, -half - hi) / per_metre
@@ -239,19 +244,19 @@ class SafetyCheck:
         # car that then stopped again for a queue stood in her path)
         leave = np.where(through, out_of / np.maximum(v, a_go[:, 0] * dt)[:, None], 0.0)
         # her way to the band the robot sweeps: how far across it, how fast towards it
-        offset = np.einsum("rmj,rj->rm", centre[None, :, :] - rows[:, None, :2], left)
-        speed_w = np.hypot(velocity[:, 0], velocity[:, 1])
+        offset = np.einsum("rmj,rj->rm", centre - rows[:, None, :2], left)
+        speed_w = np.hypot(*np.array([o.velocity for o in walkers]).T)  # (m,): the unbending only turns them
         bounds = np.array([self.walker_speeds.get(o.name, (w, w)) for o, w in zip(walkers, speed_w)]).reshape(-1, 2)
         slowest, fastest = np.minimum(bounds[:, 0], speed_w), np.maximum(bounds[:, 1], speed_w)
-        towards = -np.sign(offset) * (left @ velocity.T)  # at her speed now, scaled to her fastest or slowest of late
+        towards = -np.sign(offset) * np.einsum("rj,rmj->rm", left, velocity)  # at her speed now, scaled to her fastest or slowest of late
         towards = towards * np.where(towards > 0.0, (fastest / speed_w)[None, :], (slowest / speed_w)[None, :])
-        gap = np.abs(offset) - across_extent(size[None, :, 0], size[None, :, 1], size[None, :, 2] - rows[:, 4:5]) - 0.5 * rows[:, 3:4]
+        gap = np.abs(offset) - across_extent(size[None, :, 0], size[None, :, 1], size[None, :, 2] + turned - rows[:, 4:5]) - 0.5 * rows[:, 3:4]
         closing = towards + reach
         reaches = np.where(closing > 0.0, np.maximum(gap - margin, 0.0) / np.maximum(closing, 1e-9), np.inf)
         # her path ahead of her only: where the robot crosses her strip she could be by then (walking on, or coming back
         # at her reach beyond her speed), not where she came from (a walker turning onto a footpath along the road)
-        along_path = ahead @ path.T  # (r, m)
-        behind = np.einsum("rkj,mj->rmk", corners, path).max(axis=2) - (centre * path).sum(axis=1)[None, :] + np.maximum(
+        along_path = np.einsum("rj,rmj->rm", ahead, path)  # (r, m)
+        behind = np.einsum("rkj,rmj->rmk", corners, path).max(axis=2) - (centre * path).sum(axis=2) + np.maximum(
             into * along_path, out_of * along_path)
         ahead_of_her = behind >= -half[None, :] - np.maximum(reach - slowest, 0.0)[None, :] * leave
         blocked = through & ahead_of_her & (leave >= reaches)
@@ -268,6 +273,35 @@ class SafetyCheck:
         enter[moving] = np.where(answered, into, np.inf)
         passing[moving] = through & ahead_of_her & ~answered & (v[:, None] > 0.0) & (out_of / np.maximum(v, 1e-12)[:, None] < arrives)
         return self._walkers
+
+    def unbent(self, robots: np.ndarray, centre: np.ndarray, velocity: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Walkers' centres (m, 2) [m] and velocities (m, 2) [m/s] as each of ``robots`` (r,)
+        sees them with its path unbent onto the straight line along its heading now: each walker
+        is placed beside that line as she is beside the path at the nearest of its points every
+        ``spacing`` [m] (its headings, :attr:`table`, from the robot's rear axle on; straight on
+        beyond them), turned by the path's turn up to there. Returns centres and velocities (r,
+        m, 2) and the turns (r, m) [rad]. On a curved road a walker on the sidewalk then walks
+        beside the robot's course, as she does beside its lane, instead of across the tangent
+        it would brake along (cars braked for walkers walking along a curved sidewalk)."""
+        r, m = len(robots), len(centre)
+        table, ds = self.table[robots], self.spacing
+        if table.shape[1] == 1:
+            return (np.broadcast_to(centre, (r, m, 2)).copy(), np.broadcast_to(velocity, (r, m, 2)).copy(), np.zeros((r, m)))
+        mid = 0.5 * (table[:, 1:] + table[:, :-1])
+        steps = ds * np.stack([np.cos(mid), np.sin(mid)], axis=-1)  # (r, L-1, 2)
+        start = self.world.states[robots, :2]
+        points = start[:, None, :] + np.concatenate([np.zeros((r, 1, 2)), np.cumsum(steps, axis=1)], axis=1)  # (r, L, 2)
+        nearest = np.hypot(*np.moveaxis(centre[None, :, None, :] - points[:, None, :, :], -1, 0)).argmin(axis=2)  # (r, m)
+        rows = np.arange(r)[:, None]
+        turn = table[:, :1] - table[rows, nearest]  # (r, m)
+        cos, sin = np.cos(turn)[..., None], np.sin(turn)[..., None]
+
+        def rotate(vec):
+            return np.concatenate([cos * vec[..., :1] - sin * vec[..., 1:], sin * vec[..., :1] + cos * vec[..., 1:]], axis=-1)
+
+        heading = np.column_stack([np.cos(table[:, 0]), np.sin(table[:, 0])])
+        base = start[:, None, :] + (nearest * ds)[..., None] * heading[:, None, :]
+        return base + rotate(centre[None] - points[rows, nearest]), rotate(np.broadcast_to(velocity, (r, m, 2))), turn
 
     def walker_stops(self, check: np.ndarray, inputs: np.ndarray) -> np.ndarray:
         """The deceleration [m/s^2] (n,; NaN: none) with which each robot of ``check`` brakes now
@@ -304,7 +338,7 @@ class SafetyCheck:
         braking at once brakes at ``a_brake`` (n,) [m/s^2]."""
         world, fleet = self.world, self.fleet
         steps, fixed, standing, growing = self.surroundings(a_brake)
-        return gentlest_stops(check, inputs, self._steer, world.states, self.headings, fleet.wheelbase, a_brake, fleet.a_max,
+        return gentlest_stops(check, inputs, self._steer, world.states, self.table, self.spacing, fleet.wheelbase, a_brake, fleet.a_max,
                               fleet.v_min, fleet.v_max, fleet.steer_limits, fleet.offset, fleet.length, fleet.width, self.config.dt,
                               FALLBACK_TURN_TIME, steps, fixed, standing, growing, margin, BRAKING_TIE, a_brake, self.ignored)
 
@@ -349,5 +383,5 @@ class SafetyCheck:
         world, fleet = self.world, self.fleet
         use_first = first is not None
         first = np.asarray(first, dtype=float) if use_first else np.zeros((len(world.robots), 2))
-        return braking_courses(world.states, first, use_first, self.previous_steer, self.headings, fleet.wheelbase, a_brake,
+        return braking_courses(world.states, first, use_first, self.previous_steer, self.table, self.spacing, fleet.wheelbase, a_brake,
                                fleet.a_max, fleet.v_min, fleet.v_max, fleet.steer_limits, self.config.dt, FALLBACK_TURN_TIME, steps)
