@@ -73,6 +73,29 @@ def heading_along(row, spacing, distance):
 
 
 @numba.njit(cache=True)
+def path_headings(cum, seg_heading, s0, count, spacing):
+    """Headings (count,) [rad] of a path (cumulative arc lengths ``cum`` (M,), segment headings
+    (M-1,)) at arc lengths ``s0 + spacing * k`` [m], as :meth:`aac_sumo.references.PathReference.pose_at`
+    gives them, unwrapped as ``numpy.unwrap`` does."""
+    out = np.empty(count)
+    last = seg_heading.shape[0] - 1
+    correction, raw = 0.0, 0.0
+    for k in range(count):
+        j = min(max(np.searchsorted(cum, s0 + spacing * k, side="right") - 1, 0), last)
+        h = seg_heading[j]
+        if k:
+            d = h - raw
+            dd = (d + math.pi) % (2.0 * math.pi) - math.pi
+            if dd == -math.pi and d > 0.0:
+                dd = math.pi
+            if abs(d) >= math.pi:
+                correction += dd - d
+        raw = h
+        out[k] = h + correction
+    return out
+
+
+@numba.njit(cache=True)
 def braking_courses(states, first, use_first, previous_steer, headings, spacing, wheelbase, a_min, a_max, v_min, v_max,
                     steer_limits, dt, turn_time, steps):
     """Rear-axle states (m, steps+1, 4) of robots starting from ``states`` (m, 4): each applies

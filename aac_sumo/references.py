@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from aac_sumo.geometry import polyline_offset, wrap_angle
-from aac_sumo.kernels import closest_on_polyline, polyline_chunks, project_points
+from aac_sumo.kernels import closest_on_polyline, path_headings, polyline_chunks, project_points
 
 #: Segments per bounding circle of a path's projection (:func:`~aac_sumo.kernels.closest_on_polyline`).
 PROJECTION_CHUNK = 16
@@ -144,8 +144,7 @@ class PathReference:
     def headings_ahead(self, point, count: int, spacing: float) -> np.ndarray:
         """Headings (count,) [rad, unwrapped] of the path every ``spacing`` [m] from where
         ``point`` [m] projects on: the first is :meth:`heading_at`'s."""
-        s0 = self.project(point)[0]
-        return np.unwrap(self.pose_at(s0 + spacing * np.arange(count))[:, 2])
+        return path_headings(self.s, self.seg_heading, self.project(point)[0], count, spacing)
 
     def _segment(self, s):
         """Index of the segment each arc length ``s`` [m] lies on (the first or last beyond the ends)."""

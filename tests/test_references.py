@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from aac_sumo.references import PathReference
@@ -89,3 +89,19 @@ def test_projection_finds_the_closest_point_of_every_segment(seed, stop, points)
         s, dist = path.project(p)
         assert dist == pytest.approx(d[i], abs=1e-12)
         assert s == pytest.approx(path.s[i] + t[i] * path.seg_len[i], abs=1e-9)
+
+
+@settings(max_examples=100, deadline=None)
+@given(steps=st.lists(st.tuples(st.floats(-5.0, 5.0), st.floats(-5.0, 5.0)), min_size=1, max_size=40),
+       point=st.tuples(st.floats(-30.0, 30.0), st.floats(-30.0, 30.0)), count=st.integers(1, 100),
+       spacing=st.floats(0.1, 3.0), stops=st.booleans())
+def test_the_headings_ahead_are_the_paths_poses_unwrapped(steps, point, count, spacing, stops):
+    """``headings_ahead`` (compiled: kernels.path_headings) gives exactly numpy.unwrap of the
+    headings ``pose_at`` gives every ``spacing`` metres from where the point projects, on any
+    polyline, with its turns beyond pi."""
+    points = np.cumsum(np.vstack([[0.0, 0.0], steps]), axis=0)
+    assume(np.any(np.hypot(*np.diff(points, axis=0).T) > 1e-6))
+    path = PathReference(points, 10.0, stop_at_end=stops)
+    s0 = path.project(np.array(point))[0]
+    expected = np.unwrap(path.pose_at(s0 + spacing * np.arange(count))[:, 2])
+    np.testing.assert_array_equal(path.headings_ahead(np.array(point), count, spacing), expected)
