@@ -224,10 +224,14 @@ def test_an_interrupted_run_keeps_what_it_recorded_and_exits_non_zero(tmp_path, 
            "--out", str(out)]
     # a short run first fills numba's on-disk cache, which the child then loads instead of compiling: on a fresh clone
     # compiling took longer than the 10 s below, and the signal came during start-up
+    start = time.perf_counter()
     assert main(["run", "random_crossing", "--set", "random_crossing.n_robots=3", "--set", "scenario.duration=0.3",
                  "--out", str(tmp_path / "warm")]) == 0
+    slowness = time.perf_counter() - start  # grows with the machine's load, as the child's start-up does
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    time.sleep(10.0)  # past start-up and warm-up, long before the 100-robot crossing ends (120 s, about a minute here)
+    # past start-up and warm-up (10 s idle; longer on a loaded machine, which once sent the signal during start-up),
+    # long before the 100-robot crossing ends (120 s simulated, about a minute idle, longer loaded)
+    time.sleep(min(10.0 + 3.0 * slowness, 40.0))
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
