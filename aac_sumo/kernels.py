@@ -603,19 +603,13 @@ def course_clearance(own, others, margin):
 
 
 @numba.njit(cache=True)
-def ragged_clearance(own, flat, starts, lengths, skip, margin):
-    """:func:`course_clearance` of the course ``own`` (K, 5) against courses of different
-    lengths stored one after the other in ``flat`` (T, 5): course j is rows ``starts[j]`` to
-    ``starts[j] + lengths[j] - 1``, and each course (``own`` too) stands at its last row once it
-    has ended. Course ``skip`` is left out (-1: none). Each pair is compared over the stages
-    until both have ended."""
-    return ragged_nearest(own, flat, starts, lengths, skip, margin)[0]
-
-
-@numba.njit(cache=True)
 def ragged_nearest(own, flat, starts, lengths, skip, margin):
-    """:func:`ragged_clearance` and the course that gives it (the first on ties; -1 without
-    courses)."""
+    """:func:`course_clearance` of the course ``own`` (K, 5) against courses of different
+    lengths stored one after the other in ``flat`` (T, 5), and the course that gives it (the
+    first on ties; -1 without courses): course j is rows ``starts[j]`` to ``starts[j] +
+    lengths[j] - 1``, and each course (``own`` too) stands at its last row once it has ended.
+    Course ``skip`` is left out (-1: none). Each pair is compared over the stages until both
+    have ended."""
     best, nearest = np.inf, -1
     r_own = 0.5 * math.hypot(own[0, 2], own[0, 3])
     n_own = own.shape[0]
@@ -944,31 +938,6 @@ def stop_rows(points, seg_len, cum, seg_dir, seg_heading, t_max, chunk_centre, c
             n_extra += 1
     rows[n_rows:n_rows + n_extra] = extra[:n_extra]
     return rows[:n_rows + n_extra], counted
-
-
-@numba.njit(cache=True)
-def disc_components(centres, radii, margin):
-    """Component label (n,) of each disc (``centres`` (n, 2), ``radii`` (n,) [m]) in the graph
-    whose edges join discs closer than ``margin`` [m] (centre distance less both radii): the
-    least index in its component."""
-    n = centres.shape[0]
-    root = np.arange(n)
-    for i in range(n):
-        for j in range(i + 1, n):
-            if math.hypot(centres[i, 0] - centres[j, 0], centres[i, 1] - centres[j, 1]) - radii[i] - radii[j] < margin:
-                a, b = i, j
-                while root[a] != a:
-                    a = root[a]
-                while root[b] != b:
-                    b = root[b]
-                if a != b:
-                    root[max(a, b)] = min(a, b)
-    for i in range(n):
-        a = i
-        while root[a] != a:
-            a = root[a]
-        root[i] = a
-    return root
 
 
 @numba.njit(cache=True)

@@ -121,16 +121,15 @@ def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipa
     index, centres, headings, lengths, widths, velocity, walker, accel = agents(world)
     rows = np.flatnonzero(index == i)
     held_since = np.full(len(index), -np.inf)
-    walkers = _walker_rows(world) if held else ()
+    walkers = _walker_rows(world) if held is not None else []
     for row, name in walkers:
         held_since[row] = held.get(name, -np.inf)
     ego = np.array([state[0], state[1], state[3], robot.length, robot.width, robot.centre_offset, robot.model.limits.comfort_decel])
     stops, counted = stop_rows(*task.arrays()[:-1], task.stop_at_end, ego, s0, off0, centres, headings, lengths, widths, velocity,
                                walker, accel, rows[0] if rows.size else -1, held_since, world.t, params.rules)
-    if held is not None and counted.any():
-        for row, name in walkers or _walker_rows(world):
-            if counted[row]:
-                held[name] = world.t
+    for row, name in walkers:
+        if counted[row]:
+            held[name] = world.t
     return stops
 
 

@@ -22,9 +22,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 
 from aac_sumo.coordination.regions import Fleet
-from aac_sumo.kernels import course_clearance, disc_components, footprint_rows, ragged_nearest, stopping_course
+from aac_sumo.kernels import course_clearance, footprint_rows, ragged_nearest, stopping_course
 from aac_sumo.references import PathReference
 
 #: Time constant [s] with which a stopping tail turns the heading towards the reference's.
@@ -229,8 +232,14 @@ def clusters(centres: np.ndarray, radii: np.ndarray, margin: float) -> list[np.n
     graph whose edges join robots whose reach discs (``centres`` (n, 2), ``radii`` (n,)) come
     within ``margin`` of each other: robots in different components cannot interact over the
     courses they can commit to now."""
-    if len(centres) == 0:
+    n = len(centres)
+    if n == 0:
         return []
-    label = disc_components(np.asarray(centres, dtype=float), np.asarray(radii, dtype=float), float(margin))
-    order = np.argsort(label, kind="stable")  # by component (its least index), each in increasing order
-    return np.split(order, np.flatnonzero(np.diff(label[order])) + 1)
+    pairs = cKDTree(centres).query_pairs(2.0 * float(radii.max()) + margin, output_type="ndarray")
+    if len(pairs):
+        gap = np.hypot(*(centres[pairs[:, 0]] - centres[pairs[:, 1]]).T) - radii[pairs[:, 0]] - radii[pairs[:, 1]]
+        pairs = pairs[gap < margin]
+    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)) if len(pairs) else coo_matrix((n, n))
+    _, label = connected_components(graph, directed=False)
+    groups = [np.flatnonzero(label == c) for c in np.unique(label)]
+    return sorted(groups, key=lambda g: g[0])
