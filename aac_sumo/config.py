@@ -132,6 +132,7 @@ COMMON: dict[str, dict[str, Key]] = {
         "v0": Key(float, 1.0, "F-CBF sigmoid threshold v0 [m/s]", **NN),
         "pedestrian_reach": Key(float, 0.0, "pedestrians may start, stop or turn at any moment: their regions grow by this speed times the look-ahead time in every direction [m/s]", **NN),
         "pedestrian_margin": Key(float, 0.0, "extra clearance every robot keeps from pedestrians, on top of d_safe [m]", **NN),
+        "walkway_time": Key(float, 0.0, "a pedestrian on a walkway of her own (a sidewalk or footpath, not a crossing) who cannot reach either of its ends within this time at her speed plus pedestrian_reach stays on it: her region does not grow by pedestrian_reach; 0 = never [s]", **NN),
         "prediction": Key(("constant_velocity", "constant_acceleration"), "constant_velocity",
                           "how obstacles move over the horizon, the same for every barrier: constant_velocity, or "
                           "constant_acceleration (each keeps its direction and changes its speed at the acceleration "

@@ -851,23 +851,24 @@ def rects_within(points, rects, reach):
 
 @numba.njit(cache=True)
 def stop_rows(points, seg_len, cum, seg_dir, seg_heading, t_max, chunk_centre, chunk_radius, chunk, stop_at_end,
-              ego, s0, off0, centres, headings, lengths, widths, velocity, walker, accel, skip, held_since, t, rules):
+              ego, s0, off0, centres, headings, lengths, widths, velocity, walker, step_out, accel, skip, held_since, t, rules):
     """The loop form of :func:`aac_sumo.coordination.anticipation.stop_points` for one robot on
     one path (the path's arrays as :meth:`aac_sumo.references.PathReference.arrays` gives them).
 
     ``ego`` = ``[x, y, v, length, width, centre_offset, comfort_decel]`` of the robot (rear
     axle [m], speed [m/s], footprint [m], deceleration [m/s^2]), projected at arc length ``s0``
     [m], ``off0`` [m] off the path. The agents (K rows: footprint centres, headings, lengths,
-    widths, velocities, walker flags, accelerations) are everything on the road; row ``skip`` is
-    the robot itself. ``held_since`` (K,) [s]: when each walker last counted (-inf: never).
-    ``rules`` = ``[look, lateral_margin, cut_in, pedestrian_margin, pedestrian_reach, decel,
-    gap, time_gap, hold]`` (:class:`~aac_sumo.coordination.anticipation.Anticipation`).
+    widths, velocities, walker flags, how fast each walker may step out of her way [m/s], accelerations)
+    are everything on the road; row ``skip`` is the robot itself. ``held_since`` (K,) [s]: when
+    each walker last counted (-inf: never). ``rules`` = ``[look, lateral_margin, cut_in,
+    pedestrian_margin, decel, gap, time_gap, hold]``
+    (:class:`~aac_sumo.coordination.anticipation.Anticipation`).
 
     Returns the stop rows (R, 3) ``[s_stop, v_lead, grow]``, those of braking vehicles' stopping
     points last, and per agent whether it counted as a walker near the path at time ``t`` [s]
     before the hold and the point of no return (the caller's ``held`` is set to ``t`` there)."""
-    look, lateral_margin, cut_in, ped_margin, ped_reach, decel, gap, time_gap, hold = (
-        rules[0], rules[1], rules[2], rules[3], rules[4], rules[5], rules[6], rules[7], rules[8])
+    look, lateral_margin, cut_in, ped_margin, decel, gap, time_gap, hold = (
+        rules[0], rules[1], rules[2], rules[3], rules[4], rules[5], rules[6], rules[7])
     x, y, v, length, width, centre_offset = ego[0], ego[1], abs(ego[2]), ego[3], ego[4], ego[5]
     comfort = ego[6]
     front = centre_offset + 0.5 * length
@@ -885,6 +886,7 @@ def stop_rows(points, seg_len, cum, seg_dir, seg_heading, t_max, chunk_centre, c
             continue
         vx, vy = velocity[k, 0], velocity[k, 1]
         speed = math.hypot(vx, vy)
+        ped_reach = step_out[k]
         reach_max = speed * arrive_max + ped_reach * arrive_max if walker[k] else speed * cut_in
         bound = (off0 + look + max(ped_margin, lateral_margin) + 0.5 * math.hypot(lengths[k], widths[k]) + 0.5 * width + reach_max)
         cx, cy = centres[k, 0], centres[k, 1]

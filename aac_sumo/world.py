@@ -49,6 +49,9 @@ class Obstacle:
     without it the planner predicts the obstacle with ``controller.prediction`` (see
     :mod:`aac_sumo.prediction`). ``accel`` is its longitudinal acceleration along its velocity
     [m/s^2] as a coordinator estimated it from the speeds it observed (0 when not estimated).
+    ``walkway`` is, for a pedestrian on a walkway of her own (a lane only pedestrians may use,
+    not a crossing or a junction's walking area), how far [m] its two ends lie from her along
+    it; None elsewhere.
     """
 
     name: str
@@ -60,6 +63,16 @@ class Obstacle:
     width: float
     predicted: np.ndarray | None = None
     accel: float = 0.0
+    walkway: tuple[float, float] | None = None
+
+    def step_out_speed(self, reach: float, walkway_time: float) -> float:
+        """How fast [m/s] this pedestrian may step out of her way on top of her velocity:
+        ``reach``, unless she walks on a walkway of her own whose ends she cannot reach within
+        ``walkway_time`` [s] at her speed plus ``reach``: she stays on it (as SUMO's walkers
+        do, who leave a footpath only at its end), so 0."""
+        if self.walkway is None or walkway_time <= 0.0:
+            return reach
+        return 0.0 if min(self.walkway) > (np.hypot(*self.velocity) + reach) * walkway_time else reach
 
     def footprint(self) -> np.ndarray:
         """Row ``[cx, cy, length, width, heading]``."""

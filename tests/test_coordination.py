@@ -3,6 +3,7 @@ priority order, safety stops, and the fairness metric."""
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 
 import numpy as np
@@ -875,3 +876,21 @@ def test_a_walker_walking_along_a_curved_sidewalk_beside_the_lane_is_no_crossing
         check = SafetyCheck(WorldState(0.0, state, [HIGHWAY_CAR], [walker]), Fleet([HIGHWAY_CAR]), WALKERS,
                             _arc_headings(radius, 60)[None, :], np.zeros(1))
         assert bool(check.walker_paths()[1][0, 0] > 0.0) == answered
+
+
+@pytest.mark.parametrize("walkway, stays", [((80.0, 260.0), True), ((20.0, 320.0), False), (None, False)])
+def test_a_walker_far_along_her_sidewalk_stays_on_it_and_a_car_drives_past_her(walkway, stays):
+    """The curved sidewalk road at 0 s, the walker 2.6 m outside the car's lane walking along the
+    sidewalk 20 m ahead. Were she free to step out at 1.5 m/s, braking at once would end inside her
+    growing region, so the car must brake now (it braked at 3 m/s^2 from 10 to 2 m/s). On a
+    walkway of her own whose ends she cannot reach within ``walkway_time`` (10 s at 1.3 + 1.5
+    m/s: 28 m) she stays on it, keeps her margin only, and the car cruises on."""
+    radius, at = 150.0, 20.0 / 150.0
+    state = np.array([[0.0, -radius, 0.0, 10.0]])
+    walker = Obstacle("w0", "pedestrian", (radius + 2.6) * np.array([np.sin(at), -np.cos(at)]),
+                      1.3 * np.array([np.cos(at), np.sin(at)]), at, 0.3, 0.5, walkway=walkway)
+    assert walker.step_out_speed(1.5, 10.0) == (0.0 if stays else 1.5)
+    check = SafetyCheck(WorldState(0.0, state, [HIGHWAY_CAR], [walker]), Fleet([HIGHWAY_CAR]),
+                        dataclasses.replace(WALKERS, walkway_time=10.0), _arc_headings(radius, 60)[None, :], np.zeros(1))
+    cruise = np.array([[0.0, np.arctan(2.6 / radius)]])  # holding the arc at its speed
+    assert check.unsafe(np.array([0]), cruise, 0.0).tolist() == [not stays]

@@ -316,15 +316,18 @@ def write_sidewalk_curve(folder: Path) -> tuple[Path, Path]:
 
 @pytest.mark.slow
 def test_aac_drives_a_curved_road_with_a_sidewalk_calmly(tmp_path):
-    """AAC on the curved sidewalk road: it completes with 0 collisions, and no applied input
-    breaks the lateral or steering-rate limit. (The issue's target of at most one car in ten
-    driving aggressively is not met yet: docs/lane_change.md.)"""
+    """AAC on the curved sidewalk road (9 cars, seed 0): it completes with 0 collisions, ours
+    and SUMO's, at most one car in ten drives aggressively, none comes within pedestrian_margin
+    of a walker, and no applied input breaks the lateral or steering-rate limit. The walkers
+    walk along the sidewalk far from its ends (docs/lane_change.md)."""
     net, routes = write_sidewalk_curve(tmp_path / "road")
     scenario = config.load("lane_change", [f"sumo.net={net}", f"sumo.routes={routes}", "lane_change.vehicles=9"])
     result = runner.run(scenario)
     m = result.metrics
     assert "error" not in m
-    assert m["completed"] is True and m["collisions"] == 0
+    assert m["completed"] is True and m["collisions"] == 0 and m["sim_collisions"] == 0
+    assert m["aggressive_driving_rate"] <= 0.10
+    assert m["min_pedestrian_clearance_m"] >= 1.0
     assert_limits_hold(result.steps)
 
 

@@ -25,9 +25,12 @@ def numpy_stop_points(world: WorldState, i: int, task: PathReference, params: An
     index = agents(world)[0]
     others = np.flatnonzero(index != i)
     _, centres, headings, lengths, widths, velocity, walker, accel = (a[others] for a in agents(world))
+    first = int(np.sum(index >= 0))
+    step_out = np.array([world.obstacles[a - first].step_out_speed(params.pedestrian_reach, params.walkway_time) if w else 0.0
+                         for a, w in zip(others, walker)])
     speed = np.hypot(velocity[:, 0], velocity[:, 1])
     arrive_max = params.look / max(abs(state[3]), 1.0)
-    reach_max = np.where(walker, speed * arrive_max + params.pedestrian_reach * arrive_max, speed * params.cut_in)
+    reach_max = np.where(walker, speed * arrive_max + step_out * arrive_max, speed * params.cut_in)
     bound = (off0 + params.look + max(params.pedestrian_margin, params.lateral_margin) + 0.5 * np.hypot(lengths, widths)
              + 0.5 * robot.width + reach_max)
     candidate = np.flatnonzero(np.hypot(*(centres - state[:2]).T) <= bound + 1e-6)
@@ -39,7 +42,7 @@ def numpy_stop_points(world: WorldState, i: int, task: PathReference, params: An
     if not near.any():
         return np.zeros((0, 3))
     s, off, ahead = s[near_c], off[near_c], ahead[near_c]
-    c, vel, walker = centres[near], velocity[near], walker[near]
+    c, vel, walker, step_out = centres[near], velocity[near], walker[near], step_out[near]
     poses = task.pose_at(s)
     rel = headings[near] - poses[:, 2]
     tangent = np.column_stack([np.cos(poses[:, 2]), np.sin(poses[:, 2])])
@@ -51,11 +54,10 @@ def numpy_stop_points(world: WorldState, i: int, task: PathReference, params: An
     across = -side * np.einsum("ij,ij->i", vel, normal)
     toward = np.maximum(0.0, across)
     arrive = ahead / max(abs(state[3]), 1.0)
-    reach = np.where(walker, toward * arrive + params.pedestrian_reach * np.minimum(arrive, abs(state[3]) / params.decel),
+    reach = np.where(walker, toward * arrive + step_out * np.minimum(arrive, abs(state[3]) / params.decel),
                      toward * params.cut_in)
     counts = gap_across - reach <= np.where(walker, params.pedestrian_margin, params.lateral_margin)
     if held is not None and walker.any():
-        first = int(np.sum(index >= 0))
         names = [world.obstacles[a - first].name if w else "" for a, w in zip(others[near], walker)]
         for k, name in enumerate(names):
             if name and counts[k]:
@@ -64,7 +66,7 @@ def numpy_stop_points(world: WorldState, i: int, task: PathReference, params: An
                 counts[k] = True
     lead = np.where(walker, 0.0, np.maximum(np.einsum("ij,ij->i", vel, tangent), 0.0))
     keep = np.where(walker, params.pedestrian_margin, 0.0)
-    grow = np.where(walker, params.pedestrian_reach / params.decel, 0.0)
+    grow = np.where(walker, step_out / params.decel, 0.0)
     behind_it = s - along - front - params.gap
     s_stop = behind_it - keep - params.time_gap * lead
     v = abs(state[3])
@@ -78,7 +80,8 @@ def numpy_stop_points(world: WorldState, i: int, task: PathReference, params: An
 
 
 agent = st.tuples(st.floats(-10.0, 120.0), st.floats(-12.0, 12.0), st.floats(-np.pi, np.pi), st.floats(0.0, 15.0),
-                  st.floats(-np.pi, np.pi), st.sampled_from(["vehicle", "pedestrian", "cone"]), st.floats(-5.0, 1.0))
+                  st.floats(-np.pi, np.pi), st.sampled_from(["vehicle", "pedestrian", "cone"]), st.floats(-5.0, 1.0),
+                  st.none() | st.tuples(st.floats(0.0, 100.0), st.floats(0.0, 100.0)))
 
 
 @settings(max_examples=150, deadline=None)
@@ -86,8 +89,8 @@ agent = st.tuples(st.floats(-10.0, 120.0), st.floats(-12.0, 12.0), st.floats(-np
                        min_size=1, max_size=4),
        obstacles=st.lists(agent, max_size=8), bend=st.floats(-0.02, 0.02), stops=st.booleans(), t=st.floats(0.0, 3.0),
        held_times=st.lists(st.floats(-3.0, 3.0), min_size=8, max_size=8), with_held=st.booleans(),
-       present=st.lists(st.booleans(), min_size=4, max_size=4))
-def test_the_compiled_rows_are_the_numpy_definitions(robots, obstacles, bend, stops, t, held_times, with_held, present):
+       present=st.lists(st.booleans(), min_size=4, max_size=4), walkway_time=st.sampled_from([0.0, 5.0]))
+def test_the_compiled_rows_are_the_numpy_definitions(robots, obstacles, bend, stops, t, held_times, with_held, present, walkway_time):
     arc = np.linspace(0.0, 150.0, 40)
     path = np.column_stack([arc, bend * arc**2 / 2.0])  # a straight road or a gentle bend either way
     task = PathReference(path, 12.0, stop_at_end=stops)
@@ -95,10 +98,10 @@ def test_the_compiled_rows_are_the_numpy_definitions(robots, obstacles, bend, st
     kinds = {"vehicle": (4.5, 1.8), "pedestrian": (0.5, 0.5), "cone": (0.4, 0.4)}
     world = WorldState(t, states, [CAR] * len(robots),
                        [Obstacle(f"o{k}", kind, np.array([x, y]), speed * np.array([np.cos(course), np.sin(course)]), heading,
-                                 *kinds[kind], accel=accel)
-                        for k, (x, y, heading, speed, course, kind, accel) in enumerate(obstacles)],
+                                 *kinds[kind], accel=accel, walkway=walkway)
+                        for k, (x, y, heading, speed, course, kind, accel, walkway) in enumerate(obstacles)],
                        present=np.array(present[: len(robots)]) | (np.arange(len(robots)) == 0))
-    params = Anticipation(pedestrian_reach=1.5, pedestrian_margin=1.0, brake=3.0)
+    params = Anticipation(pedestrian_reach=1.5, pedestrian_margin=1.0, brake=3.0, walkway_time=walkway_time)
     held = {f"o{k}": h for k, h in enumerate(held_times)} if with_held else None
     expected_held = None if held is None else dict(held)
     expected = numpy_stop_points(world, 0, task, params, expected_held)

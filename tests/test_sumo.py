@@ -140,6 +140,27 @@ def test_pedestrian_reaches_the_mpc_obstacle_list():
     assert any(np.allclose(row[:2], p1.centre) for row in active)
 
 
+def test_a_walker_on_a_footpath_knows_how_far_its_ends_are_and_one_on_the_crossing_does_not():
+    """p1 starts 3 m along the footpath FS (pedestrians only), walks to the road and onto the zebra
+    crossing, an internal lane of the junction: there she is on no walkway of her own."""
+    sim = sim_with([[100.0, LANE_Y[1], 0.0, 0.0]], routes=[PEDESTRIANS])
+    try:
+        sim.step(np.zeros((1, 2)))
+        lane = sim.api.person.getLaneID("p1")
+        p1 = next(o for o in sim.observe().obstacles if o.name == "p1")
+        assert lane.startswith("FS") and p1.walkway is not None
+        assert sum(p1.walkway) == pytest.approx(sim.api.lane.getLength(lane))
+        assert p1.walkway[0] == pytest.approx(sim.api.person.getLanePosition("p1"))
+        for _ in range(300):
+            sim.step(np.zeros((1, 2)))
+            if sim.api.person.getLaneID("p1").startswith(":"):
+                break
+        assert sim.api.person.getLaneID("p1").startswith(":")
+        assert next(o for o in sim.observe().obstacles if o.name == "p1").walkway is None
+    finally:
+        sim.close()
+
+
 def test_a_vehicle_sumo_removes_drives_on_off_the_road_finished_and_the_run_goes_on(capsys):
     """A controlled vehicle SUMO no longer has (it left the network) moves on under our model
     alone, counts as finished, is out of the collision check, and the event is reported."""

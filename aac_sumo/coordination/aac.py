@@ -558,7 +558,8 @@ class AacCoordinator(Coordinator):
         reach = reach_radii(self.fleet, world.states, cfg.horizon, cfg.dt, self.tail_decel()) if movers else None
         mover_centres = np.array([o.centre for o in movers]).reshape(-1, 2)
         mover_extent = np.array([0.5 * np.hypot(o.length, o.width) + cfg.pedestrian_margin for o in movers])
-        mover_speed = np.array([cfg.pedestrian_reach + np.hypot(*o.velocity) for o in movers])
+        mover_speed = np.array([(o.step_out_speed(cfg.pedestrian_reach, cfg.walkway_time) if o.kind == "pedestrian" else cfg.pedestrian_reach)
+                                + np.hypot(*o.velocity) for o in movers])
         centres = world.robot_centres()
         for j in range(len(world.robots)):
             c = book.items[j]

@@ -53,7 +53,8 @@ class Anticipation:
     """Comfortable rates [m/s^2] (and ``brake``, towards a stop seen late: see
     :func:`anticipated_reference`), gaps [m], time gap [s], how far ahead it looks [m], the
     lateral reach of the path [m], and the pedestrian rules (see the module; ``hold`` [s]: how
-    long a walker who counted goes on counting, see :func:`stop_points`)."""
+    long a walker who counted goes on counting, see :func:`stop_points`; ``walkway_time``, see
+    :meth:`~aac_sumo.world.Obstacle.step_out_speed`)."""
 
     decel: float = 1.5
     accel: float = 1.5
@@ -65,6 +66,7 @@ class Anticipation:
     cut_in: float = 2.0
     pedestrian_margin: float = 1.0
     pedestrian_reach: float = 0.0
+    walkway_time: float = 0.0
     yield_distance: float = 20.0
     yield_band: float = 0.25
     hold: float = 2.0
@@ -72,8 +74,8 @@ class Anticipation:
     @cached_property
     def rules(self) -> np.ndarray:
         """The rules as :func:`aac_sumo.kernels.stop_rows` takes them."""
-        return np.array([self.look, self.lateral_margin, self.cut_in, self.pedestrian_margin, self.pedestrian_reach, self.decel,
-                         self.gap, self.time_gap, self.hold])
+        return np.array([self.look, self.lateral_margin, self.cut_in, self.pedestrian_margin, self.decel, self.gap, self.time_gap,
+                         self.hold])
 
 
 def across_extent(length, width, relative_heading) -> np.ndarray:
@@ -126,11 +128,26 @@ def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipa
         held_since[row] = held.get(name, -np.inf)
     ego = np.array([state[0], state[1], state[3], robot.length, robot.width, robot.centre_offset, robot.model.limits.comfort_decel])
     stops, counted = stop_rows(*task.arrays()[:-1], task.stop_at_end, ego, s0, off0, centres, headings, lengths, widths, velocity,
-                               walker, accel, rows[0] if rows.size else -1, held_since, world.t, params.rules)
+                               walker, _step_out_speeds(world, params), accel, rows[0] if rows.size else -1, held_since, world.t,
+                               params.rules)
     for row, name in walkers:
         if counted[row]:
             held[name] = world.t
     return stops
+
+
+def _step_out_speeds(world: WorldState, params: Anticipation) -> np.ndarray:
+    """How fast [m/s] each of :func:`agents`' rows may step out of its way, as a walker
+    (:meth:`~aac_sumo.world.Obstacle.step_out_speed`; 0 for the rest), cached per world."""
+    key = ("_step_out", params.pedestrian_reach, params.walkway_time)
+    cached = world.__dict__.get(key)
+    if cached is None:
+        first = int(np.sum(agents(world)[0] >= 0))
+        cached = np.zeros(first + len(world.obstacles))
+        cached[first:] = [o.step_out_speed(params.pedestrian_reach, params.walkway_time) if o.kind == "pedestrian" else 0.0
+                          for o in world.obstacles]
+        world.__dict__[key] = cached
+    return cached
 
 
 def _walker_rows(world: WorldState) -> list[tuple[int, str]]:

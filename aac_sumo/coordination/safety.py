@@ -15,7 +15,8 @@ cone, pointing at it, could otherwise never leave (it does not reverse).
 Braking at once is always allowed: a robot standing beside a pedestrian who may start walking
 may drive away from them. The other robots are taken both on their own such course and braking
 at once, since either may happen. A pedestrian's footprint grows on every side by the
-planner's ``pedestrian_margin`` [m] plus its ``pedestrian_reach`` [m/s] times the time. A robot
+planner's ``pedestrian_margin`` [m] plus its ``pedestrian_reach`` [m/s] times the time (not the
+reach for a walker who stays on a walkway of her own: the planner's ``walkway_time``). A robot
 that fails brakes as gently as passes the check.
 
 Comfort first: a course brakes at the robot's comfort deceleration, so that robots keep the
@@ -251,7 +252,8 @@ class SafetyCheck:
         towards = -np.sign(offset) * np.einsum("rj,rmj->rm", left, velocity)  # at her speed now, scaled to her fastest or slowest of late
         towards = towards * np.where(towards > 0.0, (fastest / speed_w)[None, :], (slowest / speed_w)[None, :])
         gap = np.abs(offset) - across_extent(size[None, :, 0], size[None, :, 1], size[None, :, 2] + turned - rows[:, 4:5]) - 0.5 * rows[:, 3:4]
-        closing = towards + reach
+        reach = np.array([o.step_out_speed(reach, cfg.walkway_time) for o in walkers])  # (m,): her own (walkway_time)
+        closing = towards + reach[None, :]
         reaches = np.where(closing > 0.0, np.maximum(gap - margin, 0.0) / np.maximum(closing, 1e-9), np.inf)
         # her path ahead of her only: where the robot crosses her strip she could be by then (walking on, or coming back
         # at her reach beyond her speed), not where she came from (a walker turning onto a footpath along the road)
@@ -370,8 +372,9 @@ class SafetyCheck:
             moving[:, :, :2] += np.arange(steps + 1)[None, :, None] * cfg.dt * vel[:, None, :]
             walkers = np.array([o.kind == "pedestrian" for o in world.obstacles], dtype=bool)
             walkers &= cfg.pedestrian_reach > 0.0 or cfg.pedestrian_margin > 0.0
-            growth = cfg.pedestrian_margin + cfg.pedestrian_reach * cfg.dt * np.arange(steps + 1)
-            moving[walkers, :, 2:4] += 2.0 * growth[None, :, None]
+            reach = np.array([o.step_out_speed(cfg.pedestrian_reach, cfg.walkway_time) for o in world.obstacles]).reshape(-1)
+            growth = cfg.pedestrian_margin + reach[:, None] * cfg.dt * np.arange(steps + 1)  # (obstacles, steps+1)
+            moving[walkers, :, 2:4] += 2.0 * growth[walkers, :, None]
             standing = (np.hypot(vel[:, 0], vel[:, 1]) == 0.0) & ~walkers
             none = np.zeros(2 * n, dtype=bool)
             self._around[key] = steps, np.concatenate([halt, moving]), np.r_[none, standing], np.r_[none, walkers]

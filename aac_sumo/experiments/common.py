@@ -69,7 +69,7 @@ def mpc_config(scenario: Scenario) -> MpcConfig:
         s_steer=c["s_steer"], terminal_scale=c["terminal_scale"], max_iter=c["max_iter"],
         max_cpu_time=c["max_cpu_time"], retry_with_ipopt=c["retry_with_ipopt"], codegen=c["codegen"],
         warm_start=c["warm_start"],
-        pedestrian_reach=c["pedestrian_reach"], pedestrian_margin=c["pedestrian_margin"],
+        pedestrian_reach=c["pedestrian_reach"], pedestrian_margin=c["pedestrian_margin"], walkway_time=c["walkway_time"],
         prediction=c["prediction"], prediction_window=c["prediction_window"],
         terminal_stop=c["terminal_stop"], obstacle_decel=c["obstacle_decel"],
         comfort_accel=c["comfort_accel"], comfort_lat=c["comfort_lat"],
@@ -144,7 +144,8 @@ def anticipation(scenario: Scenario) -> Anticipation | None:
         return None
     return Anticipation(decel=c["anticipate_decel"], accel=c["anticipate_accel"], brake=c["anticipate_brake"], gap=c["anticipate_gap"],
                         time_gap=c["anticipate_time_gap"],
-                        pedestrian_margin=c["pedestrian_margin"], pedestrian_reach=c["pedestrian_reach"], yield_distance=c["yield_distance"],
+                        pedestrian_margin=c["pedestrian_margin"], pedestrian_reach=c["pedestrian_reach"],
+                        walkway_time=c["walkway_time"], yield_distance=c["yield_distance"],
                         yield_band=c["yield_band"])
 
 

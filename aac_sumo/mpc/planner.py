@@ -47,6 +47,8 @@ class MpcConfig:
     ``pedestrian_reach`` [m/s] grows a pedestrian's region at stage k by ``pedestrian_reach * k *
     dt`` in every direction: a walker may start, stop or turn at any moment; ``pedestrian_margin``
     [m] grows it at every stage (pedestrians have priority: cars keep clear of them).
+    ``walkway_time`` [s]: a walker on a walkway of her own far from its ends does not step out
+    (:meth:`~aac_sumo.world.Obstacle.step_out_speed`; 0: every walker may).
     ``warm_start`` starts each solve from the robot's previous plan, shifted by one period,
     instead of the zero-input rollout (a failed warm start is retried cold either way).
     ``prediction`` is how obstacles move over the horizon (see :mod:`aac_sumo.prediction`);
@@ -87,6 +89,7 @@ class MpcConfig:
     band: bool = False
     pedestrian_reach: float = 0.0
     pedestrian_margin: float = 0.0
+    walkway_time: float = 0.0
     prediction: str = "constant_velocity"
     prediction_window: int = 2
     terminal_stop: bool = False
@@ -186,10 +189,11 @@ class MpcPlanner:
             stops[~swept, :2] = preds.centres[:, 0] + velocity * np.hypot(*velocity.T)[:, None] / (2.0 * decel)
             stops[~swept, 2:] = np.column_stack(cbf_axes(preds.length[:, 0], preds.width[:, 0], preds.headings[:, 0]))
         if cfg.pedestrian_reach > 0.0 or cfg.pedestrian_margin > 0.0:
-            walker = np.array([isinstance(o, Obstacle) and o.kind == "pedestrian" for o in obstacles], dtype=bool)
-            growth = cfg.pedestrian_margin + cfg.pedestrian_reach * cfg.dt * np.arange(cfg.horizon + 1)
-            ellipses[walker, :, 2:4] += growth[:, None]
-            stops[walker, 2:4] += growth[-1]
+            walker = np.flatnonzero([isinstance(o, Obstacle) and o.kind == "pedestrian" for o in obstacles])
+            reach = np.array([obstacles[i].step_out_speed(cfg.pedestrian_reach, cfg.walkway_time) for i in walker])
+            growth = cfg.pedestrian_margin + reach[:, None] * cfg.dt * np.arange(cfg.horizon + 1)  # (walkers, K+1)
+            ellipses[walker, :, 2:4] += growth[:, :, None]
+            stops[walker, 2:4] += growth[:, -1:]
         return ellipses.transpose(1, 0, 2), swept, stops
 
     def nearest(self, state: np.ndarray, obstacles: list[Obstacle | ObstaclePrediction | RegionTrack]) -> np.ndarray:

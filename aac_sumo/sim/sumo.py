@@ -147,6 +147,7 @@ class SumoSimulator(Simulator):
         self.events: list[str] = []
         self._sim_pairs: set[tuple[str, str]] = set()
         self._obstacle_dims: dict[str, tuple[float, float, str]] = {}
+        self._walkway_lanes: dict[str, float | None] = {}  # lane id -> its length [m] when only pedestrians may use it
         self.t = 0.0
         self.model = FleetModel([r.model for r in self.robots])
         try:
@@ -250,6 +251,23 @@ class SumoSimulator(Simulator):
             self._obstacle_dims[oid] = (domain.getLength(oid), domain.getWidth(oid), domain.getTypeID(oid))
         return self._obstacle_dims[oid]
 
+    def _walkway(self, person: str) -> tuple[float, float] | None:
+        """How far [m] the ends of the walkway ``person`` walks on lie from her (the lane's
+        start and end), when her lane is one only pedestrians may use on a normal edge (a
+        sidewalk or footpath, not a crossing or a walking area, whose ids start with ':');
+        None otherwise."""
+        lane = self.api.person.getLaneID(person)
+        if not lane or lane.startswith(":"):
+            return None
+        if lane not in self._walkway_lanes:
+            allowed = set(self.api.lane.getAllowed(lane))
+            self._walkway_lanes[lane] = self.api.lane.getLength(lane) if allowed == {"pedestrian"} else None
+        length = self._walkway_lanes[lane]
+        if length is None:
+            return None
+        pos = self.api.person.getLanePosition(person)
+        return (pos, length - pos)
+
     def _read_obstacles(self) -> tuple[list[Obstacle], list[Obstacle]]:
         """Every SUMO agent that is not ours: cones (vType in ``cone_types``), other vehicles
         (kind ``scripted``) and pedestrians, with their bodies (footprint centres from SUMO's
@@ -273,8 +291,9 @@ class SumoSimulator(Simulator):
                 centre, heading = body_from_sumo(x, y, angle, length)
                 obstacle_kind = kind or ("cone" if vtype in self.options.cone_types else "scripted")
                 if obstacle_kind != "scripted":
+                    walkway = self._walkway(oid) if kind == "pedestrian" else None
                     body = Obstacle(oid, obstacle_kind, centre, domain.getSpeed(oid) * np.array([math.cos(heading), math.sin(heading)]),
-                                    heading, length, width)
+                                    heading, length, width, walkway=walkway)
                     bodies.append(body)
                     seen.append(body)
                     continue
