@@ -252,15 +252,15 @@ class SafetyCheck:
         towards = -np.sign(offset) * np.einsum("rj,rmj->rm", left, velocity)  # at her speed now, scaled to her fastest or slowest of late
         towards = towards * np.where(towards > 0.0, (fastest / speed_w)[None, :], (slowest / speed_w)[None, :])
         gap = np.abs(offset) - across_extent(size[None, :, 0], size[None, :, 1], size[None, :, 2] + turned - rows[:, 4:5]) - 0.5 * rows[:, 3:4]
-        reach = np.array([o.step_out_speed(reach, cfg.walkway_time) for o in walkers])  # (m,): her own (walkway_time)
-        closing = towards + reach[None, :]
+        step_out = np.array([o.step_out_speed(reach, cfg.walkway_time) for o in walkers])  # (m,): her own reach (walkway_time)
+        closing = towards + step_out[None, :]
         reaches = np.where(closing > 0.0, np.maximum(gap - margin, 0.0) / np.maximum(closing, 1e-9), np.inf)
         # her path ahead of her only: where the robot crosses her strip she could be by then (walking on, or coming back
         # at her reach beyond her speed), not where she came from (a walker turning onto a footpath along the road)
         along_path = np.einsum("rj,rmj->rm", ahead, path)  # (r, m)
         behind = np.einsum("rkj,rmj->rmk", corners, path).max(axis=2) - (centre * path).sum(axis=2) + np.maximum(
             into * along_path, out_of * along_path)
-        ahead_of_her = behind >= -half[None, :] - np.maximum(reach - slowest, 0.0)[None, :] * leave
+        ahead_of_her = behind >= -half[None, :] - np.maximum(step_out - slowest, 0.0)[None, :] * leave
         blocked = through & ahead_of_her & (leave >= reaches)
         strongest = -fleet.a_min[moving, None]
         room = into - 0.5 * v[:, None] * dt - 0.125 * strongest * dt * dt  # Euler steps overshoot up to a dt^2 / 8
