@@ -168,21 +168,13 @@ class PathReference:
         (backwards from a goal in front, forwards from one behind) at half the cruise speed, until the goal lies
         ``BACK_OFF_HYSTERESIS`` turning radii from both circles' centres.
         """
-        goal = self.points[-1]
-        rel = goal - np.asarray(state[:2], dtype=float)
-        dist = float(np.hypot(rel[0], rel[1]))
-        s0, off = self.project(state[:2])
-        if self.stop_at_end and 1e-9 < dist and self.approach > 0.0 and (dist <= self.approach or self.length - s0 <= off):
-            if self.turn_radius > 0.0 and dist > self.arrive:  # a goal inside a turning circle cannot be reached by turning: back off first
-                left = np.array([-np.sin(state[2]), np.cos(state[2])])
-                gap = np.hypot(*(np.asarray(state[:2], dtype=float) + self.turn_radius * np.array([left, -left]) - goal).T).min()
-                ahead_of = rel @ np.array([np.cos(state[2]), np.sin(state[2])]) >= 0.0  # the goal lies in front
-                backing = state[3] < 0.0 if ahead_of else state[3] > 0.0
-                if gap < self.turn_radius * (BACK_OFF_HYSTERESIS if backing else 1.0):
-                    away = -1.0 if ahead_of else 1.0
-                    back = away * np.arange(steps + 1) * dt * 0.5 * self.speed
-                    xy = np.asarray(state[:2], dtype=float) + back[:, None] * np.array([np.cos(state[2]), np.sin(state[2])])
-                    return np.column_stack([xy, np.full(steps + 1, state[2]), np.full(steps + 1, away * 0.5 * self.speed)])
+        rel, dist, s0, mode = self._goal_mode(state)
+        if mode == "back_off":  # a goal inside a turning circle cannot be reached by turning: back off first
+            away = -1.0 if rel @ np.array([np.cos(state[2]), np.sin(state[2])]) >= 0.0 else 1.0
+            back = away * np.arange(steps + 1) * dt * 0.5 * self.speed
+            xy = np.asarray(state[:2], dtype=float) + back[:, None] * np.array([np.cos(state[2]), np.sin(state[2])])
+            return np.column_stack([xy, np.full(steps + 1, state[2]), np.full(steps + 1, away * 0.5 * self.speed)])
+        if mode == "approach":
             speed = min(self.speed, float(np.sqrt(2.0 * self.decel * dist)))
             ahead = np.minimum(np.arange(steps + 1) * dt * speed, dist)
             xy = np.asarray(state[:2], dtype=float) + ahead[:, None] * (rel / dist)
@@ -196,6 +188,31 @@ class PathReference:
         poses = self.pose_at(s)
         heading = state[2] + wrap_angle(poses[:, 2] - state[2])
         return np.column_stack([poses[:, :2], heading, self.speed_at(s)])
+
+    def heading_free(self, state) -> bool:
+        """Whether :meth:`horizon` leaves the heading free at ``state``: the goal approach, not
+        backing off (what ``np.isnan(horizon(state, 0, dt)[0, 2])`` says, without the rest)."""
+        return self._goal_mode(state)[3] == "approach"
+
+    def _goal_mode(self, state) -> tuple[np.ndarray, float, float, str]:
+        """``state``'s way to the goal (vector [m] and its length), its projection's arc length
+        [m], and which reference :meth:`horizon` gives: ``"path"``, ``"approach"`` (straight to
+        the goal, heading free) or ``"back_off"`` (straight away from a goal inside a turning
+        circle)."""
+        goal = self.points[-1]
+        rel = goal - np.asarray(state[:2], dtype=float)
+        dist = float(np.hypot(rel[0], rel[1]))
+        s0, off = self.project(state[:2])
+        if not (self.stop_at_end and 1e-9 < dist and self.approach > 0.0 and (dist <= self.approach or self.length - s0 <= off)):
+            return rel, dist, s0, "path"
+        if self.turn_radius > 0.0 and dist > self.arrive:
+            left = np.array([-np.sin(state[2]), np.cos(state[2])])
+            gap = np.hypot(*(np.asarray(state[:2], dtype=float) + self.turn_radius * np.array([left, -left]) - goal).T).min()
+            ahead_of = rel @ np.array([np.cos(state[2]), np.sin(state[2])]) >= 0.0  # the goal lies in front
+            backing = state[3] < 0.0 if ahead_of else state[3] > 0.0
+            if gap < self.turn_radius * (BACK_OFF_HYSTERESIS if backing else 1.0):
+                return rel, dist, s0, "back_off"
+        return rel, dist, s0, "approach"
 
     def finished(self, state, tolerance: float) -> bool:
         """True when the robot is within ``tolerance`` [m] of the path's end."""

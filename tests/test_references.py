@@ -105,3 +105,15 @@ def test_the_headings_ahead_are_the_paths_poses_unwrapped(steps, point, count, s
     s0 = path.project(np.array(point))[0]
     expected = np.unwrap(path.pose_at(s0 + spacing * np.arange(count))[:, 2])
     np.testing.assert_array_equal(path.headings_ahead(np.array(point), count, spacing), expected)
+
+
+@settings(max_examples=200, deadline=None)
+@given(x=st.floats(-2.0, 12.0), y=st.floats(-3.0, 3.0), heading=st.floats(-np.pi, np.pi), speed=st.floats(-1.0, 1.0),
+       turn_radius=st.sampled_from([0.0, 0.66]), approach=st.sampled_from([0.0, 1.0, 3.0]))
+def test_heading_free_says_what_the_horizon_does(x, y, heading, speed, turn_radius, approach):
+    """heading_free is the horizon's free (NaN) heading, near the goal or beside the path's end,
+    and not while backing off from a goal inside a turning circle."""
+    path = PathReference(np.column_stack([np.linspace(0.0, 10.0, 21), np.zeros(21)]), 1.0, 0.5, approach=approach,
+                         turn_radius=turn_radius, arrive=0.1)
+    state = np.array([x, y, heading, speed])
+    assert path.heading_free(state) == bool(np.isnan(path.horizon(state, 0, 0.1)[0, 2]))

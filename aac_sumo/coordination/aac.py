@@ -575,7 +575,7 @@ class AacCoordinator(Coordinator):
             if book.refused_again(j, world.states[j], key, statics):  # the same course against the same standing footprint
                 self.next_extension[j] = period + EXTENSION_RETRY
                 continue
-            if np.isnan(self.path(j).horizon(world.states[j], 0, cfg.dt)[0, 2]):
+            if self.path(j).heading_free(world.states[j]):
                 continue  # approaching its goal off its path: a manoeuvre for its MPC, not for the forward-only law
             head = self.tracking_inputs(world, j, cfg.horizon)
             candidate = self.commitment(world, j, period, head)

@@ -159,7 +159,7 @@ class Coordinator(ABC):
         """Robot ``i``'s reference over the horizon (N+1, 4): its task's, with speeds that
         anticipate what lies ahead on its path when ``anticipation`` is set."""
         cfg = self.planner.config
-        if self.anticipation is not None and not np.isnan(self.tasks[i].horizon(world.states[i], 0, cfg.dt)[0, 2]):
+        if self.anticipation is not None and not self.tasks[i].heading_free(world.states[i]):
             return anticipated_reference(world, i, self.tasks[i], cfg.horizon, cfg.dt, self.anticipation, self.held[i],
                                          self.strips_ahead(i))
         return self.tasks[i].horizon(world.states[i], cfg.horizon, cfg.dt)
