@@ -570,9 +570,13 @@ class AacCoordinator(Coordinator):
         ``planned`` ends (than where it stands, without one) and the course passes the same exact
         check as every commitment (:meth:`CommitmentBook.clearance`). Not with uncontrolled
         moving agents about (walkers, scripted or SUMO-driven cars): the check does not hold
-        them. Returns whether it committed."""
+        them. Not for a robot making room for a leader: creeping towards its make-room target
+        moved robots that had parked at their goals off them for good (100 robots, seed 24;
+        20 robots: 48 of 50 seeds completed with it, 49 without). Returns whether it committed."""
         cfg, book, fleet = self.planner.config, self.book, self.fleet
         if any(o.kind not in ("static", "cone") for o in world.obstacles):
+            return False
+        if self.room is not None and i in self.room.targets:
             return False
         target, here = ref[-1, :2], world.states[i, :2]
         best = float(np.hypot(*(here - target)))
