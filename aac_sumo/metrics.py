@@ -19,7 +19,7 @@ METRIC_KEYS = (
     "emergency_brakes", "aggressive_by_mode",
 )
 #: Where an applied input comes from (``steps.csv``'s ``mode``), in the order ``aggressive_by_mode`` reports them.
-MODES = ("mpc", "plan", "tracking", "safety_stop", "fallback", "hold")
+MODES = ("mpc", "creep", "plan", "tracking", "safety_stop", "fallback", "hold")
 ROBOT_KINDS = ("robot", "scripted")
 
 

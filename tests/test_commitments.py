@@ -211,3 +211,38 @@ def test_a_refusal_is_remembered_only_while_the_same_course_meets_the_same_stand
     assert not book.refused_again(0, states[0], key, statics)  # a new commitment of the blocker: check again
     book.refuse(0, np.array([0.0, 0.0, 0.0, 0.5]), key, 1, 0, statics)  # moving: nothing remembered
     assert not book.refused_again(0, np.array([0.0, 0.0, 0.0, 0.5]), key, statics)
+
+
+def test_a_standing_authority_whose_plan_leaves_it_standing_creeps_only_on_a_checked_course_nearer_its_reference():
+    """In the crowded centre of a 12-robot circle swap some standing authorities' solves leave
+    them standing (the planner's regions are conservative); they creep instead
+    (``AacCoordinator.creep``). Pinned at every creep: the robot stood, its new commitment
+    starts where it is, ends at least ``CREEP_GAIN`` nearer where its reference ends, drives
+    forwards (backwards only while it backs off), is not making room for a leader, and keeps
+    the margin from every other commitment and the debris (the invariant, checked at every
+    period as before)."""
+    from aac_sumo.coordination.aac import CREEP_GAIN, CREEP_SPEED
+    from aac_sumo.coordination.make_room import STILL_SPEED
+
+    setup = experiments.build(config.load("circle_swap", PLAIN + ["circle_swap.n_robots=12"]))
+    sim, coord = setup.sim, setup.coordinator
+    creeps = 0
+    for period in range(80):
+        world = sim.observe()
+        decision = coord.decide(world)
+        commitments_apart(coord, world, period)
+        for i, record in enumerate(decision.robots):
+            if record.mode != "creep":
+                continue
+            creeps += 1
+            c = coord.book.items[i]
+            assert record.authority and abs(world.states[i, 3]) < STILL_SPEED
+            assert coord.room is None or i not in coord.room.targets  # a robot making room moves on its MPC only
+            assert c.start == period and np.array_equal(c.states[0], world.states[i])
+            target = record.reference[-1, :2]
+            assert np.hypot(*(c.states[-1, :2] - target)) <= np.hypot(*(world.states[i, :2] - target)) - CREEP_GAIN + 1e-12
+            speeds = c.states[: c.planned + 1, 3]
+            sign = -1.0 if coord.room is not None and coord.room.backing_off(i) else 1.0
+            assert np.all(sign * speeds >= -1e-12) and np.all(np.abs(speeds) <= CREEP_SPEED + 1e-12)
+        assert not sim.step(decision.inputs).overlaps
+    assert creeps > 0  # the scene does make robots creep
