@@ -218,7 +218,8 @@ def test_a_standing_authority_whose_plan_leaves_it_standing_creeps_only_on_a_che
     them standing (the planner's regions are conservative); they creep instead
     (``AacCoordinator.creep``). Pinned at every creep: the robot stood, its new commitment
     starts where it is, ends at least ``CREEP_GAIN`` nearer where its reference ends, drives
-    forwards (backwards only while it backs off), is not making room for a leader, and keeps
+    forwards (backwards only while it backs off), is neither a make-room leader nor making room
+    for one, and keeps
     the margin from every other commitment and the debris (the invariant, checked at every
     period as before)."""
     from aac_sumo.coordination.aac import CREEP_GAIN, CREEP_SPEED
@@ -237,7 +238,7 @@ def test_a_standing_authority_whose_plan_leaves_it_standing_creeps_only_on_a_che
             creeps += 1
             c = coord.book.items[i]
             assert record.authority and abs(world.states[i, 3]) < STILL_SPEED
-            assert coord.room is None or i not in coord.room.targets  # a robot making room moves on its MPC only
+            assert coord.room is None or (i not in coord.room.targets and i != coord.room.leader)  # make room: MPC only
             assert c.start == period and np.array_equal(c.states[0], world.states[i])
             target = record.reference[-1, :2]
             assert np.hypot(*(c.states[-1, :2] - target)) <= np.hypot(*(world.states[i, :2] - target)) - CREEP_GAIN + 1e-12
