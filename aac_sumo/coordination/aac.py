@@ -543,19 +543,20 @@ class AacCoordinator(Coordinator):
         record = RobotDecision(True, plan.status, plan.solve_ms, plan.solver, ref, reason=reason, mode=own.stage(period),
                                iterations=plan.iterations, capped=plan.capped)
         cuts = range(cfg.horizon, -1, -1) if plan.status == "solved" else [cfg.horizon]  # a failed solve: the braking fallback
+        passed, m = None, cfg.horizon
         for m in cuts:
             candidate = self.commitment(world, i, period, plan.inputs[:m])
             if book.clearance(i, candidate, period, statics) >= book.margin:
-                if abs(world.states[i, 3]) < STILL_SPEED and self.creep(world, i, period, ref, candidate, statics):
-                    record.mode = "creep"
-                    return record, 1, 0
-                book.replace(i, candidate, period)
-                record.mode = "mpc"
-                return record, int(m < cfg.horizon), 0
-        if abs(world.states[i, 3]) < STILL_SPEED and self.creep(world, i, period, ref, None, statics):
+                passed = candidate
+                break
+        if abs(world.states[i, 3]) < STILL_SPEED and self.creep(world, i, period, ref, passed, statics):
             record.mode = "creep"
             return record, 1, 0
-        return record, 1, 1
+        if passed is None:
+            return record, 1, 1
+        book.replace(i, passed, period)
+        record.mode = "mpc"
+        return record, int(m < cfg.horizon), 0
 
     def creep(self, world: WorldState, i: int, period: int, ref: np.ndarray, planned, statics: np.ndarray) -> bool:
         """Robot ``i`` stands, and its MPC's course ``planned`` (a commitment that passed the
