@@ -603,29 +603,64 @@ def course_clearance(own, others, margin):
 
 
 @numba.njit(cache=True)
-def ragged_nearest(own, flat, starts, lengths, skip, margin):
+def ragged_nearest(own, flat, starts, lengths, boxes, skip, margin):
     """:func:`course_clearance` of the course ``own`` (K, 5) against courses of different
     lengths stored one after the other in ``flat`` (T, 5), and the course that gives it (the
-    first on ties; -1 without courses): course j is rows ``starts[j]`` to ``starts[j] +
+    lowest index on ties; -1 without courses): course j is rows ``starts[j]`` to ``starts[j] +
     lengths[j] - 1``, and each course (``own`` too) stands at its last row once it has ended.
     Course ``skip`` is left out (-1: none). Each pair is compared over the stages until both
-    have ended."""
-    best, nearest = np.inf, -1
-    r_own = 0.5 * math.hypot(own[0, 2], own[0, 3])
+    have ended.
+
+    ``boxes`` (J, 4) ``[x_lo, y_lo, x_hi, y_hi]`` [m] bound each course's footprint centres
+    (:func:`course_boxes`). The gap between two boxes less both half diagonals bounds every
+    stage's disc gap from below, so the courses are visited nearest box first, and the visit
+    stops at the first course whose bound is at least ``margin`` and above the least
+    clearance found: no course after it can give a smaller value, so the result is the same
+    as comparing every course."""
     n_own = own.shape[0]
-    for j in range(starts.shape[0]):
+    r_own = 0.5 * math.hypot(own[0, 2], own[0, 3])
+    x_lo, x_hi, y_lo, y_hi = own[0, 0], own[0, 0], own[0, 1], own[0, 1]
+    for k in range(1, n_own):
+        x_lo, x_hi = min(x_lo, own[k, 0]), max(x_hi, own[k, 0])
+        y_lo, y_hi = min(y_lo, own[k, 1]), max(y_hi, own[k, 1])
+    count_j = starts.shape[0]
+    bound = np.empty(count_j)
+    radius = np.empty(count_j)
+    for j in range(count_j):
+        radius[j] = 0.5 * math.hypot(flat[starts[j], 2], flat[starts[j], 3])
+        dx = max(boxes[j, 0] - x_hi, x_lo - boxes[j, 2], 0.0)
+        dy = max(boxes[j, 1] - y_hi, y_lo - boxes[j, 3], 0.0)
+        bound[j] = math.hypot(dx, dy) - r_own - radius[j]
+    best, nearest = np.inf, -1
+    for j in np.argsort(bound, kind="mergesort"):
         if j == skip:
             continue
+        if bound[j] >= margin and bound[j] > best:
+            break
         first, count = starts[j], lengths[j]
-        r_other = 0.5 * math.hypot(flat[first, 2], flat[first, 3])
         for k in range(max(n_own, count)):
             a = own[min(k, n_own - 1)]
             b = flat[first + min(k, count - 1)]
-            apart = math.hypot(a[0] - b[0], a[1] - b[1]) - r_own - r_other
+            apart = math.hypot(a[0] - b[0], a[1] - b[1]) - r_own - radius[j]
             gap = apart if apart >= margin else rect_clearance(a, b)
-            if gap < best:
+            if gap < best or (gap == best and j < nearest):
                 best, nearest = gap, j
     return best, nearest
+
+
+@numba.njit(cache=True)
+def course_boxes(flat, starts, lengths):
+    """Per course of ``flat`` (see :func:`ragged_nearest`), the box ``[x_lo, y_lo, x_hi, y_hi]``
+    [m] (J, 4) of its footprint centres."""
+    out = np.empty((starts.shape[0], 4))
+    for j in range(starts.shape[0]):
+        first = starts[j]
+        out[j, 0], out[j, 2] = flat[first, 0], flat[first, 0]
+        out[j, 1], out[j, 3] = flat[first, 1], flat[first, 1]
+        for r in range(first + 1, first + lengths[j]):
+            out[j, 0], out[j, 2] = min(out[j, 0], flat[r, 0]), max(out[j, 2], flat[r, 0])
+            out[j, 1], out[j, 3] = min(out[j, 1], flat[r, 1]), max(out[j, 3], flat[r, 1])
+    return out
 
 
 @numba.njit(cache=True)

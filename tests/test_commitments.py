@@ -15,7 +15,7 @@ from aac_sumo.coordination.commitments import CommitmentBook, clusters, reach_ra
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.geometry import pairwise_rect_clearance
-from aac_sumo.kernels import course_clearance, footprint_rows, ragged_nearest
+from aac_sumo.kernels import course_boxes, course_clearance, footprint_rows, ragged_nearest
 from aac_sumo.world import RobotSpec
 
 #: Every emergency layer off: safety comes from the commitments alone.
@@ -172,22 +172,28 @@ def test_course_clearance_is_exact_below_the_margin(seed, margin):
 
 
 @settings(max_examples=60, deadline=None)
-@given(seed=st.integers(0, 10_000), margin=st.floats(0.0, 0.5))
-def test_ragged_clearance_equals_the_padded_courses(seed, margin):
+@given(seed=st.integers(0, 10_000), margin=st.floats(0.0, 0.5), spread=st.sampled_from([2.0, 20.0]))
+def test_ragged_clearance_equals_the_padded_courses(seed, margin, spread):
     """Courses of different lengths, each standing at its last row once it has ended, give the
-    same least clearance as the same courses padded to one length."""
+    same least clearance as the same courses padded to one length, and the lowest-index course
+    that gives it; courses spread far apart (``spread`` 20 m) are mostly passed over by their
+    boxes, without changing either answer."""
     rng = np.random.default_rng(seed)
-    lengths = rng.integers(1, 8, 4)
+    lengths = rng.integers(1, 8, 12)
     own = np.column_stack([rng.uniform(-2, 2, (5, 2)), np.full(5, 0.6), np.full(5, 0.4), rng.uniform(-3, 3, 5)])
-    courses = [np.column_stack([rng.uniform(-2, 2, (k, 2)), np.full(k, 1.0), np.full(k, 0.5), rng.uniform(-3, 3, k)]) for k in lengths]
-    skip = int(rng.integers(-1, 4))
+    courses = [np.column_stack([rng.uniform(-spread, spread, (1, 2)) + rng.uniform(-1, 1, (k, 2)), np.full(k, 1.0), np.full(k, 0.5),
+                                rng.uniform(-3, 3, k)]) for k in lengths]
+    skip = int(rng.integers(-1, 12))
     steps = max(len(own), lengths.max())
     pad = lambda c: c[np.minimum(np.arange(steps), len(c) - 1)]
     padded = np.array([pad(c) for j, c in enumerate(courses) if j != skip]).reshape(-1, steps, 5)
     starts = np.r_[0, np.cumsum(lengths)[:-1]].astype(np.int64)
-    gap, nearest = ragged_nearest(own, np.concatenate(courses), starts, lengths.astype(np.int64), skip, margin)
+    flat = np.concatenate(courses)
+    gap, nearest = ragged_nearest(own, flat, starts, lengths.astype(np.int64), course_boxes(flat, starts, lengths.astype(np.int64)), skip,
+                                  margin)
     assert gap == course_clearance(pad(own), padded, margin) and nearest != skip
-    assert gap == course_clearance(pad(own), pad(courses[nearest])[None], margin)  # the course that gives it
+    each = [np.inf if j == skip else course_clearance(pad(own), pad(c)[None], margin) for j, c in enumerate(courses)]
+    assert nearest == int(np.argmin(each))  # the course that gives it, the lowest index on ties
 
 
 def test_a_refusal_is_remembered_only_while_the_same_course_meets_the_same_standing_footprint():

@@ -27,7 +27,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from aac_sumo.coordination.regions import Fleet
-from aac_sumo.kernels import course_clearance, footprint_rows, ragged_nearest, stopping_course
+from aac_sumo.kernels import course_boxes, course_clearance, footprint_rows, ragged_nearest, stopping_course
 from aac_sumo.references import PathReference
 
 #: Time constant [s] with which a stopping tail turns the heading towards the reference's.
@@ -102,13 +102,14 @@ class CommitmentBook:
 
     The footprints of every commitment from the current period to its end are kept in one
     array, recomputed once per period and for a robot whose commitment is replaced, so that a
-    check costs one compiled pass (:func:`~aac_sumo.kernels.ragged_nearest`)."""
+    check costs one compiled pass (:func:`~aac_sumo.kernels.ragged_nearest`, which visits only
+    the courses whose boxes come near the candidate's)."""
 
     def __init__(self, fleet: Fleet, commitments: list[Commitment], margin: float):
         self.fleet, self.items, self.margin = fleet, list(commitments), float(margin)
         self._period: int | None = None
         self._rows: list[np.ndarray] = []
-        self._flat: tuple | None = None  # (rows, starts, lengths, the statics they hold)
+        self._flat: tuple | None = None  # (rows, starts, lengths, the statics they hold, the courses' boxes)
         self._refused: dict[int, tuple | None] = {}  # per robot, its last refusal by something standing (see refuse)
 
     def inputs(self, period: int) -> np.ndarray:
@@ -159,9 +160,10 @@ class CommitmentBook:
         if self._flat is None or self._flat[3] is not statics:
             lengths = np.r_[[len(r) for r in self._rows], np.ones(len(fixed))].astype(np.int64)
             starts = np.r_[0, np.cumsum(lengths)[:-1]].astype(np.int64)
-            self._flat = (np.concatenate(self._rows + [fixed]), starts, lengths, statics)
-        flat, starts, lengths, _ = self._flat
-        gap, nearest = ragged_nearest(self.footprints(i, candidate, period), flat, starts, lengths, i, self.margin)
+            flat = np.concatenate(self._rows + [fixed])
+            self._flat = (flat, starts, lengths, statics, course_boxes(flat, starts, lengths))
+        flat, starts, lengths, _, boxes = self._flat
+        gap, nearest = ragged_nearest(self.footprints(i, candidate, period), flat, starts, lengths, boxes, i, self.margin)
         return float(gap), int(nearest)
 
     def refuse(self, i: int, state: np.ndarray, key: tuple, blocker: int, period: int, statics: np.ndarray) -> None:
