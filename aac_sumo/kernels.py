@@ -811,6 +811,20 @@ def distance_field(lo, cell, rows, cols, rects, reach):
 
 
 @numba.njit(cache=True)
+def band_costs(dist, hard, clearance, penalty):
+    """Cell costs (rows, cols) from the distances ``dist`` [m] to the nearest footprint: 1 at
+    ``clearance`` or beyond, rising linearly to ``1 + penalty`` at ``hard``, inf (blocked) below
+    ``hard``."""
+    out = np.empty(dist.shape)
+    scale = max(clearance - hard, 1e-9)
+    for r in range(dist.shape[0]):
+        for c in range(dist.shape[1]):
+            d = dist[r, c]
+            out[r, c] = np.inf if d < hard else 1.0 + penalty * min(max((clearance - d) / scale, 0.0), 1.0)
+    return out
+
+
+@numba.njit(cache=True)
 def shortcut(path, kept, rects, hard, cell, samples):
     """Indices (J,) of the corners of ``path`` (K, 2) [m] it needs: from each kept point on, the
     farthest later point up to which the straight segment, sampled ``samples`` times per ``cell``
@@ -1005,3 +1019,49 @@ def stopping_course(state, head, previous_steer, heading, decel, wheelbase, v_mi
     out_inputs[: head.shape[0]] = head
     out_inputs[head.shape[0]:] = tail_inputs
     return out_states, out_inputs
+
+
+@numba.njit(cache=True)
+def pair_components(n, first, second):
+    """Connected components of the graph on ``n`` nodes with the edges ``first[e]``-``second[e]``
+    (E,): each node's component label (n,), numbered in the order of their lowest nodes."""
+    parent = np.arange(n)
+    for e in range(first.shape[0]):
+        a, b = first[e], second[e]
+        while parent[a] != a:
+            a = parent[a]
+        while parent[b] != b:
+            b = parent[b]
+        if a != b:
+            parent[max(a, b)] = min(a, b)  # every root is its component's lowest node
+    label = np.empty(n, dtype=np.int64)
+    count = 0
+    for i in range(n):  # a node's root is lower than it, so labelled already
+        root = i
+        while parent[root] != root:
+            root = parent[root]
+        if root == i:
+            label[i] = count
+            count += 1
+        else:
+            label[i] = label[root]
+    return label
+
+
+@numba.njit(cache=True)
+def path_poses(points, cum, seg_len, seg_dir, seg_heading, stop_at_end, s):
+    """Rows ``[x, y, heading]`` (K, 3) of the polyline ``points`` (M, 2) at the arc lengths ``s``
+    (K,) [m]: on the segment each lies on (the first or the last beyond the ends; ``cum`` (M,)
+    cumulative arc lengths, ``seg_len``, ``seg_dir`` (M-1, 2) and ``seg_heading`` per segment),
+    clamped to it when ``stop_at_end``, else carried on straight past the ends."""
+    out = np.empty((s.shape[0], 3))
+    last = seg_len.shape[0] - 1
+    for k in range(s.shape[0]):
+        i = min(max(np.searchsorted(cum, s[k], side="right") - 1, 0), last)
+        local = s[k] - cum[i]
+        if stop_at_end:
+            local = min(max(local, 0.0), seg_len[i])
+        out[k, 0] = points[i, 0] + local * seg_dir[i, 0]
+        out[k, 1] = points[i, 1] + local * seg_dir[i, 1]
+        out[k, 2] = seg_heading[i]
+    return out

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from aac_sumo.geometry import polyline_offset, wrap_angle
-from aac_sumo.kernels import closest_on_polyline, path_headings, polyline_chunks, project_points
+from aac_sumo.kernels import closest_on_polyline, path_headings, path_poses, polyline_chunks, project_points
 
 #: Segments per bounding circle of a path's projection (:func:`~aac_sumo.kernels.closest_on_polyline`).
 PROJECTION_CHUNK = 16
@@ -126,13 +126,8 @@ class PathReference:
     def pose_at(self, s) -> np.ndarray:
         """Rows ``[x, y, heading]`` at arc lengths ``s`` (clamped to the path; extrapolated past
         the end along the last segment when the path does not stop)."""
-        s = np.atleast_1d(np.asarray(s, dtype=float))
-        i = self._segment(s)
-        local = s - self.s[i]
-        if self.stop_at_end:
-            local = np.minimum(np.maximum(local, 0.0), self.seg_len[i])
-        xy = self.points[i] + local[:, None] * self._seg_dir[i]
-        return np.column_stack([xy, self.seg_heading[i]])
+        s = np.ascontiguousarray(np.atleast_1d(np.asarray(s, dtype=float)).ravel())
+        return path_poses(self.points, self.s, self.seg_len, self._seg_dir, self.seg_heading, self.stop_at_end, s)
 
     def heading_at(self, point) -> float:
         """Heading [rad] of the path where ``point`` [m] projects (of the later segment at a vertex)."""
@@ -145,10 +140,6 @@ class PathReference:
         """Headings (count,) [rad, unwrapped] of the path every ``spacing`` [m] from where
         ``point`` [m] projects on: the first is :meth:`heading_at`'s."""
         return path_headings(self.s, self.seg_heading, self.project(point)[0], count, spacing)
-
-    def _segment(self, s):
-        """Index of the segment each arc length ``s`` [m] lies on (the first or last beyond the ends)."""
-        return np.minimum(np.maximum(np.searchsorted(self.s, s, side="right") - 1, 0), len(self.seg_len) - 1)
 
     def horizon(self, state, steps: int, dt: float) -> np.ndarray:
         """Reference states (steps + 1, 4) starting from the projection of ``state``'s position.

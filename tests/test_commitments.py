@@ -129,7 +129,7 @@ def test_reach_radius_contains_every_committable_course(seed, speed, horizon):
 
 
 @settings(max_examples=40, deadline=None)
-@given(seed=st.integers(0, 10_000), n=st.integers(1, 25), margin=st.floats(0.0, 1.0))
+@given(seed=st.integers(0, 10_000), n=st.integers(1, 60), margin=st.floats(0.0, 1.0))
 def test_clusters_are_the_components_of_overlapping_reach_discs(seed, n, margin):
     rng = np.random.default_rng(seed)
     centres = rng.uniform(0, 20, (n, 2))
@@ -153,6 +153,8 @@ def test_clusters_are_the_components_of_overlapping_reach_discs(seed, n, margin)
                     reached.add(int(m))
                     frontier.append(int(m))
         assert len(reached) == len(g)
+    assert all(np.all(np.diff(g) > 0) for g in groups)  # each in index order
+    assert [g[0] for g in groups] == sorted(g[0] for g in groups)  # ordered by their first robots
 
 
 @settings(max_examples=60, deadline=None)

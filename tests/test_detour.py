@@ -13,7 +13,7 @@ from aac_sumo import config, runner
 from aac_sumo.cli import main
 from aac_sumo.coordination.detour import SAMPLES, Detours, plan_detour
 from aac_sumo.geometry import rect_distances
-from aac_sumo.kernels import distance_field, rects_within, shortcut
+from aac_sumo.kernels import band_costs, distance_field, rects_within, shortcut
 from aac_sumo.references import PathReference
 
 HARD, CLEARANCE, CELL = 0.25, 0.5, 0.1
@@ -78,6 +78,16 @@ def test_distance_field_is_rect_distances_in_each_window(seed, m):
     rows, cols = rng.integers(1, 60, 2)
     field = distance_field(lo, cell, rows, cols, rects, 0.5)
     np.testing.assert_array_equal(field, numpy_field(lo, cell, rows, cols, rects, 0.5))
+
+
+def test_band_costs_rise_from_one_at_the_clearance_to_the_penalty_at_the_hard_distance():
+    dist = np.array([[np.inf, 2.0, CLEARANCE, 0.5 * (HARD + CLEARANCE)], [HARD, 0.9 * HARD, 0.0, 1e-12]])
+    expected = np.array([[1.0, 1.0, 1.0, 1.0 + 0.5 * 20.0], [21.0, np.inf, np.inf, np.inf]])
+    np.testing.assert_allclose(band_costs(dist, HARD, CLEARANCE, 20.0), expected, rtol=1e-12)
+    dist = np.random.default_rng(0).uniform(0.0, 1.0, (7, 9))  # the numpy definition, bit for bit
+    numpy_cost = 1.0 + 20.0 * np.clip((CLEARANCE - dist) / (CLEARANCE - HARD), 0.0, 1.0)
+    numpy_cost[dist < HARD] = np.inf
+    np.testing.assert_array_equal(band_costs(dist, HARD, CLEARANCE, 20.0), numpy_cost)
 
 
 @settings(max_examples=60, deadline=None)

@@ -117,3 +117,21 @@ def test_heading_free_says_what_the_horizon_does(x, y, heading, speed, turn_radi
                          turn_radius=turn_radius, arrive=0.1)
     state = np.array([x, y, heading, speed])
     assert path.heading_free(state) == bool(np.isnan(path.horizon(state, 0, 0.1)[0, 2]))
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 10_000), m=st.integers(2, 12), stop=st.booleans())
+def test_pose_at_is_the_segment_interpolation_clamped_on_a_stopping_path(seed, m, stop):
+    """The compiled poses equal their numpy definition bit for bit: the segment each arc length
+    lies on (the first or last beyond the ends), clamped to it on a path that stops, carried on
+    straight past its ends on one that does not."""
+    rng = np.random.default_rng(seed)
+    path = PathReference(np.cumsum(rng.uniform(-2, 2, (m, 2)), axis=0), 1.0, stop_at_end=stop)
+    s = rng.uniform(-2.0, path.length + 2.0, 30)
+    i = np.clip(np.searchsorted(path.s, s, side="right") - 1, 0, len(path.seg_len) - 1)
+    local = s - path.s[i]
+    if stop:
+        local = np.minimum(np.maximum(local, 0.0), path.seg_len[i])
+    heading = path.seg_heading[i]
+    xy = path.points[i] + local[:, None] * np.column_stack([np.cos(heading), np.sin(heading)])
+    np.testing.assert_array_equal(path.pose_at(s), np.column_stack([xy, heading]))

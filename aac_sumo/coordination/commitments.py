@@ -22,12 +22,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from aac_sumo.coordination.regions import Fleet
-from aac_sumo.kernels import course_boxes, course_clearance, footprint_rows, ragged_nearest, stopping_course
+from aac_sumo.kernels import course_boxes, course_clearance, footprint_rows, pair_components, ragged_nearest, stopping_course
 from aac_sumo.references import PathReference
 
 #: Time constant [s] with which a stopping tail turns the heading towards the reference's.
@@ -241,7 +239,6 @@ def clusters(centres: np.ndarray, radii: np.ndarray, margin: float) -> list[np.n
     if len(pairs):
         gap = np.hypot(*(centres[pairs[:, 0]] - centres[pairs[:, 1]]).T) - radii[pairs[:, 0]] - radii[pairs[:, 1]]
         pairs = pairs[gap < margin]
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n, n)) if len(pairs) else coo_matrix((n, n))
-    _, label = connected_components(graph, directed=False)
-    groups = [np.flatnonzero(label == c) for c in np.unique(label)]
-    return sorted(groups, key=lambda g: g[0])
+    label = pair_components(n, pairs[:, 0].astype(np.int64), pairs[:, 1].astype(np.int64)) if len(pairs) else np.arange(n)
+    order = np.argsort(label, kind="stable")  # each component's robots in index order; labels follow their lowest robots
+    return np.split(order, np.cumsum(np.bincount(label))[:-1])

@@ -13,7 +13,7 @@ the area:
   to the corners it needs: from each kept point, the farthest later path point whose straight
   segment keeps at least the smallest distance the grid path kept over the same stretch.
 
-Both the distance field and the shortcut are compiled (:mod:`aac_sumo.kernels`). A robot keeps
+The distance field, the costs and the shortcut are compiled (:mod:`aac_sumo.kernels`). A robot keeps
 its detour as long as nothing new stands near what is left of it: the detour was planned round
 what stood then, and a new plan from the same place round the same footprints differs at most by
 changes farther off (see :class:`Detours`).
@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from aac_sumo.geometry import rect_distances
-from aac_sumo.kernels import distance_field, grid_path, rects_within, shortcut
+from aac_sumo.kernels import band_costs, distance_field, grid_path, rects_within, shortcut
 from aac_sumo.references import PathReference
 
 #: Extra cost of a cell at distance ``hard`` from a standing footprint (none at ``clearance``).
@@ -60,8 +60,7 @@ def plan_detour(start, goal, rects, hard: float, clearance: float, cell: float) 
     cols, rows = (np.ceil((hi - lo) / cell).astype(int) + 1)
     xs, ys = lo[0] + cell * np.arange(cols), lo[1] + cell * np.arange(rows)
     dist = distance_field(lo, cell, rows, cols, rects, clearance)  # each footprint only within clearance of it
-    cost = 1.0 + PENALTY * np.clip((clearance - dist) / max(clearance - hard, 1e-9), 0.0, 1.0)
-    cost[dist < hard] = np.inf
+    cost = band_costs(dist, hard, clearance, PENALTY)
     s_cell = np.round((start - lo) / cell).astype(int)[::-1]
     g_cell = np.round((goal - lo) / cell).astype(int)[::-1]
     if not np.isfinite(cost[g_cell[0], g_cell[1]]):
@@ -160,7 +159,7 @@ class Detours:
         reference, from its projection to the goal (samples every ``CHECK_SPACING``), (m,)."""
         path = self.path(i)
         s0, _ = path.project(state[:2])
-        s = np.r_[np.arange(s0, path.length, CHECK_SPACING), path.length]
+        s = np.append(np.arange(s0, path.length, CHECK_SPACING), path.length)
         return rects_within(path.pose_at(s)[:, :2], rects, self.clearance)
 
     def keeps(self, i: int, state: np.ndarray, start: np.ndarray, near: np.ndarray, stalled: bool) -> bool:
