@@ -519,13 +519,13 @@ def polyline_chunks(points: np.ndarray, chunk: int) -> tuple[np.ndarray, np.ndar
     """Centres (C, 2) and radii (C,) [m] of circles holding the segments of ``points`` (M, 2),
     ``chunk`` segments each (the last chunk may be shorter): the bounds of :func:`closest_on_polyline`."""
     n = len(points) - 1
-    centres, radii = [], []
-    for start in range(0, n, chunk):
+    starts = np.arange(0, n, chunk)
+    centres, radii = np.empty((len(starts), 2)), np.empty(len(starts))
+    for row, start in enumerate(starts):
         part = points[start:min(start + chunk, n) + 1]
-        centre = 0.5 * (part.min(axis=0) + part.max(axis=0))
-        centres.append(centre)
-        radii.append(float(np.hypot(*(part - centre).T).max()))
-    return np.array(centres), np.array(radii)
+        centres[row] = 0.5 * (part.min(axis=0) + part.max(axis=0))
+        radii[row] = np.hypot(part[:, 0] - centres[row, 0], part[:, 1] - centres[row, 1]).max()
+    return centres, radii
 
 
 @numba.njit(cache=True)

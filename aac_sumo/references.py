@@ -69,14 +69,19 @@ class PathReference:
         if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2:
             raise ValueError("a path needs at least two (x, y) waypoints")
         seg = np.diff(pts, axis=0)
-        keep = np.r_[True, np.hypot(seg[:, 0], seg[:, 1]) > 1e-9]
+        keep = np.ones(len(pts), dtype=bool)
+        keep[1:] = np.hypot(seg[:, 0], seg[:, 1]) > 1e-9
         self.points = pts[keep]
+        if len(self.points) < 2:
+            raise ValueError("a path needs at least two distinct (x, y) waypoints")
         self.limits = None if limits is None else np.asarray(limits, dtype=float)[keep]
         seg = np.diff(self.points, axis=0)
         self.seg_len = np.hypot(seg[:, 0], seg[:, 1])
         self.seg_heading = np.arctan2(seg[:, 1], seg[:, 0])
-        self._seg_dir = np.column_stack([np.cos(self.seg_heading), np.sin(self.seg_heading)])
-        self.s = np.r_[0.0, np.cumsum(self.seg_len)]
+        self._seg_dir = np.empty((len(seg), 2))
+        self._seg_dir[:, 0], self._seg_dir[:, 1] = np.cos(self.seg_heading), np.sin(self.seg_heading)
+        self.s = np.zeros(len(self.points))
+        np.cumsum(self.seg_len, out=self.s[1:])
         self.length = float(self.s[-1])
         self.speed = float(speed)
         self.decel = float(decel)
@@ -85,7 +90,8 @@ class PathReference:
         self.turn_radius = float(turn_radius)
         self.arrive = float(arrive)
         # upper bound of the fraction of each segment a projection may reach: past the end of a path that does not stop
-        self._t_max = np.r_[np.ones(len(self.seg_len) - 1), 1.0 if stop_at_end else np.inf]
+        self._t_max = np.ones(len(self.seg_len))
+        self._t_max[-1] = 1.0 if stop_at_end else np.inf
         self._chunks = polyline_chunks(self.points, PROJECTION_CHUNK)
 
     def arrays(self) -> tuple:
