@@ -524,8 +524,8 @@ class AacCoordinator(Coordinator):
         traj = book.courses(period, others, cfg.horizon + 1)
         obstacles = world.obstacles
         if len(others) + len(obstacles) > cfg.slots:  # the planner's slots only: rank by stage 0, sweep the nearest
-            first = self.fleet.swept_regions(others, traj[:, :2], 0, cfg.barrier, cfg.fcbf)
-            ranked = self.planner.nearest(world.states[i], obstacles + first)  # into obstacles + first, nearest first
+            first = self.fleet.swept_ellipses(others, traj[:, :2], 0, cfg.barrier, cfg.fcbf)[:, 0]
+            ranked = self.planner.nearest(world.states[i], obstacles, first)  # into obstacles, then others, nearest first
             robots = ranked[ranked >= len(obstacles)] - len(obstacles)
             swept = iter(self.fleet.swept_regions(others[robots], traj[robots], cfg.horizon, cfg.barrier, cfg.fcbf))
             obstacles = [obstacles[k] if k < len(obstacles) else next(swept) for k in ranked]

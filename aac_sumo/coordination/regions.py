@@ -50,13 +50,17 @@ class Fleet:
         rear-axle ``states`` (m, K, 4)."""
         return footprint_rows(np.asarray(states, dtype=float), self.offset[idx], self.length[idx], self.width[idx])
 
-    def swept_regions(self, idx: np.ndarray, traj: np.ndarray, horizon: int, barrier: str, fcbf: FcbfParams) -> list[RegionTrack]:
-        """One region track per robot ``idx`` from its trajectory ``traj`` (m, >= horizon+2, 4):
-        stage k contains the hull of the footprints at k and k+1, shaped by the stage velocity."""
+    def swept_ellipses(self, idx: np.ndarray, traj: np.ndarray, horizon: int, barrier: str, fcbf: FcbfParams) -> np.ndarray:
+        """Safety ellipses ``[cx, cy, a, b, phi]`` (m, horizon+1, 5) of robots ``idx`` along their
+        trajectories ``traj`` (m, >= horizon+2, 4): stage k contains the hull of the footprints at
+        k and k+1, shaped by the stage velocity."""
         traj = traj[:, : horizon + 2]
         corners = rect_corners(self.footprints(idx, traj))  # (m, N+2, 4, 2)
         swept = np.concatenate([corners[:, :-1], corners[:, 1:]], axis=2)  # (m, N+1, 8, 2)
         head = traj[:, :-1, 2]
         vel = traj[:, :-1, 3:4] * np.stack([np.cos(head), np.sin(head)], axis=-1)
-        ellipses = hull_safety_ellipses(swept, vel, head, barrier, fcbf)
-        return [RegionTrack(self.names[j], e) for j, e in zip(idx, ellipses)]
+        return hull_safety_ellipses(swept, vel, head, barrier, fcbf)
+
+    def swept_regions(self, idx: np.ndarray, traj: np.ndarray, horizon: int, barrier: str, fcbf: FcbfParams) -> list[RegionTrack]:
+        """One region track per robot ``idx`` of :meth:`swept_ellipses`."""
+        return [RegionTrack(self.names[j], e) for j, e in zip(idx, self.swept_ellipses(idx, traj, horizon, barrier, fcbf))]

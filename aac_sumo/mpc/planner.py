@@ -196,12 +196,16 @@ class MpcPlanner:
             stops[walker, 2:4] += growth[:, -1:]
         return ellipses.transpose(1, 0, 2), swept, stops
 
-    def nearest(self, state: np.ndarray, obstacles: list[Obstacle | ObstaclePrediction | RegionTrack]) -> np.ndarray:
+    def nearest(self, state: np.ndarray, obstacles: list[Obstacle | ObstaclePrediction | RegionTrack],
+                more: np.ndarray | None = None) -> np.ndarray:
         """Indices of the ``slots`` obstacles nearest to ``state``, nearest first: by the distance
         [m] from its rear axle to the centre of each one's stage-0 safety ellipse less its larger
-        semi-axis (ties keep the given order). Only stage 0 is predicted, in one batch."""
+        semi-axis (ties keep the given order). Only stage 0 is predicted, in one batch. ``more``
+        (m, 5): stage-0 ellipses of further obstacles, indices ``len(obstacles)`` on."""
         cfg = self.config
-        now = np.empty((len(obstacles), 5))
+        now = np.empty((len(obstacles) + (0 if more is None else len(more)), 5))
+        if more is not None:
+            now[len(obstacles):] = more
         kinds = np.array([0 if isinstance(o, RegionTrack) else 1 if isinstance(o, ObstaclePrediction) else 2 for o in obstacles])
         for i in np.flatnonzero(kinds == 0):
             now[i] = obstacles[i].ellipses[0]
