@@ -255,3 +255,24 @@ def test_a_standing_authority_whose_plan_leaves_it_standing_creeps_only_on_a_che
             assert np.all(sign * speeds >= -1e-12) and np.all(np.abs(speeds) <= CREEP_SPEED + 1e-12)
         assert not sim.step(decision.inputs).overlaps
     assert creeps > 0  # the scene does make robots creep
+
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 10_000), period=st.integers(0, 40), steps=st.integers(0, 15))
+def test_the_books_courses_are_each_commitments_course(seed, period, steps):
+    """The book's courses (kept padded in one array) are the commitments' own, along them and
+    after they end, also after a commitment is replaced by a longer one."""
+    rng = np.random.default_rng(seed)
+    robots = [small_robot(i) for i in range(6)]
+    fleet = Fleet(robots)
+
+    def random_commitment(i):
+        state = np.r_[rng.uniform(0, 10, 2), rng.uniform(-3, 3), rng.uniform(0, 1)]
+        return stopping_commitment(fleet, i, int(rng.integers(0, period + 1)), state, rng.uniform(-1, 1, (int(rng.integers(0, 25)), 2)), 0.0, 1.0,
+                                   0.0, 0.1)
+
+    book = CommitmentBook(fleet, [random_commitment(i) for i in range(6)], 0.05)
+    book.replace(2, random_commitment(2), period)
+    idx = rng.permutation(6)[: int(rng.integers(0, 7))]
+    expected = np.array([book.items[j].course(period, steps) for j in idx]).reshape(len(idx), steps + 1, 4)
+    np.testing.assert_array_equal(book.courses(period, idx, steps), expected)

@@ -109,26 +109,39 @@ class CommitmentBook:
         self._rows: list[np.ndarray] = []
         self._flat: tuple | None = None  # (rows, starts, lengths, the statics they hold, the courses' boxes)
         self._refused: dict[int, tuple | None] = {}  # per robot, its last refusal by something standing (see refuse)
+        # every commitment's states, each padded with its last state to one length (n, L, 4), for courses
+        self._states = np.zeros((len(self.items), 1, 4))
+        self._start = np.zeros(len(self.items), dtype=int)  # each commitment's first period
+        for j, c in enumerate(self.items):
+            self._pad(j, c)
 
     def inputs(self, period: int) -> np.ndarray:
         """Every robot's committed input (n, 2) of ``period``."""
         return np.array([c.input_at(period) for c in self.items]).reshape(-1, 2)
 
     def courses(self, period: int, idx: np.ndarray, steps: int) -> np.ndarray:
-        """States (m, steps+1, 4) of robots ``idx`` along their commitments from ``period``."""
-        out = np.empty((len(idx), steps + 1, 4))
-        for row, j in enumerate(idx):
-            c = self.items[j]
-            k, last = period - c.start, len(c.states) - 1
-            if 0 <= k and k + steps <= last:
-                out[row] = c.states[k: k + steps + 1]
-            else:
-                out[row] = c.course(period, steps)
-        return out
+        """States (m, steps+1, 4) of robots ``idx`` along their commitments from ``period`` (by
+        which each has begun), the last state repeated once one has ended."""
+        idx = np.asarray(idx, dtype=int)
+        stage = np.minimum((period - self._start[idx])[:, None] + np.arange(steps + 1), self._states.shape[1] - 1)
+        return self._states[idx[:, None], stage]
+
+    def _pad(self, j: int, commitment: Commitment) -> None:
+        """Store robot ``j``'s commitment states in the padded array (longer if need be)."""
+        self._start[j] = commitment.start
+        count = len(commitment.states)
+        if count > self._states.shape[1]:
+            grown = np.empty((len(self._states), count, 4))
+            grown[:, : self._states.shape[1]] = self._states
+            grown[:, self._states.shape[1]:] = self._states[:, -1:]
+            self._states = grown
+        self._states[j, :count] = commitment.states
+        self._states[j, count:] = commitment.states[-1]
 
     def replace(self, i: int, commitment: Commitment, period: int) -> None:
         """Commit robot ``i`` to ``commitment`` (checked by the caller) from ``period`` on."""
         self.items[i] = commitment
+        self._pad(i, commitment)
         if self._period == period:
             self._rows[i] = self.footprints(i, commitment, period)
             self._flat = None
