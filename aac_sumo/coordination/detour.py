@@ -103,6 +103,7 @@ class Detours:
         self.final = np.zeros(len(tasks), dtype=bool)  # on the straight way to the goal (FINAL)
         self.basis: list[tuple[np.ndarray, np.ndarray] | None] = [None] * len(tasks)  # each detour's start and standing footprints
         self.planned = 0  # detours planned so far
+        self.goals = np.array([t.points[-1] for t in tasks]).reshape(-1, 2)
 
     def path(self, i: int) -> PathReference:
         """Robot ``i``'s reference path: its detour, else its task."""
@@ -118,15 +119,18 @@ class Detours:
         standing = parked | (self.still >= self.stall_periods)
         for i in np.flatnonzero(done):
             self.routes[i], self.final[i], self.basis[i] = None, False, None
-        gap = np.hypot(*(states[:, :2] - np.array([t.points[-1] for t in self.tasks])).T)
+        gap = np.hypot(*(states[:, :2] - self.goals).T)
         rows = np.vstack([statics.reshape(-1, 5), footprints])
-        keep = np.r_[np.ones(len(rows) - len(footprints), dtype=bool), standing]
+        keep = np.concatenate([np.ones(len(rows) - len(footprints), dtype=bool), standing])
 
         def standing_but(i: int) -> np.ndarray:  # the standing footprints but robot i's own
             return rows[keep & (np.arange(len(rows)) != len(rows) - len(footprints) + i)]
 
-        for i in np.flatnonzero(~done & ~parked):
-            if self.routes[i] is not None and not self.final[i] and gap[i] <= FINAL:
+        on_detour = np.array([route is not None for route in self.routes], dtype=bool) & ~self.final
+        stalled_now = (self.still >= self.stall_periods) & (self.still % self.stall_periods == 0)
+        due = (on_detour & (gap <= FINAL)) | stalled_now | (period >= self.next_check)  # the others have nothing to do
+        for i in np.flatnonzero(~done & ~parked & due):
+            if on_detour[i] and gap[i] <= FINAL:
                 rects = standing_but(i)
                 goal = self.tasks[i].points[-1]
                 line = states[i, :2] + np.linspace(0.0, 1.0, int(np.ceil(gap[i] / CHECK_SPACING)) + 1)[:, None] * (goal - states[i, :2])
@@ -134,7 +138,7 @@ class Detours:
                     self.routes[i] = self.route(i, np.array([states[i, :2], goal]))
                     self.final[i] = True
                     continue
-            stalled = self.still[i] >= self.stall_periods and self.still[i] % self.stall_periods == 0
+            stalled = bool(stalled_now[i])
             if not stalled and period < self.next_check[i]:
                 continue
             self.next_check[i] = period + self.check_periods
