@@ -276,3 +276,21 @@ def test_the_books_courses_are_each_commitments_course(seed, period, steps):
     idx = rng.permutation(6)[: int(rng.integers(0, 7))]
     expected = np.array([book.items[j].course(period, steps) for j in idx]).reshape(len(idx), steps + 1, 4)
     np.testing.assert_array_equal(book.courses(period, idx, steps), expected)
+
+
+def test_a_check_after_a_replacement_in_the_same_period_meets_the_new_commitment():
+    """The book's footprints of this period follow a replacement at once: a robot checked after
+    another's new commitment drives into it is refused by it, and one checked against the old
+    place of that robot passes."""
+    robots = [small_robot(i) for i in range(3)]
+    fleet, dt = Fleet(robots), 0.1
+    states = np.array([[0.0, 0.0, 0.0, 0.0], [3.0, 0.0, np.pi, 0.0], [0.0, 5.0, 0.0, 0.0]])
+    stand = [stopping_commitment(fleet, i, 0, states[i], np.zeros((0, 2)), 0.0, 1.0, 0.0, dt) for i in range(3)]
+    book, statics = CommitmentBook(fleet, stand, 0.05), np.empty((0, 5))
+    assert book.check(2, stand[2], 0, statics)[0] >= book.margin  # the flat array of period 0 is built
+    moved = stopping_commitment(fleet, 1, 0, np.array([0.0, 4.6, 0.0, 0.0]), np.zeros((0, 2)), 0.0, 1.0, 0.0, dt)
+    book.replace(1, moved, 0)  # robot 1 now stands right below robot 2
+    gap, blocker = book.check(2, stand[2], 0, statics)
+    assert gap < book.margin and blocker == 1
+    assert book.check(0, stopping_commitment(fleet, 0, 0, np.array([2.4, 0.0, 0.0, 0.0]), np.zeros((0, 2)), 0.0, 1.0, 0.0, dt),
+                      0, statics)[0] >= book.margin  # where robot 1 stood before is free

@@ -99,14 +99,13 @@ class CommitmentBook:
     """Every robot's commitment, the fleet's footprints along them, and the exact check.
 
     The footprints of every commitment from the current period to its end are kept in one
-    array, recomputed once per period and for a robot whose commitment is replaced, so that a
+    array, computed once per period (a replaced commitment's rows are appended), so that a
     check costs one compiled pass (:func:`~aac_sumo.kernels.ragged_nearest`, which visits only
     the courses whose boxes come near the candidate's)."""
 
     def __init__(self, fleet: Fleet, commitments: list[Commitment], margin: float):
         self.fleet, self.items, self.margin = fleet, list(commitments), float(margin)
         self._period: int | None = None
-        self._rows: list[np.ndarray] = []
         self._flat: tuple | None = None  # (rows, starts, lengths, the statics they hold, the courses' boxes)
         self._refused: dict[int, tuple | None] = {}  # per robot, its last refusal by something standing (see refuse)
         # every commitment's states, each padded with its last state to one length (n, L, 4), for courses
@@ -142,9 +141,12 @@ class CommitmentBook:
         """Commit robot ``i`` to ``commitment`` (checked by the caller) from ``period`` on."""
         self.items[i] = commitment
         self._pad(i, commitment)
-        if self._period == period:
-            self._rows[i] = self.footprints(i, commitment, period)
-            self._flat = None
+        if self._period == period and self._flat is not None:  # its new rows go at the end; the old ones are left unread
+            rows = self.footprints(i, commitment, period)
+            flat, starts, lengths, statics, boxes = self._flat
+            starts[i], lengths[i] = len(flat), len(rows)
+            boxes[i] = course_boxes(rows, np.zeros(1, dtype=np.int64), lengths[i: i + 1])[0]
+            self._flat = (np.concatenate([flat, rows]), starts, lengths, statics, boxes)
 
     def footprints(self, i: int, commitment: Commitment, period: int) -> np.ndarray:
         """Footprint rows (remaining + 1, 5) of robot ``i`` along ``commitment`` from ``period``
@@ -163,15 +165,13 @@ class CommitmentBook:
         """:meth:`clearance` and what gives it: a robot's index, ``n`` + the row of ``statics``
         for a standing obstacle, -1 for nothing. The standing obstacles ride in the same flat
         array as the commitments (courses of one row), so a check is one compiled pass."""
-        if self._period != period:
+        if self._period != period or self._flat is None or self._flat[3] is not statics:
             self._period = period
-            self._rows = [self.footprints(j, c, period) for j, c in enumerate(self.items)]
-            self._flat = None
-        fixed = np.asarray(statics, dtype=float).reshape(-1, 5)
-        if self._flat is None or self._flat[3] is not statics:
-            lengths = np.r_[[len(r) for r in self._rows], np.ones(len(fixed))].astype(np.int64)
+            fixed = np.asarray(statics, dtype=float).reshape(-1, 5)
+            rows = [self.footprints(j, c, period) for j, c in enumerate(self.items)]
+            lengths = np.r_[[len(r) for r in rows], np.ones(len(fixed))].astype(np.int64)
             starts = np.r_[0, np.cumsum(lengths)[:-1]].astype(np.int64)
-            flat = np.concatenate(self._rows + [fixed])
+            flat = np.concatenate(rows + [fixed])
             self._flat = (flat, starts, lengths, statics, course_boxes(flat, starts, lengths))
         flat, starts, lengths, _, boxes = self._flat
         gap, nearest = ragged_nearest(self.footprints(i, candidate, period), flat, starts, lengths, boxes, i, self.margin)
