@@ -160,9 +160,8 @@ class PathReference:
         goal, forwards or backwards as its MPC finds best, instead of stopping beside it with
         its heading held along the path, where a short horizon cannot undo a sideways error of
         a car-like robot. A robot that can reverse (``turn_radius`` [m] > 0, its tightest turning
-        radius) and whose goal lies farther than ``arrive`` [m] (where it has arrived) and so deep
-        inside one of its turning circles that no line or arc gets within half of ``arrive`` of
-        it (the nearest such point is on the circle), first backs off: backwards from a
+        radius) and whose goal lies inside one of its turning circles, where no arc gets it closer,
+        and farther than ``arrive`` [m] (where it has arrived), first backs off: backwards from a
         goal in front, forwards from one behind, at half the cruise speed, along the ray from the
         goal through the robot and with its heading turning onto that ray, so that the goal ends
         up straight ahead or straight behind (backing off along its own heading, a robot with
@@ -214,9 +213,7 @@ class PathReference:
             gap = np.hypot(*(np.asarray(state[:2], dtype=float) + self.turn_radius * np.array([left, -left]) - goal).T).min()
             ahead_of = rel @ np.array([np.cos(state[2]), np.sin(state[2])]) >= 0.0  # the goal lies in front
             backing = state[3] < 0.0 if ahead_of else state[3] > 0.0
-            # inside a circle, the nearest point a line or arc reaches is on the circle: back off when that misses the goal by
-            # more than half the arrival distance, and keep backing off until the goal is well outside both circles
-            if gap < (BACK_OFF_HYSTERESIS * self.turn_radius if backing else self.turn_radius - 0.5 * self.arrive):
+            if gap < self.turn_radius * (BACK_OFF_HYSTERESIS if backing else 1.0):
                 return rel, dist, s0, "back_off"
         return rel, dist, s0, "approach"
 
