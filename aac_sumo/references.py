@@ -161,22 +161,16 @@ class PathReference:
         its heading held along the path, where a short horizon cannot undo a sideways error of
         a car-like robot. A robot that can reverse (``turn_radius`` [m] > 0, its tightest turning
         radius) and whose goal lies inside one of its turning circles, where no arc gets it closer,
-        and farther than ``arrive`` [m] (where it has arrived), first backs off: backwards from a
-        goal in front, forwards from one behind, at half the cruise speed, along the ray from the
-        goal through the robot and with its heading turning onto that ray, so that the goal ends
-        up straight ahead or straight behind (backing off along its own heading, a robot with
-        the goal beside its axis came back the same way and never got the sideways error out:
-        seed 77 of the 20-robot crossing, between a goal and debris), until the goal lies
+        and farther than ``arrive`` [m] (where it has arrived), first moves straight away from it
+        (backwards from a goal in front, forwards from one behind) at half the cruise speed, until the goal lies
         ``BACK_OFF_HYSTERESIS`` turning radii from both circles' centres.
         """
         rel, dist, s0, mode = self._goal_mode(state)
         if mode == "back_off":  # a goal inside a turning circle cannot be reached by turning: back off first
             away = -1.0 if rel @ np.array([np.cos(state[2]), np.sin(state[2])]) >= 0.0 else 1.0
-            ray = -rel / dist  # from the goal through the robot
-            xy = np.asarray(state[:2], dtype=float) + (np.arange(steps + 1) * dt * 0.5 * self.speed)[:, None] * ray
-            heading = np.arctan2(ray[1], ray[0]) + (0.0 if away > 0.0 else np.pi)  # its axis on the ray, facing as it will approach
-            heading = state[2] + wrap_angle(heading - state[2])
-            return np.column_stack([xy, np.full(steps + 1, heading), np.full(steps + 1, away * 0.5 * self.speed)])
+            back = away * np.arange(steps + 1) * dt * 0.5 * self.speed
+            xy = np.asarray(state[:2], dtype=float) + back[:, None] * np.array([np.cos(state[2]), np.sin(state[2])])
+            return np.column_stack([xy, np.full(steps + 1, state[2]), np.full(steps + 1, away * 0.5 * self.speed)])
         if mode == "approach":
             speed = min(self.speed, float(np.sqrt(2.0 * self.decel * dist)))
             ahead = np.minimum(np.arange(steps + 1) * dt * speed, dist)

@@ -139,13 +139,3 @@ def test_short_run_with_4_robots():
     assert m["collisions"] == 0 and m["safety_stops"] == 0
     moved = result.steps.groupby("robot")[["x", "y"]].agg(lambda c: c.iloc[-1] - c.iloc[0])
     assert np.hypot(moved["x"], moved["y"]).max() > 0.3
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("seed", [36, 77])
-def test_a_robot_between_its_goal_and_debris_backs_off_onto_the_goals_ray(seed):
-    """Seeds 36 and 77 (20 robots) deadlocked while one robot, past its goal and facing debris,
-    backed off along its own heading and came back the same way, the goal still beside its axis
-    (commit 27dfa19). Backing off along the ray from the goal, they complete."""
-    metrics = runner.run(scenario(f"scenario.seed={seed}")).metrics
-    assert metrics["completed"] and metrics["collisions"] == 0

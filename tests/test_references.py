@@ -135,27 +135,3 @@ def test_pose_at_is_the_segment_interpolation_clamped_on_a_stopping_path(seed, m
     heading = path.seg_heading[i]
     xy = path.points[i] + local[:, None] * np.column_stack([np.cos(heading), np.sin(heading)])
     np.testing.assert_array_equal(path.pose_at(s), np.column_stack([xy, heading]))
-
-
-@settings(max_examples=100, deadline=None)
-@given(side=st.floats(-0.4, 0.4), back=st.floats(0.05, 0.5), behind=st.booleans(), heading=st.floats(-np.pi, np.pi))
-def test_backing_off_moves_along_the_ray_from_the_goal_and_turns_the_axis_onto_it(side, back, behind, heading):
-    """A goal inside a turning circle: the reference moves away from the goal along the ray from
-    the goal through the robot, at half the cruise speed (forwards from a goal behind, backwards
-    from one in front), with the heading that puts the goal straight behind or straight ahead."""
-    radius, speed = 0.66, 1.0
-    c, s = np.cos(heading), np.sin(heading)
-    state = np.array([0.0, 0.0, heading, 0.0])
-    along = -back if behind else back  # the goal in the robot's frame: (along, side)
-    goal = np.array([c * along - s * side, s * along + c * side])
-    path = PathReference([goal + [-10.0, 0.0], goal], speed, approach=3.0, turn_radius=radius, arrive=0.01)
-    left = np.array([-s, c])
-    assume(min(np.hypot(*(goal - radius * left)), np.hypot(*(goal + radius * left))) < radius)  # inside a turning circle
-    ref = path.horizon(state, 5, 0.1)
-    ray = -goal / np.hypot(*goal)
-    np.testing.assert_allclose(ref[:, :2], np.arange(6)[:, None] * 0.1 * 0.5 * speed * ray, atol=1e-12)
-    np.testing.assert_allclose(ref[:, 3], 0.5 * speed if behind else -0.5 * speed)
-    axis = np.array([np.cos(ref[0, 2]), np.sin(ref[0, 2])])
-    to_goal = goal / np.hypot(*goal)
-    np.testing.assert_allclose(axis, -to_goal if behind else to_goal, atol=1e-9)
-    assert abs(ref[0, 2] - heading) <= np.pi + 1e-12  # unwrapped near the robot's heading
