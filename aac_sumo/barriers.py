@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aac_sumo.geometry import containing_ellipse
+from aac_sumo.kernels import swept_hull_ellipses
 
 BARRIERS = ("fcbf", "cbf")
 #: Per-stage, per-slot parameter layout fed to the MPC.
@@ -217,21 +217,23 @@ class RegionTrack:
     ellipses: np.ndarray
 
 
-def hull_safety_ellipses(corners, velocities, headings, barrier: str, fcbf: FcbfParams) -> np.ndarray:
-    """Per-stage safety ellipses (..., 5) that contain the convex hull of ``corners`` (..., P, 2).
+def hull_safety_ellipses(rows, velocities, headings, barrier: str, fcbf: FcbfParams) -> np.ndarray:
+    """Per-stage safety ellipses (m, K, 5) that contain the convex hull of the footprints
+    ``rows`` (m, K+1, 5) ``[cx, cy, length, width, heading]`` at stages k and k+1.
 
-    Each stage's base ellipse contains the stage's points (:func:`~aac_sumo.geometry.containing_ellipse`,
-    oriented like the F-CBF ellipse); F-CBF then grows its axes with the stage ``velocities``
-    (..., 2) as in :func:`fcbf_stretch`, which only enlarges it, so containment is kept. Plain
-    CBF uses the base ellipse along ``headings`` (...).
+    Each stage's base ellipse contains the eight corners (:func:`~aac_sumo.geometry.containing_ellipse`,
+    compiled as :func:`~aac_sumo.kernels.swept_hull_ellipses`, oriented like the F-CBF
+    ellipse); F-CBF then grows its axes with the stage ``velocities`` (m, K, 2) as in
+    :func:`fcbf_stretch`, which only enlarges it, so containment is kept. Plain CBF uses the
+    base ellipse along ``headings`` (m, K).
     """
     if barrier == "fcbf":
         da, db, phi = fcbf_stretch(velocities, headings, fcbf)
     elif barrier == "cbf":
-        da, db, phi = 0.0, 0.0, np.asarray(headings, dtype=float)
+        da, db, phi = 0.0, 0.0, headings
     else:
         raise ValueError(f"unknown barrier {barrier!r}; expected one of {BARRIERS}")
-    ellipses = containing_ellipse(corners, phi)
+    ellipses = swept_hull_ellipses(np.ascontiguousarray(rows, dtype=float), np.ascontiguousarray(phi, dtype=float))
     ellipses[..., 2] += da
     ellipses[..., 3] += db
     return ellipses

@@ -1065,3 +1065,49 @@ def path_poses(points, cum, seg_len, seg_dir, seg_heading, stop_at_end, s):
         out[k, 1] = points[i, 1] + local * seg_dir[i, 1]
         out[k, 2] = seg_heading[i]
     return out
+
+
+@numba.njit(cache=True)
+def swept_hull_ellipses(rows, theta):
+    """Ellipses ``[cx, cy, a, b, theta]`` (m, K, 5) containing, per stage k, the corners of the
+    footprints ``rows`` (m, K+1, 5) at k and k+1, oriented by ``theta`` (m, K) [rad]: in the
+    frame rotated by theta, centred on the corners' bounding box with its aspect ratio and
+    scaled until the farthest corner lies on it. The same numbers, operation for operation, as
+    :func:`aac_sumo.geometry.containing_ellipse` of :func:`aac_sumo.geometry.rect_corners` of
+    both stages."""
+    m, stages = theta.shape
+    out = np.empty((m, stages, 5))
+    px, py = np.empty(8), np.empty(8)
+    su = (1.0, 1.0, -1.0, -1.0)  # the corner signs of rect_corners
+    sv = (-1.0, 1.0, 1.0, -1.0)
+    for j in range(m):
+        for k in range(stages):
+            for half in range(2):
+                r = rows[j, k + half]
+                c, s = math.cos(r[4]), math.sin(r[4])
+                for q in range(4):
+                    du = 0.5 * r[2] * su[q]
+                    dv = 0.5 * r[3] * sv[q]
+                    px[4 * half + q] = r[0] + c * du - s * dv
+                    py[4 * half + q] = r[1] + s * du + c * dv
+            ct, st = math.cos(theta[j, k]), math.sin(theta[j, k])
+            u_lo, u_hi, v_lo, v_hi = np.inf, -np.inf, np.inf, -np.inf
+            for p in range(8):
+                u = ct * px[p] + st * py[p]
+                v = -st * px[p] + ct * py[p]
+                u_lo, u_hi, v_lo, v_hi = min(u_lo, u), max(u_hi, u), min(v_lo, v), max(v_hi, v)
+            uc, vc = 0.5 * (u_lo + u_hi), 0.5 * (v_lo + v_hi)
+            hu = max(0.5 * (u_hi - u_lo), 1e-6)
+            hv = max(0.5 * (v_hi - v_lo), 1e-6)
+            scale = 0.0
+            for p in range(8):
+                u = ct * px[p] + st * py[p]
+                v = -st * px[p] + ct * py[p]
+                scale = max(scale, math.sqrt(((u - uc) / hu) ** 2 + ((v - vc) / hv) ** 2))
+            scale = max(scale, 1.0) * (1.0 + 1e-9)
+            out[j, k, 0] = ct * uc - st * vc
+            out[j, k, 1] = st * uc + ct * vc
+            out[j, k, 2] = scale * hu
+            out[j, k, 3] = scale * hv
+            out[j, k, 4] = theta[j, k]
+    return out

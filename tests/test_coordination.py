@@ -22,7 +22,7 @@ from aac_sumo.coordination.proximity import ProximityParams, close_pairs, proxim
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.coordination.safety import BRAKING_TIE, STRIP_OVERSHOOT, SafetyCheck, WalkerSpeeds
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
-from aac_sumo.kernels import STANDING_GAP
+from aac_sumo.kernels import STANDING_GAP, swept_hull_ellipses
 from aac_sumo.geometry import containing_ellipse, convex_hull, ellipse_signed_distance, rect_clearance_rows, rect_corners
 from aac_sumo.metrics import authority_jain
 from aac_sumo.mpc.planner import MpcConfig, MpcPlanner, Plan
@@ -95,6 +95,20 @@ def test_containing_ellipse_contains_every_point_and_is_tight(points, theta):
     if np.all(spread > 1e-6):
         assert q.max() == pytest.approx(1.0, rel=1e-6)  # scaled until the farthest point is on it
 
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 10_000), m=st.integers(1, 12), stages=st.integers(1, 12))
+def test_compiled_swept_hull_ellipses_are_the_numpy_definition_bit_for_bit(seed, m, stages):
+    """The compiled ellipse round the footprints at stages k and k+1 is containing_ellipse of
+    their eight rect_corners, the same numbers."""
+    rng = np.random.default_rng(seed)
+    rows = np.concatenate([rng.uniform(-10, 10, (m, stages + 1, 2)), rng.uniform(0.1, 5.0, (m, stages + 1, 2)),
+                           rng.uniform(-7, 7, (m, stages + 1, 1))], axis=2)
+    theta = rng.uniform(-7, 7, (m, stages))
+    corners = rect_corners(rows)
+    expected = containing_ellipse(np.concatenate([corners[:, :-1], corners[:, 1:]], axis=2), theta)
+    np.testing.assert_array_equal(swept_hull_ellipses(rows, theta), expected)
 
 # --- proximity decision -----------------------------------------------------------------------
 

@@ -10,7 +10,6 @@ from __future__ import annotations
 import numpy as np
 
 from aac_sumo.barriers import FcbfParams, RegionTrack, hull_safety_ellipses
-from aac_sumo.geometry import rect_corners
 from aac_sumo.kernels import footprint_rows, limited_steer, rollouts
 from aac_sumo.world import RobotSpec
 
@@ -55,11 +54,9 @@ class Fleet:
         trajectories ``traj`` (m, >= horizon+2, 4): stage k contains the hull of the footprints at
         k and k+1, shaped by the stage velocity."""
         traj = traj[:, : horizon + 2]
-        corners = rect_corners(self.footprints(idx, traj))  # (m, N+2, 4, 2)
-        swept = np.concatenate([corners[:, :-1], corners[:, 1:]], axis=2)  # (m, N+1, 8, 2)
         head = traj[:, :-1, 2]
         vel = traj[:, :-1, 3:4] * np.stack([np.cos(head), np.sin(head)], axis=-1)
-        return hull_safety_ellipses(swept, vel, head, barrier, fcbf)
+        return hull_safety_ellipses(self.footprints(idx, traj), vel, head, barrier, fcbf)  # footprints (m, N+2, 5)
 
     def swept_regions(self, idx: np.ndarray, traj: np.ndarray, horizon: int, barrier: str, fcbf: FcbfParams) -> list[RegionTrack]:
         """One region track per robot ``idx`` of :meth:`swept_ellipses`."""
