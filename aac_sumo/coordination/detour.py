@@ -103,7 +103,7 @@ class Detours:
         self.final = np.zeros(len(tasks), dtype=bool)  # on the straight way to the goal (FINAL)
         self.basis: list[tuple[np.ndarray, np.ndarray] | None] = [None] * len(tasks)  # each detour's start and standing footprints
         self.planned = 0  # detours planned so far
-        self.goals = np.array([t.points[-1] for t in tasks]).reshape(-1, 2)
+        self.goals = np.array([t.points[-1] for t in tasks]).reshape(-1, 2)  # each task's goal [m]
 
     def path(self, i: int) -> PathReference:
         """Robot ``i``'s reference path: its detour, else its task."""
@@ -132,7 +132,7 @@ class Detours:
         for i in np.flatnonzero(~done & ~parked & due):
             if on_detour[i] and gap[i] <= FINAL:
                 rects = standing_but(i)
-                goal = self.tasks[i].points[-1]
+                goal = self.goals[i]
                 line = states[i, :2] + np.linspace(0.0, 1.0, int(np.ceil(gap[i] / CHECK_SPACING)) + 1)[:, None] * (goal - states[i, :2])
                 if rect_distances(line, rects).min() >= self.hard:
                     self.routes[i] = self.route(i, np.array([states[i, :2], goal]))
@@ -145,8 +145,7 @@ class Detours:
             rects = standing_but(i)
             if self.keeps(i, states[i], footprints[i, :2], rects[self.near(i, states[i], rects)], stalled):
                 continue
-            task = self.tasks[i]
-            waypoints = plan_detour(footprints[i, :2], task.points[-1], rects, self.hard, self.clearance, self.cell)
+            waypoints = plan_detour(footprints[i, :2], self.goals[i], rects, self.hard, self.clearance, self.cell)
             if waypoints is not None and len(waypoints) >= 2:
                 self.routes[i], self.final[i] = self.route(i, waypoints), False
                 self.basis[i] = (footprints[i, :2].copy(), rects)
