@@ -16,7 +16,7 @@ METRIC_KEYS = (
     "infeasibility_rate", "min_distance_m", "min_clearance_m", "collisions", "sim_collisions", "ttc_mean_s",
     "aggressive_driving_rate", "tracking_error_m", "authority_jain", "delay_jain", "delay_max_s",
     "realtime_factor", "safety_stops", "deadlock", "min_pedestrian_clearance_m", "setup_s", "capped_solves",
-    "emergency_brakes", "aggressive_by_mode",
+    "emergency_brakes", "aggressive_by_mode", "accel_p95", "lat_accel_p95", "jerk_p95",
 )
 #: Where an applied input comes from (``steps.csv``'s ``mode``), in the order ``aggressive_by_mode`` reports them.
 MODES = ("mpc", "creep", "plan", "tracking", "safety_stop", "fallback", "hold")
@@ -104,6 +104,9 @@ def compute_metrics(steps: pd.DataFrame, periods: pd.DataFrame, info: dict) -> d
     ``delay_max_s``, ``safety_stops``, ``deadlock`` and ``setup_s`` (the one-off set-up before the
     first period, which ``periods``' ``compute_ms`` leaves out).
 
+    ``accel_p95``, ``lat_accel_p95`` and ``jerk_p95`` are the 95th percentiles of the absolute
+    ``accel``, ``lat_accel`` and ``jerk`` columns over every row of ``steps`` (:func:`smoothness`).
+
     ``tracking_error_m`` is the mean over every row of ``steps`` (every robot at every step) of
     the distance from ``x, y`` to ``ref_x, ref_y`` (null if any row lacks one, never a mean over
     a subset); ``capped_solves`` counts the solves whose
@@ -142,6 +145,7 @@ def compute_metrics(steps: pd.DataFrame, periods: pd.DataFrame, info: dict) -> d
         capped_solves=int(solved["capped"].fillna(False).astype(bool).sum()) if "capped" in solved else 0,
         emergency_brakes=_emergency_brakes(steps, info) if len(steps) and "comfort_decel" in info else None,
         aggressive_by_mode=_aggressive_by_mode(steps, info) if len(steps) else None,
+        **smoothness(steps),
     )
     return {k: m[k] for k in METRIC_KEYS} | {k: v for k, v in m.items() if k not in METRIC_KEYS}
 
@@ -188,3 +192,22 @@ def _emergency_brakes(steps: pd.DataFrame, info: dict) -> int:
     hard = emergency_brake_steps(steps, info)
     starts = hard & ~hard.groupby(steps["robot"]).shift(fill_value=False)
     return int(starts.sum())
+
+
+#: ``steps.csv`` columns whose absolute values' 95th percentiles are the smoothness metrics, by metric key.
+SMOOTHNESS = {"accel_p95": "accel", "lat_accel_p95": "lat_accel", "jerk_p95": "jerk"}
+
+
+def smoothness(steps: pd.DataFrame) -> dict:
+    """``accel_p95`` [m/s^2], ``lat_accel_p95`` [m/s^2] and ``jerk_p95`` [m/s^3]: the 95th
+    percentile (linear interpolation) of |applied acceleration|, |lateral acceleration| and
+    |jerk| over every recorded step of every controlled robot (the runner records only robots on
+    the road). A robot's first step has no jerk (NaN) and is left out of ``jerk_p95`` only.
+    None for a column that is missing or has no finite value."""
+    out = {}
+    for key, column in SMOOTHNESS.items():
+        values = steps[column].to_numpy(dtype=float) if column in steps else np.zeros(0)
+        values = np.abs(values[np.isfinite(values)])
+        out[key] = float(np.percentile(values, 95)) if values.size else None
+    return out
+
