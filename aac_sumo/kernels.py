@@ -898,6 +898,12 @@ def rects_within(points, rects, reach):
     return out
 
 
+#: A walker moving away from a robot's path faster than this [m/s] is not taken to step back towards it.
+WALK_AWAY = 0.1
+#: The time gap behind a leader grows from none (standing) to the whole at this leader speed [m/s].
+TIME_GAP_SPEED = 1.0
+
+
 @numba.njit(cache=True)
 def stop_rows(points, seg_len, cum, seg_dir, seg_heading, t_max, chunk_centre, chunk_radius, chunk, stop_at_end,
               ego, s0, off0, centres, headings, lengths, widths, velocity, walker, step_out, accel, skip, held_since, t, rules):
@@ -963,7 +969,9 @@ def stop_rows(points, seg_len, cum, seg_dir, seg_heading, t_max, chunk_centre, c
         toward = max(0.0, across)
         arrive = ahead / pace
         if walker[k]:
-            reach = toward * arrive + ped_reach * min(arrive, v / decel)
+            if across < -WALK_AWAY:  # she walks away from the path: not taken to turn back
+                ped_reach = 0.0
+            reach = max(toward * arrive, ped_reach * min(arrive, v / decel))
             counts = gap_across - reach <= ped_margin
             if counts:
                 counted[k] = True
@@ -972,10 +980,11 @@ def stop_rows(points, seg_len, cum, seg_dir, seg_heading, t_max, chunk_centre, c
             lead, keep, grow = 0.0, ped_margin, ped_reach / decel
         else:
             counts = gap_across - toward * cut_in <= lateral_margin
-            lead, keep, grow = max(vx * tx + vy * ty, 0.0), 0.0, 0.0
+            lead, keep = max(vx * tx + vy * ty, 0.0), 0.0
+            grow = time_gap * min(lead / TIME_GAP_SPEED, 1.0)  # the time gap at the robot's own speed, behind a moving leader
         along = 0.5 * lengths[k] * cos_rel + 0.5 * widths[k] * sin_rel
         behind_it = s - along - front - gap
-        s_stop = behind_it - keep - time_gap * lead
+        s_stop = behind_it - keep
         if walker[k] and counts and gap_across > ped_margin and v * v > 2.0 * comfort * max(s_stop - s0, 0.0):
             clear = (ahead + along + 0.5 * length - centre_offset + ped_margin) / pace
             if gap_across - toward * clear > ped_margin:  # past the point of no return

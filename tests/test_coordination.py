@@ -597,15 +597,16 @@ def test_a_car_stops_before_a_walker_who_sets_off_next_to_the_road_with_the_marg
 def test_a_walker_stop_comes_as_late_as_comfort_allows_and_ends_once_she_is_gone():
     """The same walker 80 m ahead of the car: it drives on until braking at its comfort
     deceleration (3 m/s^2) is just enough to stop before her path, then brakes at what it needs
-    (no emergency), and drives on once she has crossed its lane and walks away faster than she
-    could come back within its passing time. A walker 20 m north, who cannot come within the
+    (no emergency), and drives on as soon as she has crossed its lane and its margin, walking
+    away (she is not taken to turn back). A walker 20 m north, who cannot come within the
     margin of its lane before it has passed, does not stop it at all."""
     states, accels, walkers = drive_past_walker(80.0, 4.0)
     braking = np.flatnonzero(accels < 0.0)
     assert braking.size and -accels.min() <= HIGHWAY_LIMITS.a_comfort + 1e-9
     assert -accels[braking[0]] == pytest.approx(3.0, abs=0.1)  # it waited as long as its comfort braking allowed
     assert accels[braking[-1] + 1:].max(initial=0.0) == 0.0 and states[-1, 3] > 0.0  # then on its way again
-    assert walkers[braking[-1], 1] < -1.75 - 0.9 - 0.25 - 1.0  # when she was beyond its lane and the margin
+    clear = -1.75 - 0.9 - 0.15 - 1.0  # her centre where she is beyond its lane and the margin (her half extent across: 0.15 m)
+    assert walkers[braking[-1] + 1, 1] < clear <= walkers[braking[-1], 1] + 1e-9  # as soon as she was, not later
     assert states[:, 3].min() > 0.0  # it did not need to stand
     states, accels, _ = drive_past_walker(40.0, 20.0)
     assert np.all(accels == 0.0)
@@ -626,45 +627,42 @@ def test_with_a_comfort_envelope_a_walker_stop_starts_early_enough_to_brake_calm
     assert -late.min() == pytest.approx(3.38, abs=0.005)
 
 
-def test_a_walkers_speed_of_late_keeps_a_car_from_being_let_go_on_one_fast_reading():
+def test_a_walker_who_has_crossed_and_walks_away_lets_a_car_go_on_every_reading():
     """The lane change's seed 4 at N = 10, at 26.7 s: veh11 at 1.4 m/s, its front 0.6 m before
     the strip of a walker who has just crossed its lane southwards, 2.8 m beyond it, at 0.97 to
-    1.14 m/s step by step (SUMO). Walking away at 1.14 m/s (this step's reading) she could not
-    come back within the margin before the car leaves her strip, so it was let go (it applied
-    +1.5 m/s^2) and on the next step, at 1.0 m/s, it had to stop before her strip at 2.9 m/s^2.
-    With her slowest speed of the last second (:class:`WalkerSpeeds`) it goes on stopping for
-    her, braking calmly (1.8 m/s^2)."""
+    1.14 m/s step by step (SUMO). She walks away beyond the margin: she is not taken to turn
+    back, so the car is let go on every reading, whatever her speeds of late
+    (:class:`WalkerSpeeds`; when she could turn back at 1.5 m/s, the decision flipped from one
+    reading to the next, and the car that was let go had to stop at 2.9 m/s^2)."""
     readings = [1.139, 1.064, 0.991, 1.104, 0.972, 0.992, 1.145]
     car = np.array([[233.53, -4.752, 0.0, 1.405]])
     calm = MpcConfig(dt=DT, pedestrian_reach=1.5, pedestrian_margin=1.0, comfort_accel=2.0)
     speeds = WalkerSpeeds()
+    wanted = np.array([[1.5, 0.0]])
     for k, v in enumerate(readings):
         walker = Obstacle("p0", "pedestrian", np.array([238.76, -8.09 - 0.105 * k]), np.array([0.0, -v]), -np.pi / 2, 0.3, 0.5)
         world = WorldState(26.1 + k * DT, car, [HIGHWAY_CAR], [walker])
         bounds = speeds.update(world)
+        for known in (None, bounds):
+            check = SafetyCheck(world, Fleet([HIGHWAY_CAR]), calm, np.zeros(1), np.zeros(1), walker_speeds=known)
+            assert not np.isfinite(check.walker_paths()[2][0, 0])  # not held before her path
+            assert check.safe_inputs(np.array([0]), wanted, 0.3)[0, 0] == 1.5  # let go
     assert bounds["p0"] == (0.972, 1.145)
-    wanted = np.array([[1.5, 0.0]])
-    now = SafetyCheck(world, Fleet([HIGHWAY_CAR]), calm, np.zeros(1), np.zeros(1))
-    assert now.walker_paths()[3][0, 0] and now.safe_inputs(np.array([0]), wanted, 0.3)[0, 0] == 1.5  # let go
-    late = SafetyCheck(world, Fleet([HIGHWAY_CAR]), calm, np.zeros(1), np.zeros(1), walker_speeds=bounds)
-    assert np.isfinite(late.walker_paths()[2][0, 0])
-    assert late.safe_inputs(np.array([0]), wanted, 0.3)[0, 0] == pytest.approx(-1.77, abs=0.01)
 
 
 def test_a_cars_reference_stops_where_the_safety_stop_holds_it_before_a_walkers_path():
     """The lane change's seed 0 at N = 15, at 22.9 s: veh14 stands 0.37 m before the path of a
-    walker who crossed its lane and walks away, 1 m beyond it; the safety stop holds it before
-    her path. Its anticipated reference ignored her (walking away) and its tracking law aimed at
-    1.5 m/s: it set off, and its next solve braked at 2.8 m/s^2. Held before her path
+    walker who crossed its lane and walks away, still within the 1 m margin of it; the safety
+    stop holds it before her path. (Its anticipated reference once ignored such a walker and its
+    tracking law set off: its next solve braked at 2.8 m/s^2.) Held before her path
     (``hold_before_strips``), its reference creeps up to there and no further, and the law
     barely moves it."""
     config = MpcConfig(dt=DT, pedestrian_reach=1.5, pedestrian_margin=1.0, comfort_accel=2.0, comfort_lat=2.0)
     task = PathReference([[0.0, -4.85], [500.0, -4.85]], 10.0, stop_at_end=False)
     lfc = LfcCoordinator(MpcPlanner(config), [task], params=LfcParams(safety_stop=True, fallback="tracking", lookahead=10.0))
     lfc.anticipation, lfc.fleet = Anticipation(pedestrian_reach=1.5, pedestrian_margin=1.0), Fleet([HIGHWAY_CAR])
-    walker = Obstacle("p0", "pedestrian", np.array([238.76, -6.92]), np.array([0.0, -1.06]), -np.pi / 2, 0.3, 0.5)
+    walker = Obstacle("p0", "pedestrian", np.array([238.76, -6.72]), np.array([0.0, -1.06]), -np.pi / 2, 0.3, 0.5)
     world = WorldState(22.9, np.array([[233.80, -4.85, 0.0, 0.0]]), [HIGHWAY_CAR], [walker])
-    assert lfc.tracking_speed(world, 0, 1.0) == pytest.approx(1.5)
     safety = lfc.safety_check(world)
     room = safety.walker_paths()[2][0, 0]
     assert room == pytest.approx(0.37, abs=0.01)
@@ -694,22 +692,30 @@ def test_a_stored_plan_brakes_at_least_as_the_anticipation_says():
         assert mode == "plan" and inputs[0, 0] == pytest.approx(wanted) and np.all(inputs[1:4, 0] == plan_accel)
 
 
-def test_a_car_standing_at_the_edge_of_a_walkers_path_waits_for_her_rather_than_creep_into_it():
+@pytest.mark.parametrize("north, waits", [(4.0, True), (8.7, False)])
+def test_a_car_standing_at_the_edge_of_a_walkers_path_goes_first_only_when_it_clears_her_path_in_time(north, waits):
     """The lane change's seed 3 at N = 15, at 13.5 s: veh14 has braked to stand with its front
-    2 cm before the strip of a walker who comes south across the road 8.7 m north of its lane at
-    1.1 m/s, and its tracking law sets off at 1.5 m/s^2. Standing, it counts on leaving her strip
-    no faster than at 0.3 m/s (one period of its strongest acceleration): not before she could
-    come within the margin of its path (she may turn towards it at 1.5 m/s), so it stays, and
-    she passes with the 1 m margin; it sets off once she is that far past (11 m, 19.5 s). (It used to set off: a standing car did not
-    answer walkers, and one more step put it inside her strip, where it crept on and stood 0.51 m
-    from her as she passed.)"""
+    2 cm before the strip of a walker who comes south across the road from y = ``north`` (its
+    lane along y = -1.75 m) at 1.1 m/s, and its tracking law sets off at 1.5 m/s^2. Standing, it
+    counts on setting off at half its strongest acceleration (1.5 m/s^2): its rear leaves her
+    strip 3.0 s later. From y = 8.7 m she needs 5.6 s to come within the margin of its lane at
+    1.5 m/s (she may go faster than she walks): it goes first, and has left her strip before she
+    comes near. From y = 4 m she needs 2.5 s: it stays out of her strip until she has crossed its
+    lane, and she passes with the 1 m margin (once, a car that set off stopped again inside her
+    strip and stood 0.51 m from her as she passed). Either way she never comes within the margin
+    of its footprint."""
     half = 0.5 * np.hypot(0.3, 0.5) + 1.0  # half her strip: her diagonal, plus the margin
-    states, accels, walkers = drive_past_walker(half + 0.02, 8.7, speed=0.0, walk=1.1, seconds=20.0, accel=1.5)
+    states, accels, walkers = drive_past_walker(half + 0.02, north, speed=0.0, walk=1.1, seconds=20.0, accel=1.5)
     front = states[:, 0] + HIGHWAY_CAR.centre_offset + 2.0
+    rear = front - HIGHWAY_CAR.length
     # her footprint (0.5 m wide along the road) against the car's, whenever she is within the margin of its lane
     beside = np.abs(walkers[:, 1] + 1.75) < 0.9 + 0.15 + 1.0
-    assert np.all(walkers[beside, 0] - 0.25 - front[beside] >= 1.0)
-    assert np.all(front[walkers[:, 1] > -1.75] < -half)  # it stays out of her strip until she has crossed its lane
+    assert beside.any()
+    behind_her = walkers[beside, 0] - 0.25 - front[beside] >= 1.0
+    past_her = rear[beside] - (walkers[beside, 0] + 0.25) >= 1.0
+    assert np.all(behind_her if waits else past_her)
+    if waits:
+        assert np.all(front[walkers[:, 1] > -1.75] < -half)  # it stays out of her strip until she has crossed its lane
     assert states[-1, 3] > 0.0  # and then goes
 
 

@@ -193,15 +193,19 @@ def test_a_car_closer_to_its_leader_than_the_gap_it_keeps_falls_back_at_the_comf
     """A car at 8 m/s with a leader at 8 m/s only 1 m beyond its stop row (the 2 m standstill gap
     plus the 1 s time gap): its reference slows below the leader's speed, at most at the
     comfortable rate, so that the gap opens again (at the leader's speed it would stay closed);
-    the cap there is sqrt(8^2 - 2 decel 1) ~ 7.8 m/s. With the leader far ahead it keeps 8 m/s."""
+    the cap keeps (v^2 - 8^2) / (2 decel) + time_gap v within the room, ~7.84 m/s. With the leader far ahead it keeps 8 m/s."""
     params = Anticipation()
     front = CAR.centre_offset + 0.5 * CAR.length
     behind = front + 0.2 + params.gap + params.time_gap * 8.0 - 1.0  # the leader's centre, 1 m too close
     world, task = one_lane_world(behind, velocity=(8.0, 0.0), kind="scripted")
     world.states[0, 3] = 8.0
     stops = stop_points(world, 0, task, params)
-    assert stops[0, 0] == pytest.approx(-1.0) and stops[0, 1] == pytest.approx(8.0)
-    assert speed_cap(stops, [0.0], params.decel)[0] == pytest.approx(np.sqrt(64.0 - 2.0 * params.decel), rel=1e-9)
+    assert stops[0, 0] == pytest.approx(-1.0 + params.time_gap * 8.0) and stops[0, 1] == pytest.approx(8.0)
+    assert stops[0, 2] == pytest.approx(params.time_gap)  # the time gap at the car's own speed
+    bk = params.decel * params.time_gap
+    cap = np.sqrt(bk**2 + 64.0 + 2.0 * params.decel * (-1.0 + params.time_gap * 8.0)) - bk
+    assert cap < 8.0
+    assert speed_cap(stops, [0.0], params.decel)[0] == pytest.approx(cap, rel=1e-9)
     speeds = anticipated_reference(world, 0, task, 10, DT, params)[:, 3]
     assert speeds[-1] < 8.0 - 0.5 and np.all(np.diff(speeds) >= -params.decel * DT - 1e-9)
     far, task = one_lane_world(behind + 40.0, velocity=(8.0, 0.0), kind="scripted")
@@ -238,17 +242,17 @@ def test_the_tracking_law_slows_to_a_stop_at_the_references_rate():
 
 def test_a_braking_car_ahead_counts_also_where_it_will_stop():
     """A car 30 m ahead at 15 m/s braking at 4.5 m/s^2 (as SUMO's cars brake for a walker):
-    besides the time-gap row at its speed, a standing row 15^2 / 9 = 25 m further on; a car
-    keeping its speed gives the first row only."""
+    besides the row behind it at its speed (the time gap kept at the robot's own speed), a
+    standing row 15^2 / 9 = 25 m further on; a car keeping its speed gives the first row only."""
     params = Anticipation()
     front = CAR.centre_offset + 0.5 * CAR.length
     behind = 30.0 - 2.25 - front - params.gap
     braking, task = one_lane_world(30.0, velocity=(15.0, 0.0), kind="scripted")
     braking.obstacles[0] = dataclasses.replace(braking.obstacles[0], length=4.5, accel=-4.5)
-    np.testing.assert_allclose(stop_points(braking, 0, task, params), [[behind - 15.0, 15.0, 0.0], [behind + 25.0, 0.0, 0.0]])
+    np.testing.assert_allclose(stop_points(braking, 0, task, params), [[behind, 15.0, params.time_gap], [behind + 25.0, 0.0, 0.0]])
     steady, _ = one_lane_world(30.0, velocity=(15.0, 0.0), kind="scripted")
     steady.obstacles[0] = dataclasses.replace(steady.obstacles[0], length=4.5)
-    np.testing.assert_allclose(stop_points(steady, 0, task, params), [[behind - 15.0, 15.0, 0.0]])
+    np.testing.assert_allclose(stop_points(steady, 0, task, params), [[behind, 15.0, params.time_gap]])
 
 
 def test_a_walker_who_pauses_on_the_crossing_is_still_yielded_to_for_a_moment():
@@ -270,19 +274,20 @@ def test_a_walker_who_pauses_on_the_crossing_is_still_yielded_to_for_a_moment():
 
 
 def test_past_the_point_of_no_return_a_car_goes_on_before_a_walker_who_cannot_reach_its_path():
-    """A walker 8 m beside the path, 30 m ahead, walking towards it at 1.25 m/s (it may reach
-    the path within the car's time there at its speed plus pedestrian_reach: it counts). At
-    13 m/s the car can no longer stop before it at its comfort deceleration (13^2 / 6 = 28 m >
-    23.5 m) and the walker needs 5.5 s to the path at its own speed against the 2.5 s the car
-    needs to pass: it goes on. At 8 m/s it can still stop: it yields. A walker within the margin
-    of the path always counts."""
+    """A walker 6.5 m beside the path, 30 m ahead, walking towards it at 1.25 m/s (it may reach
+    the path within the car's time there at the faster of its speed and pedestrian_reach: it
+    counts). At 13 m/s the car can no longer stop before it at its comfort deceleration (13^2 / 6
+    = 28 m > 23.5 m) and the walker needs over 4 s to the path at its own speed against the 2.5 s
+    the car needs to pass: it goes on. At 8 m/s it can still stop: it yields. A walker within the
+    margin of the path always counts; one 8 m beside it cannot come within the margin at 1.5 m/s
+    in the 3.75 s the car at 8 m/s needs, and does not count."""
     params = Anticipation(pedestrian_margin=1.0, pedestrian_reach=1.5)
     counted = []
-    for speed, y in ((13.0, -8.0), (8.0, -8.0), (13.0, -1.5)):
+    for speed, y in ((13.0, -6.5), (8.0, -6.5), (13.0, -1.5), (8.0, -8.0)):
         world, task = one_lane_world(30.0, y, kind="pedestrian", velocity=(0.0, 1.25))
         world.states[0, 3] = speed
         counted.append(len(stop_points(world, 0, task, params)))
-    assert counted == [0, 1, 1]
+    assert counted == [0, 1, 1, 0]
 
 
 def test_walkers_count_when_near_or_heading_for_the_path_and_not_when_walking_away():

@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 
 from aac_sumo.coordination.anticipation import Anticipation, agents, stop_points
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
+from aac_sumo.kernels import TIME_GAP_SPEED, WALK_AWAY
 from aac_sumo.references import PathReference
 from aac_sumo.world import Obstacle, RobotSpec, WorldState
 
@@ -54,7 +55,8 @@ def numpy_stop_points(world: WorldState, i: int, task: PathReference, params: An
     across = -side * np.einsum("ij,ij->i", vel, normal)
     toward = np.maximum(0.0, across)
     arrive = ahead / max(abs(state[3]), 1.0)
-    reach = np.where(walker, toward * arrive + step_out * np.minimum(arrive, abs(state[3]) / params.decel),
+    step_out = np.where(across < -WALK_AWAY, 0.0, step_out)  # walking away: not taken to turn back
+    reach = np.where(walker, np.maximum(toward * arrive, step_out * np.minimum(arrive, abs(state[3]) / params.decel)),
                      toward * params.cut_in)
     counts = gap_across - reach <= np.where(walker, params.pedestrian_margin, params.lateral_margin)
     if held is not None and walker.any():
@@ -66,9 +68,9 @@ def numpy_stop_points(world: WorldState, i: int, task: PathReference, params: An
                 counts[k] = True
     lead = np.where(walker, 0.0, np.maximum(np.einsum("ij,ij->i", vel, tangent), 0.0))
     keep = np.where(walker, params.pedestrian_margin, 0.0)
-    grow = np.where(walker, step_out / params.decel, 0.0)
+    grow = np.where(walker, step_out / params.decel, params.time_gap * np.minimum(lead / TIME_GAP_SPEED, 1.0))
     behind_it = s - along - front - params.gap
-    s_stop = behind_it - keep - params.time_gap * lead
+    s_stop = behind_it - keep
     v = abs(state[3])
     late = walker & (gap_across > params.pedestrian_margin) & (v * v > 2.0 * robot.model.limits.comfort_decel * np.maximum(s_stop - s0, 0.0))
     clear = (ahead + along + 0.5 * robot.length - robot.centre_offset + params.pedestrian_margin) / max(v, 1.0)

@@ -7,18 +7,23 @@ speed with a comfortable stopping profile, as a driver's car following does:
 
 - another robot or a moving obstacle whose footprint reaches within ``lateral_margin`` [m] of
   the path ahead of the robot, or will within ``cut_in`` [s] at its speed towards the path
-  (a car cutting in, so that the robot behind makes room early): the robot may drive at ``sqrt(v_lead^2 + 2 b (s_stop - s))``
-  at arc length ``s``, with ``v_lead`` its speed along the path and ``s_stop`` the point
-  ``gap + time_gap * v_lead`` [m] behind it; an obstacle that brakes (its estimated
+  (a car cutting in, so that the robot behind makes room early): the robot may drive at the
+  speed ``v`` that keeps ``(v^2 - v_lead^2) / 2 b + time_gap v <= s_stop - s`` at arc length
+  ``s``, with ``v_lead`` its speed along the path and ``s_stop`` the point ``gap`` [m] behind
+  it: the time gap at the robot's own speed (as IDM keeps it), growing from none behind a
+  standing leader to the whole behind one at 1 m/s, so that a standing queue sets off together
+  (with the time gap at the leader's speed, each car waited about 2 s for the one ahead);
+  an obstacle that brakes (its estimated
   acceleration ``a < 0``, :attr:`~aac_sumo.world.Obstacle.accel`) also counts as standing
   ``v_lead^2 / 2|a|`` further on, where it stops at that rate (a SUMO car braking hard for a walker);
 - a pedestrian near or on the path counts with ``v_lead = 0``: the robot yields, it does not
   overtake. A walker counts when it is within ``pedestrian_margin`` of the path, or may be by
-  the time the robot gets there at its current speed: its velocity towards the path times that
-  time, plus ``pedestrian_reach`` [m/s] (it may step out at any moment, as the planner and the
-  safety stop assume) times that time or the robot's comfortable stopping time, whichever is
-  shorter (so a robot creeps past a walker who stands beside its lane instead of waiting for
-  good).
+  the time the robot gets there at its current speed: the longer of her velocity towards the
+  path times that time and ``pedestrian_reach`` [m/s] (she may step out at any moment, as the
+  planner and the safety stop assume) times that time or the robot's comfortable stopping
+  time, whichever is shorter (so a robot creeps past a walker who stands beside its lane
+  instead of waiting for good). A walker who walks away from the path is not taken to turn
+  back: the robot goes once she is beyond ``pedestrian_margin`` of it.
 
 A walker that counted goes on counting for ``hold`` seconds unless it walks away from the path
 (one who pauses on the crossing for a moment is still yielded to). Past the point of no return,

@@ -61,6 +61,13 @@ WALKER_STILL = 0.1
 STRIP_OVERSHOOT = 0.05
 #: How long [s] the check remembers a walker's speeds (:class:`WalkerSpeeds`).
 WALKER_MEMORY = 1.0
+#: A robot slower than SET_OFF_SPEED [m/s] that sets off to pass a walker's path is taken to
+#: accelerate up to it at SET_OFF_SHARE of its strongest acceleration (the lane change's cars:
+#: 1.5 m/s^2, the rate their references ramp at); a faster one keeps its speed.
+SET_OFF_SHARE = 0.5
+SET_OFF_SPEED = 5.0
+#: Standstill gap [m] a robot that passes a walker's path keeps to what stands beyond it.
+CLEAR_GAP = 1.0
 
 
 class WalkerSpeeds:
@@ -115,6 +122,15 @@ def following(world: WorldState) -> np.ndarray:
         same_way = np.abs(np.angle(np.exp(1j * (o.heading - heading)))) < FOLLOW_ANGLE
         out[:, 2 * n + j] = behind & same_way
     return out
+
+
+def setting_off_time(distance, v, accel):
+    """Time [s] to drive ``distance`` [m] from speed ``v`` [m/s], accelerating at ``accel``
+    [m/s^2] up to ``SET_OFF_SPEED`` when slower, then at constant speed (arrays broadcast)."""
+    top = np.maximum(v, SET_OFF_SPEED)
+    ramp = (top * top - v * v) / (2.0 * accel)  # [m] until it reaches top speed
+    on_ramp = (np.sqrt(v * v + 2.0 * accel * np.minimum(distance, ramp)) - v) / accel
+    return on_ramp + np.maximum(distance - ramp, 0.0) / top
 
 
 class SafetyCheck:
@@ -189,9 +205,12 @@ class SafetyCheck:
         must be able to be by then, walking on or coming back at her reach beyond her speed (not
         where she came from: a walker turning onto a footpath along the road). A robot, moving or
         standing, answers her so when her strip lies ahead of it along its heading, it cannot pass
-        (driving on at its speed, or at least at the speed one period of its strongest acceleration
-        gives, its rear leaves the strip no sooner than she could come within the margin of its path, walking on and starting towards it at
-        ``pedestrian_reach``, as the check assumes: also just after she has crossed its path), and
+        (driving on at its speed, or setting off towards ``SET_OFF_SPEED`` at ``SET_OFF_SHARE`` of
+        its strongest acceleration, its rear leaves the strip no sooner than she could come
+        within the margin of its path at the faster of her speed towards it and
+        ``pedestrian_reach``; a walker who walks away from its band beyond the margin is not taken
+        to turn back; or what stands or drives ahead of it leaves it no room to leave the strip,
+        :meth:`room_ahead`), and
         it can still stop before the strip within its strongest braking, ``v^2 / (2 (D - v dt / 2
         - a dt^2 / 8))`` (the model's Euler steps, ``a`` its strongest braking) with ``D`` that
         distance, or within ``STRIP_OVERSHOOT`` of it (then braking at its strongest; standing
@@ -243,7 +262,8 @@ class SafetyCheck:
         # when its rear leaves her strip driving on [s]: at its speed, and at least at the speed one period of its strongest
         # acceleration gives (a standing robot may set off only when it can pass so; setting off with a shorter estimate, a
         # car that then stopped again for a queue stood in her path)
-        leave = np.where(through, out_of / np.maximum(v, a_go[:, 0] * dt)[:, None], 0.0)
+        leave = np.where(through, setting_off_time(np.maximum(out_of, 0.0), v[:, None], SET_OFF_SHARE * a_go), 0.0)
+        leave = np.where(out_of + CLEAR_GAP <= self.room_ahead(moving)[:, None], leave, np.inf)
         # her way to the band the robot sweeps: how far across it, how fast towards it
         offset = np.einsum("rmj,rj->rm", centre - rows[:, None, :2], left)
         speed_w = np.hypot(*np.array([o.velocity for o in walkers]).T)  # (m,): the unbending only turns them
@@ -253,14 +273,17 @@ class SafetyCheck:
         towards = towards * np.where(towards > 0.0, (fastest / speed_w)[None, :], (slowest / speed_w)[None, :])
         gap = np.abs(offset) - across_extent(size[None, :, 0], size[None, :, 1], size[None, :, 2] + turned - rows[:, 4:5]) - 0.5 * rows[:, 3:4]
         step_out = np.array([o.step_out_speed(reach, cfg.walkway_time) for o in walkers])  # (m,): her own reach (walkway_time)
-        closing = towards + step_out[None, :]
-        reaches = np.where(closing > 0.0, np.maximum(gap - margin, 0.0) / np.maximum(closing, 1e-9), np.inf)
+        # she may come at her reach at any moment, or at her own speed where she walks towards the band faster; a walker
+        # who walks away from it is not taken to turn back (she has crossed it, or never will)
+        closing = np.where(towards < -WALKER_STILL, towards, np.maximum(towards, step_out[None, :]))
+        reaches = np.where(gap <= margin, 0.0, np.where(closing > 0.0, (gap - margin) / np.maximum(closing, 1e-9), np.inf))
         # her path ahead of her only: where the robot crosses her strip she could be by then (walking on, or coming back
         # at her reach beyond her speed), not where she came from (a walker turning onto a footpath along the road)
         along_path = np.einsum("rj,rmj->rm", ahead, path)  # (r, m)
         behind = np.einsum("rkj,rmj->rmk", corners, path).max(axis=2) - (centre * path).sum(axis=2) + np.maximum(
             into * along_path, out_of * along_path)
-        ahead_of_her = behind >= -half[None, :] - np.maximum(step_out - slowest, 0.0)[None, :] * leave
+        turn_back = np.maximum(step_out - slowest, 0.0)[None, :]
+        ahead_of_her = behind >= -half[None, :] - turn_back * np.where(turn_back > 0.0, leave, 0.0)
         blocked = through & ahead_of_her & (leave >= reaches)
         strongest = -fleet.a_min[moving, None]
         room = into - 0.5 * v[:, None] * dt - 0.125 * strongest * dt * dt  # Euler steps overshoot up to a dt^2 / 8
@@ -275,6 +298,29 @@ class SafetyCheck:
         enter[moving] = np.where(answered, into, np.inf)
         passing[moving] = through & ahead_of_her & ~answered & (v[:, None] > 0.0) & (out_of / np.maximum(v, 1e-12)[:, None] < arrives)
         return self._walkers
+
+    def room_ahead(self, robots: np.ndarray) -> np.ndarray:
+        """How far [m] each of ``robots`` (r,) can surely drive on along its braking course's
+        heading: to the nearest footprint ahead of it in its way (another robot or a vehicle,
+        beside it by less than their half widths), plus where that one stops braking at its
+        strongest from its speed now (robots) or at once (vehicles); inf with none. A robot
+        passes a walker's path only when its rear can leave her strip with this much room (a car
+        that set off behind a queue would stop in her path)."""
+        world, fleet = self.world, self.fleet
+        vehicles = [o for o in world.obstacles if o.kind in VEHICLE_KINDS]
+        centres = np.vstack([world.robot_centres()] + [o.centre[None, :] for o in vehicles]).reshape(-1, 2)
+        length = np.r_[fleet.length, [o.length for o in vehicles]]
+        width = np.r_[fleet.width, [o.width for o in vehicles]]
+        runout = np.r_[np.maximum(world.states[:, 3], 0.0) ** 2 / (-2.0 * np.minimum(fleet.a_min, -1e-9)), np.zeros(len(vehicles))]
+        present = np.r_[world.on_road, np.ones(len(vehicles), dtype=bool)]
+        ahead = np.column_stack([np.cos(self.headings[robots]), np.sin(self.headings[robots])])  # (r, 2)
+        rel = centres[None, :, :] - centres[robots][:, None, :]  # (r, K, 2)
+        along = np.einsum("rkj,rj->rk", rel, ahead)
+        across = np.abs(rel[..., 1] * ahead[:, None, 0] - rel[..., 0] * ahead[:, None, 1])
+        mine = present[None, :] & (along > 0.0) & (across < 0.5 * (width[None, :] + width[robots][:, None]))
+        mine[np.arange(len(robots)), robots] = False
+        room = along - 0.5 * (length[None, :] + length[robots][:, None]) + runout[None, :]
+        return np.where(mine, room, np.inf).min(axis=1)
 
     def unbent(self, robots: np.ndarray, centre: np.ndarray, velocity: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Walkers' centres (m, 2) [m] and velocities (m, 2) [m/s] as each of ``robots`` (r,)
