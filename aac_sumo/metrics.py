@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from aac_sumo.geometry import pairwise_rect_clearance
+from aac_sumo.geometry import pairwise_rect_clearance, rect_corners
 from aac_sumo.kernels import times_to_collision
 from aac_sumo.world import WorldState
 
@@ -16,7 +16,7 @@ METRIC_KEYS = (
     "infeasibility_rate", "min_distance_m", "min_clearance_m", "collisions", "sim_collisions", "ttc_mean_s",
     "aggressive_driving_rate", "tracking_error_m", "authority_jain", "delay_jain", "delay_max_s",
     "realtime_factor", "safety_stops", "deadlock", "min_pedestrian_clearance_m", "setup_s", "capped_solves",
-    "emergency_brakes", "aggressive_by_mode", "accel_p95", "lat_accel_p95", "jerk_p95",
+    "emergency_brakes", "aggressive_by_mode", "accel_p95", "lat_accel_p95", "jerk_p95", "pedestrian_wait_s",
 )
 #: Where an applied input comes from (``steps.csv``'s ``mode``), in the order ``aggressive_by_mode`` reports them.
 MODES = ("mpc", "creep", "plan", "tracking", "safety_stop", "fallback", "hold")
@@ -101,8 +101,9 @@ def compute_metrics(steps: pd.DataFrame, periods: pd.DataFrame, info: dict) -> d
     ``info`` carries what ran (scenario, coordinator, barrier, horizon, seed, n_robots),
     ``completed``, ``task_duration_s``, ``collisions``, ``sim_collisions``, ``wall_s``, the
     aggressive-driving thresholds, ``wheelbase`` per robot, and optionally ``comfort_decel`` per robot, ``ttc_max``, ``delay_jain``,
-    ``delay_max_s``, ``safety_stops``, ``deadlock`` and ``setup_s`` (the one-off set-up before the
-    first period, which ``periods``' ``compute_ms`` leaves out).
+    ``delay_max_s``, ``safety_stops``, ``deadlock``, ``setup_s`` (the one-off set-up before the
+    first period, which ``periods``' ``compute_ms`` leaves out) and ``pedestrian_wait_s``
+    (:func:`pedestrian_waits` summed; needs the walkers, which ``steps`` lacks).
 
     ``accel_p95``, ``lat_accel_p95`` and ``jerk_p95`` are the 95th percentiles of the absolute
     ``accel``, ``lat_accel`` and ``jerk`` columns over every row of ``steps`` (:func:`smoothness`).
@@ -145,6 +146,7 @@ def compute_metrics(steps: pd.DataFrame, periods: pd.DataFrame, info: dict) -> d
         capped_solves=int(solved["capped"].fillna(False).astype(bool).sum()) if "capped" in solved else 0,
         emergency_brakes=_emergency_brakes(steps, info) if len(steps) and "comfort_decel" in info else None,
         aggressive_by_mode=_aggressive_by_mode(steps, info) if len(steps) else None,
+        pedestrian_wait_s=_finite(info.get("pedestrian_wait_s")),
         **smoothness(steps),
     )
     return {k: m[k] for k in METRIC_KEYS} | {k: v for k, v in m.items() if k not in METRIC_KEYS}
@@ -211,3 +213,84 @@ def smoothness(steps: pd.DataFrame) -> dict:
         out[key] = float(np.percentile(values, 95)) if values.size else None
     return out
 
+
+#: How far [m] before a crossing a standing car's front counts as waiting for it (``pedestrian_wait_s``).
+CROSSING_REACH = 30.0
+
+
+def crossing_lane_part(shape: np.ndarray, width: float, centre: np.ndarray, heading: float, half_band: float) -> np.ndarray:
+    """The part of a crossing within a car's lane: rectangles ``[cx, cy, length, width, heading]``
+    (k, 5), world frame [m], one per segment of the crossing's centre-line ``shape`` (m, 2) [m]
+    that passes within ``half_band`` [m] across ``heading`` [rad] of the car's footprint centre
+    ``centre`` (2,): the segment clipped to that band, the crossing's ``width`` [m] wide. (0, 5)
+    when the crossing does not cross the band."""
+    normal = np.array([-np.sin(heading), np.cos(heading)])
+    across = (shape - centre) @ normal
+    rows = []
+    for a, b, qa, qb in zip(shape[:-1], shape[1:], across[:-1], across[1:]):
+        if abs(qb - qa) < 1e-12:
+            lo, hi = (0.0, 1.0) if abs(qa) <= half_band else (1.0, 0.0)
+        else:
+            ta, tb = (-half_band - qa) / (qb - qa), (half_band - qa) / (qb - qa)
+            lo, hi = max(0.0, min(ta, tb)), min(1.0, max(ta, tb))
+        if hi <= lo:
+            continue
+        p, q = a + lo * (b - a), a + hi * (b - a)
+        rows.append([*(0.5 * (p + q)), float(np.hypot(*(q - p))), width, float(np.arctan2(*(b - a)[::-1]))])
+    return np.array(rows, dtype=float).reshape(-1, 5)
+
+
+def crossing_ahead(crossings, centre: np.ndarray, front: np.ndarray, heading: float, reach: float = CROSSING_REACH) -> np.ndarray | None:
+    """The lane part (:func:`crossing_lane_part`) of the nearest crossing a car faces: the one
+    whose part in the car's lane (the band of its ``lane_width`` across ``heading`` [rad] round its
+    footprint ``centre``) begins at most ``reach`` [m] ahead of its ``front`` (front-bumper centre
+    [m]) along its heading and ends ahead of it (a car whose front passed it is past it). None
+    when there is no such crossing. ``crossings`` are :class:`~aac_sumo.sim.base.Crossing`."""
+    along = np.array([np.cos(heading), np.sin(heading)])
+    best, nearest = None, np.inf
+    for crossing in crossings:
+        part = crossing_lane_part(crossing.shape, crossing.width, centre, heading, 0.5 * crossing.lane_width)
+        if not len(part):
+            continue
+        ahead = (rect_corners(part).reshape(-1, 2) - front) @ along
+        if ahead.max() > 0.0 and ahead.min() <= reach and ahead.min() < nearest:
+            best, nearest = part, ahead.min()
+    return best
+
+
+def pedestrian_waits(steps: pd.DataFrame, walkers: pd.DataFrame, crossings, *, centre_offset: dict, length: dict, dt: float,
+                     stop_speed: float, margin: float, reach: float = CROSSING_REACH) -> pd.Series:
+    """Per controlled robot, the seconds it stood (``v`` below ``stop_speed`` [m/s]) with the
+    nearest crossing on its way (:func:`crossing_ahead`, its front at most ``reach`` [m] before
+    it) clear: no walker's footprint within ``margin`` [m] of that crossing's part in the car's
+    lane. Each such row of ``steps`` counts ``dt`` [s].
+
+    ``steps`` has ``t, robot, x, y, heading, v`` (rear axle, world frame); ``walkers`` the
+    pedestrians' ``t, x, y, length, width, heading`` (footprint centres, as in
+    ``trajectories.csv``); ``centre_offset`` and ``length`` by robot name the distance [m] from
+    the rear axle to the footprint centre and the footprint length [m]. Every robot of ``steps``
+    has an entry (0 when it never waited)."""
+    waits = pd.Series(0.0, index=pd.unique(steps["robot"]), dtype=float)
+    standing = steps[steps["v"].abs() < stop_speed]
+    if len(standing) and crossings:  # only rows near a crossing can count: a cheap test first
+        axle = standing[["x", "y"]].to_numpy(dtype=float)
+        near = np.zeros(len(standing), dtype=bool)
+        for c in crossings:
+            middle = c.shape.mean(axis=0)
+            radius = np.hypot(*(c.shape - middle).T).max() + c.width + c.lane_width + reach
+            near |= np.hypot(*(axle - middle).T) <= radius + standing["robot"].map(centre_offset).to_numpy() + standing["robot"].map(length).to_numpy()
+        standing = standing[near]
+    if not len(standing) or not crossings:
+        return waits
+    by_t = {t: rows[["x", "y", "length", "width", "heading"]].to_numpy(dtype=float)
+            for t, rows in walkers.groupby(walkers["t"].round(9))} if len(walkers) else {}
+    for t, name, x, y, heading in zip(standing["t"].round(9), standing["robot"], standing["x"], standing["y"], standing["heading"]):
+        along = np.array([np.cos(heading), np.sin(heading)])
+        centre = np.array([x, y]) + centre_offset[name] * along
+        part = crossing_ahead(crossings, centre, centre + 0.5 * length[name] * along, heading, reach)
+        if part is None:
+            continue
+        people = by_t.get(t)
+        if people is None or not len(people) or pairwise_rect_clearance(part, people).min() > margin:
+            waits[name] += dt
+    return waits

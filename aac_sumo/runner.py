@@ -38,7 +38,7 @@ def run(scenario: Scenario) -> RunResult:
     first = setup.sim.observe() if setup.prepare is None else setup.prepare(setup.sim.observe())
     warm_up(setup, first)
     setup_s = time.perf_counter() - wall_start
-    rec = Recording(arrival=np.full(len(setup.tasks), np.nan))
+    rec = Recording(arrival=np.full(len(setup.tasks), np.nan), crossings=setup.sim.crossings())
     interrupted = False
     try:
         loop(setup, rec)
@@ -52,13 +52,14 @@ def run(scenario: Scenario) -> RunResult:
     steps = with_vehicle_columns(pd.DataFrame(rec.steps, columns=STEP_COLUMNS[:-2]), {r.name: r.model.wheelbase for r in first.robots},
                                  scenario["scenario.dt"])
     periods = pd.DataFrame(rec.periods) if rec.periods else pd.DataFrame(columns=["t", "compute_ms"])
+    trajectories = pd.DataFrame(rec.traj)
     metrics = assemble_metrics(setup.scenario, rec, steps, periods, robots=first.robots, free_flow_s=setup.free_flow_s,
-                               wall_s=time.perf_counter() - wall_start, setup_s=setup_s)
+                               wall_s=time.perf_counter() - wall_start, setup_s=setup_s, trajectories=trajectories)
     if setup.figures is not None:
         metrics.update(setup.figures())
     goals = np.array([task.points[-1] for task in setup.tasks])
     delays = None if setup.free_flow_s is None else pd.Series(rec.arrival - setup.free_flow_s, index=[r.name for r in first.robots])
-    result = RunResult(metrics, steps, periods, pd.DataFrame(rec.traj), setup.scenario, goals, delays)
+    result = RunResult(metrics, steps, periods, trajectories, setup.scenario, goals, delays, rec.crossings)
     if interrupted:
         raise RunInterrupted(result)
     return result

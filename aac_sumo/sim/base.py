@@ -16,6 +16,18 @@ from aac_sumo.geometry import pairwise_rect_clearance
 from aac_sumo.world import WorldState
 
 
+@dataclass(frozen=True)
+class Crossing:
+    """A pedestrian crossing of the map, world frame: its centre-line ``shape`` (m, 2) [m], the
+    strip of its ``width`` [m] round it where walkers cross, and ``lane_width`` [m], the width
+    of the vehicle lanes it crosses (the band of a car's lane across the crossing)."""
+
+    name: str
+    shape: np.ndarray
+    width: float
+    lane_width: float
+
+
 @dataclass
 class ContactReport:
     """Per-step geometry facts measured by the simulator.
@@ -75,6 +87,11 @@ class Simulator(ABC):
     def agents(self) -> list[dict]:
         """Every agent's current pose for ``trajectories.csv``: name, kind, x, y (footprint
         centre [m]), heading [rad], v [m/s], length, width [m]."""
+
+    def crossings(self) -> list[Crossing] | None:
+        """The map's pedestrian crossings (static), or None when the simulator has no map (the
+        internal simulator)."""
+        return None
 
     def show(self, authority: set[str], stopped: set[str]) -> None:
         """Mark in the simulator's GUI which robots (by name) hold authority and which are in a

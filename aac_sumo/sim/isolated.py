@@ -30,7 +30,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from aac_sumo.sim.base import ContactReport, Simulator
+from aac_sumo.sim.base import ContactReport, Crossing, Simulator
 from aac_sumo.world import WorldState
 
 #: Seconds :meth:`IsolatedSimulator.close` waits for the child to close its simulator (SUMO
@@ -152,6 +152,9 @@ class IsolatedSimulator(Simulator):
 
     def show(self, authority: set[str], stopped: set[str]) -> None:
         self.call("show", authority, stopped)
+
+    def crossings(self) -> list[Crossing] | None:
+        return self.call("crossings")
 
     def close(self) -> None:
         """Close the child's simulator, let the child exit and reap it (killing it after

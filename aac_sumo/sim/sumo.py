@@ -14,13 +14,15 @@ lanes counts there with its rear where its front is), until its lane change ends
 left the network at the road's end) drives on in our model alone, as its reference does beyond
 the road (a car frozen there stood in the way of the cars behind it as a ghost), counts as
 finished, is left out of the collision checks, and the event is reported on stderr and in
-:attr:`SumoSimulator.events`.
+:attr:`SumoSimulator.events`. The network's pedestrian crossings are read once at the start
+(:meth:`SumoSimulator.crossings`), for the metrics.
 """
 
 from __future__ import annotations
 
 import math
 import multiprocessing
+import re
 import sys
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -29,15 +31,20 @@ from pathlib import Path
 import numpy as np
 
 from aac_sumo.dynamics import FleetModel
-from aac_sumo.network import sumo_binary
-from aac_sumo.sim.base import ContactReport, Simulator, agent_rows, footprint_contacts
+from aac_sumo.network import VEHICLE_CLASS, sumo_binary
+from aac_sumo.sim.base import ContactReport, Crossing, Simulator, agent_rows, footprint_contacts
 from aac_sumo.sim.isolated import IsolatedSimulator
 from aac_sumo.sim.sumo_frames import (
-    body_from_sumo, collision_cover, lane_change_sweep, state_from_sumo, sumo_from_state, velocity_from_sumo,
+    body_from_sumo, collision_cover, crossing_from_sumo, lane_change_sweep, state_from_sumo, sumo_from_state,
+    velocity_from_sumo,
 )
 from aac_sumo.world import Obstacle, RobotSpec, WorldState, parking_spot
 
 ROUTE_ID = "aac_road"
+#: netconvert's id of a pedestrian crossing's lane: ``:NODE_cK_0`` (walking areas are ``:NODE_wK_0``).
+CROSSING_LANE = re.compile(r"^:.+_c\d+_\d+$")
+#: The width [m] of the lanes a crossing crosses when no vehicle lane cuts its centre-line.
+DEFAULT_LANE_WIDTH = 3.2
 
 
 class SumoError(RuntimeError):
@@ -166,6 +173,7 @@ class SumoSimulator(Simulator):
                     raise SumoError(f"SUMO did not insert {', '.join(missing)} at its start pose")
                 self._read_robots()
                 self._bodies, self._obstacles = self._read_obstacles()
+                self._crossings = self._read_crossings()
         except BaseException:
             self.close()
             raise
@@ -245,6 +253,23 @@ class SumoSimulator(Simulator):
             x, y = v.getPosition(robot.name)
             angle = v.getAngle(robot.name)
             self.states[i, :3] = state_from_sumo(x, y, angle, 0.0, robot.length, robot.model.wheelbase)[:3]
+
+    def _read_crossings(self) -> list[Crossing]:
+        """The network's pedestrian crossings (lanes named as :data:`CROSSING_LANE` that
+        pedestrians may use), each with the median width of the vehicle lanes (open to
+        ``passenger``) whose centre-lines cut its centre-line, :data:`DEFAULT_LANE_WIDTH` if none."""
+        lane = self.api.lane
+        ids = lane.getIDList()
+        found = [(i, np.array(lane.getShape(i), dtype=float)) for i in ids if CROSSING_LANE.match(i) and "pedestrian" in lane.getAllowed(i)]
+        if not found:
+            return []
+        roads = [(np.array(lane.getShape(i), dtype=float), lane.getWidth(i)) for i in ids
+                 if not CROSSING_LANE.match(i) and (not lane.getAllowed(i) or VEHICLE_CLASS in lane.getAllowed(i))]
+        crossings = []
+        for i, shape in found:
+            widths = [w for road, w in roads if polylines_cross(shape, road)]
+            crossings.append(crossing_from_sumo(i, shape, lane.getWidth(i), float(np.median(widths)) if widths else DEFAULT_LANE_WIDTH))
+        return crossings
 
     def _dims(self, domain, oid: str) -> tuple[float, float, str]:
         if oid not in self._obstacle_dims:
@@ -357,6 +382,10 @@ class SumoSimulator(Simulator):
         """The agents' bodies (not the collision covers the coordinators see)."""
         return agent_rows(WorldState(self.t, self.states.copy(), self.robots, list(self._bodies), self.present.copy()))
 
+    def crossings(self) -> list[Crossing]:
+        """The network's pedestrian crossings, read once at the start (:meth:`_read_crossings`)."""
+        return list(self._crossings)
+
     def show(self, authority: set[str], stopped: set[str]) -> None:
         """In sumo-gui, colour the authority vehicles gold and those in a safety stop red."""
         if not self.options.gui:
@@ -401,6 +430,21 @@ def sumo_simulator(robots: list[RobotSpec], states: np.ndarray, dt: float, edges
         return IsolatedSimulator(SumoSimulator, (robots, states, dt, edges, options, routed), name="SUMO", error=SumoError,
                                  mirror=("t", "dt", "removed", "events"))
     return SumoSimulator(robots, states, dt, edges, options, routed)
+
+
+def polylines_cross(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether polylines ``a`` (m, 2) and ``b`` (k, 2) [m] intersect (a segment of each meets
+    one of the other, touching included)."""
+    if len(a) < 2 or len(b) < 2 or np.any(a.min(axis=0) > b.max(axis=0)) or np.any(b.min(axis=0) > a.max(axis=0)):
+        return False
+    p, r = a[:-1, None, :], (a[1:] - a[:-1])[:, None, :]
+    q, s = b[None, :-1, :], (b[1:] - b[:-1])[None, :, :]
+    cross = r[..., 0] * s[..., 1] - r[..., 1] * s[..., 0]
+    d = q - p
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (d[..., 0] * s[..., 1] - d[..., 1] * s[..., 0]) / cross
+        u = (d[..., 0] * r[..., 1] - d[..., 1] * r[..., 0]) / cross
+    return bool(np.any((cross != 0) & (t >= 0) & (t <= 1) & (u >= 0) & (u <= 1)))
 
 
 def _first_line(exc: BaseException) -> str:

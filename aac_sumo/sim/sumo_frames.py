@@ -13,6 +13,8 @@ import math
 
 import numpy as np
 
+from aac_sumo.sim.base import Crossing
+
 
 def bumper_to_axle(length: float, wheelbase: float) -> float:
     """Distance [m] from the rear-axle midpoint forward to the front-bumper centre."""
@@ -96,3 +98,10 @@ def lane_change_sweep(lateral_speed: float, lateral_position: float, lane_width:
         return 0.0
     side = math.copysign(1.0, lateral_speed)
     return -lateral_position if lateral_position * side < 0.0 else side * lane_width - lateral_position
+
+
+def crossing_from_sumo(lane_id: str, shape, width: float, lane_width: float) -> Crossing:
+    """Our :class:`~aac_sumo.sim.base.Crossing` of a SUMO crossing lane ``lane_id``: its shape
+    (SUMO's centre-line points, network coordinates, which are our world frame [m]), its
+    ``width`` [m] and the width [m] of the vehicle lanes it crosses."""
+    return Crossing(lane_id, np.asarray(shape, dtype=float).reshape(-1, 2), float(width), float(lane_width))
