@@ -141,3 +141,25 @@ def test_polylines_cross():
     assert not polylines_cross(zebra, np.array([[0.0, -4.8], [236.5, -4.8]]))  # the lane ending before it
     assert polylines_cross(np.array([[0.0, 0.0], [2.0, 2.0], [4.0, 0.0]]), np.array([[3.0, -1.0], [3.0, 3.0]]))
     assert not polylines_cross(zebra, np.array([[240.0, 0.0], [240.0, -9.6]]))  # parallel
+
+def test_table_two_has_the_smoothness_and_waiting_columns_for_both_coordinators(monkeypatch, tmp_path, capsys):
+    """No simulation: each planned run returns made-up metrics; table.csv and table.md of Table II
+    carry the four new metrics, per coordinator and horizon."""
+    from aac_sumo import sweep
+    from aac_sumo.cli import main
+
+    def run_tasks(tasks, grid_keys, out, *args, **kw):
+        out.mkdir(parents=True, exist_ok=True)
+        return [dict(t.grid) | {"seed": t.seed, "status": "ok", "completed": True, "collisions": 0, "accel_p95": 1.5,
+                                "lat_accel_p95": 0.25, "jerk_p95": 4.0 + (t.scenario["controller.coordinator"] == "lfc"),
+                                "pedestrian_wait_s": 3.0} for t in tasks]
+
+    monkeypatch.setattr(sweep, "run_tasks", run_tasks)
+    assert main(["table", "lane-change", "--out", str(tmp_path), "--no-progress"]) == 0, capsys.readouterr().err
+    rows = pd.read_csv(tmp_path / "table.csv")
+    assert set(NEW_KEYS) <= set(rows.columns)
+    assert sorted(rows["coordinator"].unique()) == ["aac", "lfc"]
+    assert (rows["jerk_p95"] == np.where(rows["coordinator"] == "lfc", 5.0, 4.0)).all()
+    assert (rows["pedestrian_wait_s"] == 3.0).all() and (rows["accel_p95"] == 1.5).all()
+    text = (tmp_path / "table.md").read_text()
+    assert "jerk p95 [m/s³]" in text and "Waiting at clear crossings [car·s]" in text
