@@ -224,13 +224,13 @@ def test_a_refusal_is_remembered_only_while_the_same_course_meets_the_same_stand
 def test_a_standing_authority_whose_plan_leaves_it_standing_creeps_only_on_a_checked_course_nearer_its_reference():
     """In the crowded centre of a 12-robot circle swap some standing authorities' solves leave
     them standing (the planner's regions are conservative); they creep instead
-    (``AacCoordinator.creep``). Pinned at every creep: the robot stood, its new commitment
+    (``CommittedAac.creep``). Pinned at every creep: the robot stood, its new commitment
     starts where it is, ends at least ``CREEP_GAIN`` nearer where its reference ends, drives
     forwards (backwards only while it backs off), is neither a make-room leader nor making room
     for one, and keeps
     the margin from every other commitment and the debris (the invariant, checked at every
     period as before)."""
-    from aac_sumo.coordination.aac import CREEP_GAIN, CREEP_SPEED
+    from aac_sumo.coordination.aac.committed import CREEP_GAIN, CREEP_SPEED
     from aac_sumo.coordination.make_room import STILL_SPEED
 
     setup = experiments.build(config.load("circle_swap", PLAIN + ["circle_swap.n_robots=12"]))

@@ -57,7 +57,7 @@ class RobotDecision:
     solve status (None otherwise). ``reason`` says why it holds authority (``round_robin``,
     ``proximity``, ``priority``, ``independent``) and ``mode`` what it applies (``mpc``: its
     plan, or the braking fallback when the solve failed; ``creep``: a committed-plan authority's
-    short exact-checked course instead, see :meth:`~aac_sumo.coordination.aac.AacCoordinator.creep`; ``plan``: the next input of its stored
+    short exact-checked course instead, see :meth:`~aac_sumo.coordination.aac.committed.CommittedAac.creep`; ``plan``: the next input of its stored
     plan; ``tracking``: the tracking law, also after a failed solve with the tracking fallback;
     ``hold``: braking at its goal; ``safety_stop``). ``score``/``progress`` are its proximity-decision
     figures when it was a candidate.

@@ -10,7 +10,7 @@ import numpy as np
 
 from aac_sumo.barriers import FcbfParams
 from aac_sumo.config import Scenario, ScenarioError
-from aac_sumo.coordination.aac import AacCoordinator, AacParams
+from aac_sumo.coordination.aac import AacCoordinator, AacParams, Authorities
 from aac_sumo.coordination.anticipation import Anticipation
 from aac_sumo.coordination.base import Coordinator, Finished
 from aac_sumo.coordination.independent import IndependentCoordinator
@@ -84,7 +84,7 @@ def aac_params(scenario: Scenario) -> AacParams:
         proximity=ProximityParams(a["proximity_iterations"], a["alpha"], a["beta"], a["tree_step"], a["sample_radius"], a["collision_radius"]),
         safety_stop=a["safety_stop"], safety_margin=a["safety_margin"], lookahead=a["lookahead"], speed_gain=a["speed_gain"],
         fallback=a["fallback"], ignore_followers=a["ignore_followers"], seed=scenario["scenario.seed"],
-        commit=a["commit"], authorities=a["authorities"], tail_brake=a["tail_brake"], commit_margin=a["commit_margin"],
+        commit=a["commit"], authorities=Authorities.parse(a["authorities"]), tail_brake=a["tail_brake"], commit_margin=a["commit_margin"],
         keep_right=a["keep_right"], keep_right_range=a["keep_right_range"], keep_right_max=a["keep_right_max"], make_room=a["make_room"],
         stall_time=a["stall_time"], lead_time=a["lead_time"], detour=a["detour"], detour_clearance=a["detour_clearance"],
     )

@@ -1,0 +1,304 @@
+"""AAC with committed plans (``aac.commit = true``, the default; beyond the paper).
+
+Every robot drives its commitment, the last plan it made and a stopping tail, and a commitment
+changes only after the exact check of :mod:`~aac_sumo.coordination.commitments`
+(collision-free by construction). One authority per period among all robots, or one per
+cluster of robots that can meet within the horizon
+(:class:`~aac_sumo.coordination.aac.params.Authorities`); close pairs, the proximity decision
+and round robin pick it within its group, with the conflict-resolution rules of
+:meth:`~aac_sumo.coordination.aac.authority.AacCoordinator.choose_in_group` and
+:mod:`~aac_sumo.coordination.make_room`. A standing authority whose plan leaves it standing
+may creep; robots whose plan runs out extend their commitment on the tracking law where the
+exact check allows; detours route robots round standing footprints.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from aac_sumo.coordination.aac.authority import SHIFT_DECAY, SHIFT_GROWTH, SLOW_SHARE, AacCoordinator
+from aac_sumo.coordination.base import Decision, RobotDecision
+from aac_sumo.coordination.commitments import CommitmentBook, reach_radii, stopping_commitment
+from aac_sumo.coordination.detour import Detours
+from aac_sumo.coordination.make_room import STILL_SPEED, MakeRoom
+from aac_sumo.coordination.tracking import track_course
+from aac_sumo.kernels import limited_steer
+from aac_sumo.references import PathReference
+from aac_sumo.world import WorldState
+
+#: Periods a robot whose tracking extension failed the check waits before it tries again.
+EXTENSION_RETRY = 3
+#: Grid cell [m] of the detour planner, and how often [s] a robot checks its reference for standing footprints.
+DETOUR_CELL = 0.1
+DETOUR_CHECK = 1.0
+#: Creeping (:meth:`CommittedAac.creep`): a standing authority whose plan leaves it standing
+#: tries courses at CREEP_SPEED [m/s] (forwards; backwards while it backs off), steering to each
+#: of CREEP_STEER (shares of its steering limit), under the exact check, and takes the one that
+#: ends closest to where its reference ends, when that is at least CREEP_GAIN [m] closer.
+CREEP_SPEED = 0.3
+CREEP_STEER = (-1.0, 0.0, 1.0)
+CREEP_GAIN = 0.05
+
+
+class CommittedAac(AacCoordinator):
+    """AAC with committed plans (see the module)."""
+
+    commit = True
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.book: CommitmentBook | None = None
+        self.next_extension = np.zeros(len(self.tasks), dtype=int)  # first period a robot may try a tracking extension again
+
+    def admit(self, world: WorldState, i: int) -> None:
+        """Robot ``i`` has just come onto the road: its commitment becomes its stopping tail from
+        where it is (the one safe course known)."""
+        super().admit(world, i)
+        self.next_extension[i] = 0
+        if self.book is not None:
+            self.book.replace(i, self.commitment(world, i, self.period, np.zeros((0, 2))), self.period)
+
+    def _decide(self, world: WorldState) -> Decision:
+        """Every robot drives its commitment; each group (all active robots, or each cluster)
+        gives one robot authority, which plans around the others' commitments and commits to its
+        plan only when the plan with its stopping tail passes the exact check."""
+        n, cfg, fleet = len(world.robots), self.planner.config, self.fleet
+        period = self.period
+        self.period += 1
+        statics = np.array([o.footprint() for o in world.obstacles if o.kind in ("static", "cone")]).reshape(-1, 5)
+        if self.book is None:
+            self.book = CommitmentBook(fleet, [self.commitment(world, i, period, np.zeros((0, 2))) for i in range(n)],
+                                       self.params.commit_margin)
+        done = self.finished(world)
+        parked = self.parked(world, done)
+        records = [RobotDecision(False, mode=c.stage(period)) for c in self.book.items]
+        if self.params.make_room:
+            if self.room is None:
+                corridor = float(np.max(np.hypot(fleet.length, fleet.width))) + self.params.commit_margin
+                self.room = MakeRoom(n, int(round(self.params.stall_time / cfg.dt)), int(round(self.params.lead_time / cfg.dt)), corridor)
+            goals = np.array([task.points[-1] for task in self.tasks])
+            self.room.update(world.states, world.robot_centres(), goals, ~done, period)
+        if self.params.detour:
+            if self.detours is None:
+                hard = 0.5 * float(np.max(fleet.width)) + self.params.commit_margin
+                self.detours = Detours(self.tasks, int(round(self.params.stall_time / cfg.dt)), int(round(DETOUR_CHECK / cfg.dt)),
+                                       hard, max(self.params.detour_clearance, hard), DETOUR_CELL)
+            self.detours.update(world.states, world.robot_footprints(), done, parked, statics, period)
+        if self.params.keep_right > 0.0:
+            slow = np.abs(world.states[:, 3]) < SLOW_SHARE * np.array([t.speed for t in self.tasks])
+            grow = slow & ~done & self.crowded_ahead(world)
+            self.extra_shift = np.where(grow, np.minimum(self.extra_shift + SHIFT_GROWTH * cfg.dt, self.params.keep_right_max - self.params.keep_right),
+                                        np.maximum(self.extra_shift - SHIFT_DECAY * cfg.dt, 0.0))
+        holders, reasons, cuts, kept = [], [], 0, 0
+        for members, candidates in self.groups(world, parked):
+            i, reason = self.choose_in_group(world, members, candidates, records, period)
+            others = members[members != i]
+            decided, cut, keep = self.plan_committed(world, i, others, reason, period, statics)
+            decided.score, decided.progress = records[i].score, records[i].progress
+            records[i] = decided
+            holders.append(world.robots[i].name)
+            reasons.append(reason)
+            cuts += cut
+            kept += keep
+        extended = self.extend_by_tracking(world, period, parked, holders, records, statics)
+        inputs = self.book.inputs(period)
+        stopped = 0
+        if self.params.safety_stop:
+            stopped = self.committed_safety_stop(world, inputs, records, period, statics)
+        notes = dict(authority=" ".join(holders), reason=" ".join(sorted(set(reasons))) if reasons else "all finished",
+                     safety_stops=stopped, authorities=len(holders), commit_cuts=cuts, commit_kept=kept, extensions=extended)
+        return Decision(inputs, records, notes=notes)
+
+    def path(self, i: int) -> PathReference:
+        """Robot ``i``'s reference path: its detour (``detour``), else its task."""
+        return self.tasks[i] if self.detours is None else self.detours.path(i)
+
+    def tail_decel(self) -> np.ndarray:
+        """Each robot's stopping-tail deceleration [m/s^2]: ``tail_brake`` of its strongest
+        braking, at most its comfort deceleration."""
+        return np.minimum(self.params.tail_brake * -self.fleet.a_min, self.fleet.comfort)
+
+    def commitment(self, world: WorldState, i: int, period: int, head: np.ndarray):
+        """Robot ``i``'s commitment from now: the inputs ``head`` (m, 2), then its stopping tail
+        turning towards its reference's heading where the head ends."""
+        return stopping_commitment(self.fleet, i, period, world.states[i], head, self.path(i), self.tail_decel()[i], self.last_inputs[i, 1],
+                                   self.planner.config.dt)
+
+    def plan_committed(self, world: WorldState, i: int, others: np.ndarray, reason: str, period: int,
+                       statics: np.ndarray) -> tuple[RobotDecision, int, int]:
+        """Robot ``i`` plans around ``others``' commitments (swept regions of stages k and k+1)
+        and the obstacles, warm-started from its own commitment (from the tracking law's course
+        when it stands at the end of its commitment). It commits to the longest
+        prefix of its plan (all N inputs first, one fewer each time down to braking at once)
+        whose stopping tail passes the exact check; no prefix passing keeps its old commitment.
+        A failed solve offers only the planner's braking fallback (the paper's answer to a failed
+        solve), under the same check. A robot that stands and whose plan leaves it standing
+        creeps instead when it can (:meth:`creep`). Returns its record, whether the plan was cut
+        (or replaced by a creep), and whether the old commitment was kept."""
+        cfg, book = self.planner.config, self.book
+        traj = book.courses(period, others, cfg.horizon + 1)
+        obstacles = world.obstacles
+        if len(others) + len(obstacles) > cfg.slots:  # the planner's slots only: rank by stage 0, sweep the nearest
+            first = self.fleet.swept_ellipses(others, traj[:, :2], 0, cfg.barrier, cfg.fcbf)[:, 0]
+            ranked = self.planner.nearest(world.states[i], obstacles, first)  # into obstacles, then others, nearest first
+            robots = ranked[ranked >= len(obstacles)] - len(obstacles)
+            swept = iter(self.fleet.swept_regions(others[robots], traj[robots], cfg.horizon, cfg.barrier, cfg.fcbf))
+            obstacles = [obstacles[k] if k < len(obstacles) else next(swept) for k in ranked]
+        else:
+            obstacles = obstacles + self.fleet.swept_regions(others, traj, cfg.horizon, cfg.barrier, cfg.fcbf)
+        ref = self.reference(world, i)
+        own = book.items[i]
+        guess = (own.course(period, cfg.horizon), own.inputs_ahead(period, cfg.horizon))
+        if own.stage(period) == "hold":  # standing: a standing guess keeps it standing; start from the tracking law instead
+            inputs = self.tracking_inputs(world, i, cfg.horizon)
+            guess = (self.fleet.rollout(np.array([i]), world.states[[i]], inputs[None], cfg.dt)[0], inputs)
+        plan = self.planner.plan(world.robots[i], world.states[i], ref, self.last_inputs[i], obstacles, None,
+                                 self.corridors[i], guess=guess)
+        self.plans[i] = plan
+        record = RobotDecision(True, plan.status, plan.solve_ms, plan.solver, ref, reason=reason, mode=own.stage(period),
+                               iterations=plan.iterations, capped=plan.capped)
+        cuts = range(cfg.horizon, -1, -1) if plan.status == "solved" else [cfg.horizon]  # a failed solve: the braking fallback
+        passed, m = None, cfg.horizon
+        for m in cuts:
+            candidate = self.commitment(world, i, period, plan.inputs[:m])
+            if book.clearance(i, candidate, period, statics) >= book.margin:
+                passed = candidate
+                break
+        if abs(world.states[i, 3]) < STILL_SPEED and self.creep(world, i, period, ref, passed, statics):
+            record.mode = "creep"
+            return record, 1, 0
+        if passed is None:
+            return record, 1, 1
+        book.replace(i, passed, period)
+        record.mode = "mpc"
+        return record, int(m < cfg.horizon), 0
+
+    def creep(self, world: WorldState, i: int, period: int, ref: np.ndarray, planned, statics: np.ndarray) -> bool:
+        """Robot ``i`` stands, and its MPC's course ``planned`` (a commitment that passed the
+        check, or None) gets it no nearer where its reference ``ref`` (N+1, 4) ends: the
+        planner's regions (ellipses round swept hulls, grown by ``d_safe``) are conservative,
+        and in a crowd packed at the commitments' 5 cm margin they left 62 % of the standing
+        authorities' plans within 5 cm of where they stood (100 robots, seed 4), while exact
+        footprints left room. It then tries short courses, ``CREEP_SPEED`` forwards (backwards
+        while it backs off, :meth:`~aac_sumo.coordination.make_room.MakeRoom.backing_off`),
+        steering to each of ``CREEP_STEER``, each with its stopping tail, and commits to the one
+        that ends closest to ``ref``'s end, when that is at least ``CREEP_GAIN`` [m] closer than
+        ``planned`` ends (than where it stands, without one) and the course passes the same exact
+        check as every commitment (:meth:`CommitmentBook.clearance`). Not with uncontrolled
+        moving agents about (walkers, scripted or SUMO-driven cars): the check does not hold
+        them. Not for a robot making room for a leader: creeping towards its make-room target
+        moved robots that had parked at their goals off them for good (100 robots, seed 24;
+        20 robots: 48 of 50 seeds completed with it, 49 without). Nor for the leader, which
+        drives its MPC's plan while the others make room (creeping, the leader of the 16-robot
+        circle swap's seed 3 shuttled by a decimetre for 8 s: a deadlock). Returns whether it
+        committed."""
+        cfg, book, fleet = self.planner.config, self.book, self.fleet
+        if any(o.kind not in ("static", "cone") for o in world.obstacles):
+            return False
+        if self.room is not None and (i in self.room.targets or i == self.room.leader):
+            return False
+        target, here = ref[-1, :2], world.states[i, :2]
+        best = float(np.hypot(*(here - target)))
+        if planned is not None:
+            best = min(best, float(np.hypot(*(planned.states[-1, :2] - target))))
+        best -= CREEP_GAIN
+        choice = None
+        backing = self.room is not None and self.room.backing_off(i) and fleet.v_min[i] < 0.0
+        for speed in ((-CREEP_SPEED,) if backing else (CREEP_SPEED,)):
+            for share in CREEP_STEER:
+                head = self.creep_inputs(world, i, speed, share * fleet.steer_limits[i, 0], cfg.horizon)
+                candidate = self.commitment(world, i, period, head)
+                gap = float(np.hypot(*(candidate.states[-1, :2] - target)))
+                if gap < best and book.clearance(i, candidate, period, statics) >= book.margin:
+                    best, choice = gap, candidate
+        if choice is None:
+            return False
+        book.replace(i, choice, period)
+        return True
+
+    def creep_inputs(self, world: WorldState, i: int, speed: float, steer: float, steps: int) -> np.ndarray:
+        """Inputs (steps, 2) of robot ``i`` from where it is towards ``speed`` [m/s] (at most
+        its strongest acceleration or braking) and ``steer`` [rad], within its steering limits
+        from the steering it applied last."""
+        fleet, dt = self.fleet, self.planner.config.dt
+        out = np.zeros((steps, 2))
+        v, previous = float(world.states[i, 3]), float(self.last_inputs[i, 1])
+        for k in range(steps):
+            accel = float(np.clip((speed - v) / dt, fleet.a_min[i], fleet.a_max[i]))
+            previous = limited_steer(steer, v, accel, previous, fleet.wheelbase[i], fleet.steer_limits[i], dt)
+            out[k] = accel, previous
+            v += accel * dt
+        return out
+
+    def extend_by_tracking(self, world: WorldState, period: int, parked: np.ndarray, holders: list[str],
+                           records: list[RobotDecision], statics: np.ndarray) -> int:
+        """Robots without authority whose planned course runs out (at most one planned period
+        left) go on as the paper's robots without a plan do, on the tracking law, but only when
+        that course (N periods of the law, then a stopping tail) passes the same exact check as a
+        plan; a robot whose try failed waits ``EXTENSION_RETRY`` periods before the next one. The
+        law ignores obstacles, and uncontrolled moving agents are not in the check, so a robot
+        that such an agent (growing as the planner grows walkers) may reach meanwhile is not
+        extended.
+        Returns how many robots extended their commitment."""
+        cfg, book = self.planner.config, self.book
+        extended = 0
+        movers = [o for o in world.obstacles if o.kind not in ("static", "cone")]
+        reach = reach_radii(self.fleet, world.states, cfg.horizon, cfg.dt, self.tail_decel()) if movers else None
+        mover_centres = np.array([o.centre for o in movers]).reshape(-1, 2)
+        mover_extent = np.array([0.5 * np.hypot(o.length, o.width) + cfg.pedestrian_margin for o in movers])
+        mover_speed = np.array([(o.step_out_speed(cfg.pedestrian_reach, cfg.walkway_time) if o.kind == "pedestrian" else cfg.pedestrian_reach)
+                                + np.hypot(*o.velocity) for o in movers])
+        centres = world.robot_centres()
+        for j in range(len(world.robots)):
+            c = book.items[j]
+            if parked[j] or world.robots[j].name in holders or self.next_extension[j] > period:
+                continue
+            if self.room is not None and j in self.room.targets:
+                continue  # making room: it moves aside on its turns, not back onto its path
+            if c.stage(period) == "plan" and c.start + c.planned - period > 1:
+                continue
+            if movers and np.any(np.hypot(*(mover_centres - centres[j]).T) < reach[j] + mover_extent + mover_speed * len(c.inputs) * cfg.dt):
+                continue  # an uncontrolled agent (walker, scripted or SUMO-driven car) may meet it: only the MPC drives it on
+            key = (self.path(j), float(self.last_inputs[j, 1]), self.keep_right_shift(world, j))  # with its state: the course it tries
+            if book.refused_again(j, world.states[j], key, statics):  # the same course against the same standing footprint
+                self.next_extension[j] = period + EXTENSION_RETRY
+                continue
+            if self.path(j).heading_free(world.states[j]):
+                continue  # approaching its goal off its path: a manoeuvre for its MPC, not for the forward-only law
+            head = self.tracking_inputs(world, j, cfg.horizon)
+            candidate = self.commitment(world, j, period, head)
+            gap, blocker = book.check(j, candidate, period, statics)
+            if gap >= book.margin:
+                book.replace(j, candidate, period)
+                records[j].mode = "tracking"
+                extended += 1
+            else:
+                self.next_extension[j] = period + EXTENSION_RETRY
+                book.refuse(j, world.states[j], key, blocker, period, statics)
+        return extended
+
+    def tracking_inputs(self, world: WorldState, j: int, steps: int) -> np.ndarray:
+        """Inputs (steps, 2) of robot ``j`` following the tracking law from where it is, on its
+        path moved by its keep-right shift of now."""
+        return track_course(world.robots[j], world.states[j], self.path(j), self.params.lookahead, self.params.speed_gain,
+                            self.last_inputs[j, 1], self.planner.config.dt, steps, self.keep_right_shift(world, j))
+
+    def committed_safety_stop(self, world: WorldState, inputs: np.ndarray, records: list[RobotDecision], period: int,
+                              statics: np.ndarray) -> int:
+        """The optional safety stop on committed inputs (``inputs`` changed in place): a robot
+        it would stop brakes (its input once, then braking at its strongest) only when that
+        braking course itself passes the commitments' exact check, and it is then committed to
+        it; so the layer never breaks the invariant. Returns how many robots it stopped."""
+        moving = np.flatnonzero(np.abs(world.states[:, 3]) > 0.0)
+        if moving.size == 0:
+            return 0
+        checked = self.safety_check(world).safe_inputs(moving, inputs, self.params.safety_margin)
+        stopped, cfg = 0, self.planner.config
+        for i in moving[np.any(checked[moving] != inputs[moving], axis=1)]:
+            braking = stopping_commitment(self.fleet, i, period, world.states[i], checked[i][None], self.tasks[i].heading_at(world.states[i, :2]),
+                                          -self.fleet.a_min[i], self.last_inputs[i, 1], cfg.dt)
+            if self.book.clearance(i, braking, period, statics) >= self.book.margin:
+                self.book.replace(i, braking, period)
+                inputs[i], records[i].mode = checked[i], "safety_stop"
+                stopped += 1
+        return stopped
