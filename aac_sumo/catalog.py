@@ -6,7 +6,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from aac_sumo.config import BUNDLED_DIR, COMMON, KIND_EXTRA_SECTIONS, KIND_SECTIONS, Key, Scenario, toml_value
+from aac_sumo import config
+from aac_sumo.config import COMMON, KIND_EXTRA_SECTIONS, KIND_SECTIONS, Key, Scenario, toml_value
 
 _UNIT = re.compile(r"\s*\[([^\[\]]+)\]$")
 #: Longer defaults (lists of rows) are cut to this many characters in the listing.
@@ -26,7 +27,7 @@ def purpose(path: Path) -> str:
 
 def bundled() -> list[tuple[str, str]]:
     """``(name, purpose)`` of every bundled scenario, by name."""
-    return [(path.stem, purpose(path)) for path in sorted(BUNDLED_DIR.glob("*.toml"))]
+    return [(path.stem, purpose(path)) for path in sorted(config.BUNDLED_DIR.glob("*.toml"))]
 
 
 def split_unit(doc: str) -> tuple[str, str]:

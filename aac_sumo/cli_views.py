@@ -98,9 +98,12 @@ def cmd_compare(args) -> int:
 
 
 def cmd_scenarios(args) -> int:
+    from aac_sumo import config
     from aac_sumo.catalog import bundled
 
     rows = bundled()
+    if not rows:  # one line from cli.main, exit 2
+        raise FileNotFoundError(f"no bundled scenarios in {config.BUNDLED_DIR} (an incomplete installation: reinstall aac-sumo)")
     width = max(len(name) for name, _ in rows)
     for name, purpose in rows:
         print(f"{name:<{width}}  {purpose}")

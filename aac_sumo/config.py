@@ -19,7 +19,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-BUNDLED_DIR = Path(__file__).resolve().parents[1] / "scenarios"
+from aac_sumo import package_data
+
+#: The bundled scenarios (:mod:`aac_sumo.package_data`: an installed wheel's package data, or the checkout's ``scenarios/``).
+BUNDLED_DIR = package_data.scenarios_dir()
 
 
 class ScenarioError(Exception):
@@ -445,11 +448,11 @@ def _toml_literal(raw: str) -> Any:
 def resolve(name_or_path: str) -> Path:
     """A bundled scenario name (``braking``) or a path to a ``.toml`` file."""
     path = Path(name_or_path)
-    if path.suffix != ".toml" and not path.exists():
+    if path.suffix != ".toml" and not path.is_file():  # a folder named like the scenario (an --out) does not hide it
         path = BUNDLED_DIR / f"{name_or_path}.toml"
     if not path.is_file():
         names = sorted(p.stem for p in BUNDLED_DIR.glob("*.toml"))
-        hint = _did_you_mean(name_or_path, names) or f" ({', '.join(names)})"
+        hint = _did_you_mean(name_or_path, names) or (f" ({', '.join(names)})" if names else f" (none is bundled in {BUNDLED_DIR})")
         raise ScenarioError(name_or_path, "scenario", f"an existing .toml file or a bundled name{hint}")
     return path
 

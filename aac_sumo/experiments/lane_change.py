@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from aac_sumo import network
+from aac_sumo import network, package_data
 from aac_sumo.config import Scenario, ScenarioError
 from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_spec
 from aac_sumo.experiments.routed_cars import build_routed
@@ -44,7 +44,7 @@ from aac_sumo.sim.sumo import SumoOptions, sumo_simulator
 from aac_sumo.sim.sumo_config import SumoConfig, read_config, xml_problem
 from aac_sumo.world import WorldState
 
-BUNDLED_NET_DIR = Path(__file__).resolve().parents[2] / "sumo_networks" / "lane_change"
+BUNDLED_NET_DIR = package_data.networks_dir() / "lane_change"  # the checkout's sumo_networks/, or a wheel's package data
 BUNDLED_NET = BUNDLED_NET_DIR / "lane_change.net.xml"
 BUNDLED_ROUTES = [BUNDLED_NET_DIR / "cones.rou.xml", BUNDLED_NET_DIR / "pedestrians.rou.xml"]
 
