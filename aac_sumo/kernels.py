@@ -664,7 +664,7 @@ def course_boxes(flat, starts, lengths):
 
 
 @numba.njit(cache=True)
-def tracking_course(x, y, h, v, steps, dt, wheelbase, a_min, a_max, steer_max, v_min, v_max, a_lat_max, steer_rate_max, comfort,
+def tracking_course(x, y, h, v, steps, dt, wheelbase, a_min, a_max, steer_max, v_min, v_max, a_lat_max, a_lat_comfort, steer_rate_max, comfort,
                     previous_steer, points, seg_len, cum, seg_dir, seg_heading, t_max, chunk_centre, chunk_radius, chunk, limits,
                     speed, decel, stop_at_end, approach, lookahead, speed_gain, offset, target_speed):
     """Inputs (steps, 2) ``[accel, steer]`` of the tracking law (the loop form of
@@ -676,8 +676,10 @@ def tracking_course(x, y, h, v, steps, dt, wheelbase, a_min, a_max, steer_max, v
     stops there. The speed loop drives towards the path's speed at the projection (its
     ``limits`` (M,) over ``cum`` when non-empty, its stopping profile at ``decel``), or
     ``target_speed`` when that is not NaN, braking at most at ``comfort``; the steering keeps
-    the rate limit from the one before and the lateral limit at the larger of the speeds now
-    and after the period."""
+    the rate limit from the one before and the lateral limit ``a_lat_max`` at the larger of the
+    speeds now and after the period, and comes within the comfort limit ``a_lat_comfort`` as
+    far as the rate limit lets it (a car beyond it, on a plan made within the car's full limits,
+    is brought back within it at the steering rate, not in one period)."""
     out = np.empty((steps, 2))
     n_seg = seg_len.shape[0]
     length = cum[n_seg]
@@ -708,8 +710,14 @@ def tracking_course(x, y, h, v, steps, dt, wheelbase, a_min, a_max, steer_max, v
                 want = target_speed
         accel = min(max(speed_gain * (want - v), -comfort), a_max)
         rate = steer_rate_max * dt
-        steer = min(max(steer, steer_prev - rate), steer_prev + rate)
+        lo, hi = steer_prev - rate, steer_prev + rate
+        steer = min(max(steer, lo), hi)
         fastest = max(abs(v), abs(v + accel * dt))
+        soft = min(math.atan2(a_lat_comfort * wheelbase, fastest * fastest), steer_max)
+        if hi < -soft or lo > soft:  # the rate window lies beyond the comfort limit: as near it as the window allows
+            steer = hi if hi < -soft else lo
+        else:
+            steer = min(max(steer, max(-soft, lo)), min(soft, hi))
         bound = min(math.atan2(a_lat_max * wheelbase, fastest * fastest), steer_max)
         steer = min(max(steer, -bound), bound)
         out[k, 0], out[k, 1] = accel, steer

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from aac_sumo import config, runner
@@ -321,19 +321,26 @@ def write_sidewalk_curve(folder: Path) -> tuple[Path, Path]:
 
 @pytest.mark.slow
 def test_aac_drives_a_curved_road_with_a_sidewalk_calmly(tmp_path):
-    """AAC on the curved sidewalk road (9 cars, seed 0): it completes with 0 collisions, ours
-    and SUMO's, at most one car in ten drives aggressively, none comes within pedestrian_margin
-    of a walker, and no applied input breaks the lateral or steering-rate limit. The walkers
-    walk along the sidewalk far from its ends (docs/lane_change.md)."""
+    """AAC on the curved sidewalk road with 7 to 12 cars (seed 0): every run completes with 0
+    collisions, ours and SUMO's, none comes within pedestrian_margin of a walker, and no applied
+    input breaks the lateral or steering-rate limit; over the six runs (57 cars) at most one car
+    in ten drives aggressively. (One run is one sample of a chaotic system: which car meets a
+    car of the next lane closing in from behind on the curve, whose region makes its MPC swerve,
+    changes with any change of the driving; the share over the runs does not.) The walkers walk
+    along the sidewalk far from its ends (docs/lane_change.md)."""
     net, routes = write_sidewalk_curve(tmp_path / "road")
-    scenario = config.load("lane_change", [f"sumo.net={net}", f"sumo.routes={routes}", "lane_change.vehicles=9"])
-    result = runner.run(scenario)
-    m = result.metrics
-    assert "error" not in m
-    assert m["completed"] is True and m["collisions"] == 0 and m["sim_collisions"] == 0
-    assert m["aggressive_driving_rate"] <= 0.10
-    assert m["min_pedestrian_clearance_m"] >= 1.0
-    assert_limits_hold(result.steps)
+    aggressive, cars = 0.0, 0
+    for vehicles in range(7, 13):
+        scenario = config.load("lane_change", [f"sumo.net={net}", f"sumo.routes={routes}", f"lane_change.vehicles={vehicles}"])
+        result = runner.run(scenario)
+        m = result.metrics
+        assert "error" not in m
+        assert m["completed"] is True and m["collisions"] == 0 and m["sim_collisions"] == 0, vehicles
+        assert m["min_pedestrian_clearance_m"] >= 1.0
+        assert_limits_hold(result.steps)
+        aggressive += m["aggressive_driving_rate"] * vehicles
+        cars += vehicles
+    assert aggressive <= 0.10 * cars
 
 
 def assert_limits_hold(steps) -> None:
@@ -356,3 +363,28 @@ def test_seed_zero_lane_change_keeps_the_limits_and_yields_in_lane():
     deviation = np.hypot(steps["x"] - steps["ref_x"], steps["y"] - steps["ref_y"])[near]
     assert deviation.max() < 0.3
     assert m["min_pedestrian_clearance_m"] >= 1.0
+
+
+@settings(max_examples=40, deadline=None)
+@given(share=st.floats(-1.0, 1.0), speed=st.floats(2.0, 12.0))
+@example(share=-0.97, speed=6.2)  # the curved road's 11-car run: 2.9 m/s^2 at 6.2 m/s
+def test_the_tracking_law_comes_within_its_comfort_limit_at_the_steering_rate(share, speed):
+    """A car whose last steering is beyond the comfort lateral limit (2 m/s^2; a plan made within
+    its full limits: the curved road's 11-car run, 2.9 m/s^2 at 6.2 m/s) on a straight path:
+    every step of the tracking law keeps the steering rate (0.5 rad/s) and the physical lateral
+    limit (3 m/s^2), and the steering moves towards the comfort limit as fast as the rate allows
+    until it is within it."""
+    from aac_sumo.coordination.tracking import track_course
+
+    steer = share * min(np.arctan2(CAR_LIMITS.a_lat_max * CAR.model.wheelbase, speed**2), CAR_LIMITS.steer_max)  # within the limits
+    task = PathReference([[-10.0, 0.0], [500.0, 0.0]], speed, stop_at_end=False)
+    steps = track_course(CAR, np.array([0.0, 0.0, 0.0, speed]), task, 10.0, 1.0, steer, DT, 8, a_lat=2.0)
+    previous, v = steer, speed
+    for accel, applied in steps:
+        assert abs(applied - previous) <= CAR_LIMITS.steer_rate_max * DT + 1e-12
+        fastest = max(v, v + accel * DT)
+        assert fastest**2 * abs(np.tan(applied)) / CAR.model.wheelbase <= CAR_LIMITS.a_lat_max + 1e-9
+        comfort = np.arctan2(2.0 * CAR.model.wheelbase, fastest**2)
+        if abs(previous) > comfort + CAR_LIMITS.steer_rate_max * DT:  # beyond reach of comfort this step: as near as the rate allows
+            assert abs(applied) == pytest.approx(abs(previous) - CAR_LIMITS.steer_rate_max * DT)
+        previous, v = applied, v + accel * DT

@@ -30,10 +30,11 @@ def track_course(robot: RobotSpec, state: np.ndarray, task: PathReference, looka
     """Inputs (steps, 2) of :func:`track` applied for ``steps`` periods from ``state`` under the
     robot's model (compiled: :func:`~aac_sumo.kernels.tracking_course`)."""
     lim, model = robot.model.limits, robot.model
-    lateral = lim.a_lat_max if a_lat is None else min(lim.a_lat_max, a_lat)
+    comfort = lim.a_lat_max if a_lat is None else min(lim.a_lat_max, a_lat)
     x, y, h, v = (float(c) for c in state[:4])
     return tracking_course(x, y, h, v, int(steps), float(dt), float(model.wheelbase), float(lim.a_min), float(lim.a_max),
-                           float(lim.steer_max), float(lim.v_min), float(lim.v_max), float(lateral), float(lim.steer_rate_max),
+                           float(lim.steer_max), float(lim.v_min), float(lim.v_max), float(lim.a_lat_max), float(comfort),
+                           float(lim.steer_rate_max),
                            float(lim.comfort_decel), float(previous_steer), *task.arrays(), float(task.speed), float(task.decel),
                            bool(task.stop_at_end), float(task.approach), float(lookahead), float(speed_gain), float(offset),
                            np.nan if target_speed is None else float(target_speed))
