@@ -205,6 +205,10 @@ COMMON: dict[str, dict[str, Key]] = {
         "tail_brake": Key(float, 0.5, "deceleration of a commitment's stopping tail, as a share of the strongest braking |robot.a_min|",
                           check=lambda x: 0 < x <= 1, expect="in (0, 1]"),
         "commit_margin": Key(float, 0.05, "footprint gap every two commitments keep at every period [m]", **NN),
+        "cruise": Key(float, 0.0, "with commit, on a path that goes on (a road): a commitment continues along its path for up "
+                      "to this long (then half, a quarter) at the speeds its reference anticipates (slowing for what is ahead, "
+                      "yielding to walkers) before its stopping tail, where the exact check passes; 0: the tail follows the plan [s]",
+                      check=lambda x: 0 <= x <= 60, expect="in [0, 60]"),
         "keep_right": Key(float, 0.0, "right-hand rule: the authority's reference shifts this far to the right while another "
                           "robot is ahead within keep_right_range (0: off, the paper) [m]", **NN),
         "keep_right_range": Key(float, 4.0, "distance within which a robot ahead triggers keep_right [m]", **P),

@@ -87,6 +87,7 @@ def aac_params(scenario: Scenario) -> AacParams:
         commit=a["commit"], authorities=Authorities.parse(a["authorities"]), tail_brake=a["tail_brake"], commit_margin=a["commit_margin"],
         keep_right=a["keep_right"], keep_right_range=a["keep_right_range"], keep_right_max=a["keep_right_max"], make_room=a["make_room"],
         stall_time=a["stall_time"], lead_time=a["lead_time"], detour=a["detour"], detour_clearance=a["detour_clearance"],
+        cruise=a["cruise"],
     )
 
 

@@ -21,7 +21,8 @@ from aac_sumo.coordination.base import Decision, RobotDecision
 from aac_sumo.coordination.commitments import CommitmentBook, reach_radii, stopping_commitment
 from aac_sumo.coordination.detour import Detours
 from aac_sumo.coordination.make_room import STILL_SPEED, MakeRoom
-from aac_sumo.coordination.tracking import track_course
+from aac_sumo.coordination.anticipation import speed_cap, stop_points
+from aac_sumo.coordination.tracking import track, track_course
 from aac_sumo.kernels import limited_steer
 from aac_sumo.references import PathReference
 from aac_sumo.world import WorldState
@@ -69,6 +70,10 @@ class CommittedAac(AacCoordinator):
         if self.book is None:
             self.book = CommitmentBook(fleet, [self.commitment(world, i, period, np.zeros((0, 2))) for i in range(n)],
                                        self.params.commit_margin)
+            for i in range(n):  # with cruise, every car drives on from the start where the exact check lets it (not a tail)
+                start = self.continued_commitment(world, i, period, np.zeros((0, 2)), statics)
+                if start is not None:
+                    self.book.replace(i, start, period)
         done = self.finished(world)
         parked = self.parked(world, done)
         records = [RobotDecision(False, mode=c.stage(period)) for c in self.book.items]
@@ -124,13 +129,56 @@ class CommittedAac(AacCoordinator):
         return stopping_commitment(self.fleet, i, period, world.states[i], head, self.path(i), self.tail_decel()[i], self.last_inputs[i, 1],
                                    self.planner.config.dt)
 
+    def continued_commitment(self, world: WorldState, i: int, period: int, head: np.ndarray, statics: np.ndarray):
+        """Robot ``i``'s commitment to ``head`` (m, 2) continued along its path before its
+        stopping tail, for ``cruise`` [s], else half or a quarter of it: the longest that passes
+        the exact check. The continuation is the tracking law aiming at the anticipation's speed
+        cap a second ahead (:mod:`~aac_sumo.coordination.anticipation`: it stays behind what is
+        ahead on its path and stops before a walker who counts, as the MPC's reference does),
+        with what moves along the path going on at its speed now (as the planner predicts it),
+        braking at most at the comfort envelope and speeding up at most at the anticipation's
+        ``accel``. None without ``cruise``, without anticipation, on a path that ends in a stop, or
+        when nothing passes (a car on a road does not crawl between its turns: a tail right
+        after each plan braked it at every turn it did not get)."""
+        cfg, task = self.planner.config, self.path(i)
+        periods = int(round(self.params.cruise / cfg.dt))
+        if periods <= 0 or self.anticipation is None or task.stop_at_end or task.heading_free(world.states[i]):
+            return None
+        head = np.asarray(head, dtype=float).reshape(-1, 2)
+        rules, robot = self.anticipation, world.robots[i]
+        stops = stop_points(world, i, task, rules, self.held[i])  # [s_stop, v_lead, grow]: what it must stay behind, as now
+        state = self.fleet.rollout(np.array([i]), world.states[[i]], head[None], cfg.dt)[0, -1]
+        steer = float(head[-1, 1]) if len(head) else float(self.last_inputs[i, 1])
+        shift = self.keep_right_shift(world, i)
+        calm = cfg.comfort_accel if cfg.comfort_accel > 0.0 else float(self.fleet.comfort[i])
+        more = np.zeros((periods, 2))
+        for k in range(periods):
+            t = (len(head) + k) * cfg.dt
+            moved = stops + np.column_stack([stops[:, 1] * t, np.zeros((len(stops), 2))])  # what moves goes on at its speed
+            s_here = task.project(state[:2])[0]
+            ahead = s_here + max(float(state[3]), 0.0) / self.params.speed_gain  # where it is a second on (gain 1/s)
+            target = min(float(speed_cap(moved, [ahead], rules.decel)[0]), float(task.speed_at(ahead)))
+            more[k] = track(robot, state, task, self.params.lookahead, self.params.speed_gain, steer, cfg.dt, shift,
+                            target_speed=target, a_lat=self.tracking_lat())
+            more[k, 0] = min(max(more[k, 0], -calm), rules.accel)  # brakes within the comfort envelope, speeds up as the reference does
+            state = self.fleet.rollout(np.array([i]), state[None], more[None, k:k + 1], cfg.dt)[0, -1]
+            steer = float(more[k, 1])
+        for k in (periods, periods // 2, periods // 4):
+            if k <= 0:
+                continue
+            candidate = self.commitment(world, i, period, np.vstack([head, more[:k]]))
+            if self.book.clearance(i, candidate, period, statics) >= self.book.margin:
+                return candidate
+        return None
+
     def plan_committed(self, world: WorldState, i: int, others: np.ndarray, reason: str, period: int,
                        statics: np.ndarray) -> tuple[RobotDecision, int, int]:
         """Robot ``i`` plans around ``others``' commitments (swept regions of stages k and k+1)
         and the obstacles, warm-started from its own commitment (from the tracking law's course
         when it stands at the end of its commitment). It commits to the longest
-        prefix of its plan (all N inputs first, one fewer each time down to braking at once)
-        whose stopping tail passes the exact check; no prefix passing keeps its old commitment.
+        prefix of its plan (all N inputs first, continued along its path with ``cruise``, see
+        :meth:`continued_commitment`; then one fewer each time down to braking at once) whose
+        stopping tail passes the exact check; no prefix passing keeps its old commitment.
         A failed solve offers only the planner's braking fallback (the paper's answer to a failed
         solve), under the same check. A robot that stands and whose plan leaves it standing
         creeps instead when it can (:meth:`creep`). Returns its record, whether the plan was cut
@@ -159,7 +207,9 @@ class CommittedAac(AacCoordinator):
                                iterations=plan.iterations, capped=plan.capped)
         cuts = range(cfg.horizon, -1, -1) if plan.status == "solved" else [cfg.horizon]  # a failed solve: the braking fallback
         passed, m = None, cfg.horizon
-        for m in cuts:
+        if plan.status == "solved":
+            passed = self.continued_commitment(world, i, period, plan.inputs, statics)
+        for m in cuts if passed is None else ():
             candidate = self.commitment(world, i, period, plan.inputs[:m])
             if book.clearance(i, candidate, period, statics) >= book.margin:
                 passed = candidate
@@ -234,8 +284,8 @@ class CommittedAac(AacCoordinator):
                            records: list[RobotDecision], statics: np.ndarray) -> int:
         """Robots without authority whose planned course runs out (at most one planned period
         left) go on as the paper's robots without a plan do, on the tracking law, but only when
-        that course (N periods of the law, then a stopping tail) passes the same exact check as a
-        plan; a robot whose try failed waits ``EXTENSION_RETRY`` periods before the next one. The
+        that course (N periods of the law, continued with ``cruise`` as a plan is, then a stopping
+        tail) passes the same exact check as a plan; a robot whose try failed waits ``EXTENSION_RETRY`` periods before the next one. The
         law ignores obstacles, and uncontrolled moving agents are not in the check, so a robot
         that such an agent (growing as the planner grows walkers) may reach meanwhile is not
         extended.
@@ -256,6 +306,12 @@ class CommittedAac(AacCoordinator):
             if self.room is not None and j in self.room.targets:
                 continue  # making room: it moves aside on its turns, not back onto its path
             if c.stage(period) == "plan" and c.start + c.planned - period > 1:
+                continue
+            longer = self.continued_commitment(world, j, period, np.zeros((0, 2)), statics)  # with cruise: on as anticipated
+            if longer is not None:
+                book.replace(j, longer, period)
+                records[j].mode = "tracking"
+                extended += 1
                 continue
             if movers and np.any(np.hypot(*(mover_centres - centres[j]).T) < reach[j] + mover_extent + mover_speed * len(c.inputs) * cfg.dt):
                 continue  # an uncontrolled agent (walker, scripted or SUMO-driven car) may meet it: only the MPC drives it on

@@ -49,7 +49,9 @@ class AacParams:
     (``commit_margin`` [m]); authorities per period (:class:`Authorities`); the keep-right
     rule (shift, trigger range and growth limit [m]); the make-room lead (on/off, standing
     time that makes a leader, longest lead [s]); and detours (on/off, the clearance [m] they
-    keep from standing footprints where there is room; :mod:`~aac_sumo.coordination.detour`)."""
+    keep from standing footprints where there is room; :mod:`~aac_sumo.coordination.detour`);
+    and how long [s] a commitment may continue along its path, at the speeds its anticipated
+    reference has, before its stopping tail (``cruise``; 0: the tail follows the plan)."""
 
     close_distance: float = 2.0
     proximity: ProximityParams = ProximityParams()
@@ -72,6 +74,7 @@ class AacParams:
     lead_time: float = 8.0
     detour: bool = False
     detour_clearance: float = 0.5
+    cruise: float = 0.0
 
     def __post_init__(self):
         check_safety_options(self.safety_stop, self.fallback, self.ignore_followers)

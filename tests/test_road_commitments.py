@@ -1,0 +1,73 @@
+"""Committed plans on a road (``aac.cruise``): a commitment goes on along the car's lane at the
+speeds its anticipated reference has before its stopping tail, where the exact check passes."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from aac_sumo import config, runner
+from aac_sumo.coordination.aac import AacCoordinator, AacParams
+from aac_sumo.coordination.anticipation import Anticipation
+from aac_sumo.dynamics import BicycleModel, VehicleLimits
+from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
+from aac_sumo.references import PathReference
+from aac_sumo.world import Obstacle, RobotSpec, WorldState
+
+DT = 0.1
+LIMITS = VehicleLimits(a_min=-6.0, a_max=3.0, steer_max=0.5, v_min=0.0, v_max=20.0, a_lat_max=3.0, steer_rate_max=0.5, a_comfort=3.0)
+CARS = [RobotSpec(f"car{i}", 4.0, 1.8, BicycleModel(2.6, LIMITS)) for i in range(2)]
+COMMITTED = ["aac.commit=true", "aac.safety_stop=false", "aac.fallback=brake", "aac.ignore_followers=false", "aac.make_room=false"]
+
+
+def two_cars(cruise: float, obstacles=()):
+    """Two cars in one lane along y = 0 at 10 m/s, 30 m apart, their first decision under
+    committed AAC with anticipation and ``cruise`` [s]."""
+    tasks = [PathReference([[-50.0, 0.0], [800.0, 0.0]], 10.0, stop_at_end=False) for _ in CARS]
+    config_ = MpcConfig(dt=DT, horizon=10, comfort_accel=2.0, comfort_lat=2.0, pedestrian_margin=1.0)
+    aac = AacCoordinator(MpcPlanner(config_), tasks, params=AacParams(commit=True, safety_stop=False, make_room=False, cruise=cruise,
+                                                                      lookahead=10.0))
+    aac.anticipation = Anticipation(pedestrian_margin=1.0)
+    world = WorldState(0.0, np.array([[0.0, 0.0, 0.0, 10.0], [30.0, 0.0, 0.0, 10.0]]), CARS, list(obstacles))
+    aac.decide(world)
+    return aac
+
+
+def test_without_cruise_a_car_without_authority_brakes_from_the_start_and_with_it_drives_on():
+    """The first period: without ``cruise`` both commitments are stopping tails (one of them is
+    the authority's plan, then its tail); with 4 s each car drives on at 10 m/s for 4 s before
+    any tail, and the two commitments keep the margin (the exact check)."""
+    plain = two_cars(0.0)
+    assert min(c.planned for c in plain.book.items) <= 10
+    assert all(c.inputs[-1, 0] < 0.0 for c in plain.book.items)
+    cruising = two_cars(4.0)
+    for c in cruising.book.items:
+        assert c.planned >= 40 and np.all(c.states[: c.planned + 1, 3] > 9.0)  # 4 s on at its speed
+        assert np.all(np.abs(c.states[: c.planned + 1, 1]) < 0.05)  # in its lane
+    rear, front = cruising.book.items
+    assert np.all(front.states[: rear.planned + 1, 0] - rear.states[: rear.planned + 1, 0] > 4.0 + 0.05)
+
+
+def test_a_continuation_yields_to_a_walker_on_the_lane_as_the_anticipation_does():
+    """A walker standing on the lane 60 m ahead of the front car: its continuation slows to stand
+    before her with the margin, at no more than the comfort envelope (2 m/s^2), rather than
+    drive through her at 10 m/s."""
+    walker = Obstacle("p", "pedestrian", np.array([90.0, 0.0]), np.zeros(2), np.pi / 2, 0.3, 0.5)
+    aac = two_cars(8.0, [walker])
+    front = aac.book.items[1]
+    course = front.states[: front.planned + 1]
+    nose = course[:, 0] + 1.3 + 2.0
+    assert np.all(nose < 90.0 - 0.25 - 1.0)
+    assert np.all(np.diff(course[:, 3]) >= -2.0 * DT - 1e-9)
+
+
+@pytest.mark.slow
+def test_the_bundled_lane_change_completes_with_committed_plans_and_no_emergency_layer():
+    """S2, seed 0, committed plans with one authority per cluster and a 4 s continuation, no
+    safety stop: every car finishes, 0 collisions by our check and by SUMO's, no car within
+    pedestrian_margin of a walker."""
+    scenario = config.load("lane_change", COMMITTED + ["aac.cruise=4", 'aac.authorities="clusters"'])
+    m = runner.run(scenario).metrics
+    assert "error" not in m
+    assert m["completed"] is True and m["collisions"] == 0 and m["sim_collisions"] == 0
+    assert m["safety_stops"] == 0 and m["min_pedestrian_clearance_m"] >= 1.0
