@@ -113,7 +113,9 @@ def budget_markdown(run_dir: str) -> str:
     sc = run.scenario
     table = time_budget(run.steps, run.trajectories, sc["lane_change.speed"], sc["scenario.dt"], sc["lane_change.lane_tolerance"])
     m = run.metrics
-    lines = [f"{run_dir}: {m.get('coordinator')}, N = {m.get('horizon')}, seed {m.get('seed')}, task {m.get('task_duration_s')} s; "
+    task = m.get("task_duration_s")
+    lines = [f"{run_dir}: {m.get('coordinator')}, N = {m.get('horizon')}, seed {m.get('seed')}, "
+             f"task {'not completed' if task is None else f'{task:.1f} s'}; "
              f"seconds lost against {sc['lane_change.speed']:g} m/s per car", "",
              "| car | " + " | ".join(CAUSES) + " | lost | time |", "|---" * (len(CAUSES) + 3) + "|"]
     for name, row in list(table.iterrows()) + [("mean", table.mean())]:
