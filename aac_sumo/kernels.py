@@ -943,7 +943,7 @@ def stop_rows(points, seg_len, cum, seg_dir, seg_heading, t_max, chunk_centre, c
     n_rows = 0
     n_extra = 0
     pace = max(v, 1.0)
-    arrive_max = look / pace
+    arrive_max = (look + ped_margin + length + 1.0) / pace  # a bound on every agent's ``passed`` (walkers are small)
     for k in range(k_count):
         if k == skip:
             continue
@@ -975,11 +975,12 @@ def stop_rows(points, seg_len, cum, seg_dir, seg_heading, t_max, chunk_centre, c
         gap_across = off - (0.5 * lengths[k] * sin_rel + 0.5 * widths[k] * cos_rel) - 0.5 * width
         across = -side * (vx * nx + vy * ny)
         toward = max(0.0, across)
-        arrive = ahead / pace
+        along = 0.5 * lengths[k] * cos_rel + 0.5 * widths[k] * sin_rel
+        passed = (ahead + along + ped_margin + 0.5 * length - centre_offset) / pace  # when its rear is past her and the margin
         if walker[k]:
             if across < -WALK_AWAY:  # she walks away from the path: not taken to turn back
                 ped_reach = 0.0
-            reach = max(toward * arrive, ped_reach * min(arrive, v / decel))
+            reach = max(toward * passed, ped_reach * min(passed, v / decel))
             counts = gap_across - reach <= ped_margin
             if counts:
                 counted[k] = True
@@ -990,12 +991,10 @@ def stop_rows(points, seg_len, cum, seg_dir, seg_heading, t_max, chunk_centre, c
             counts = gap_across - toward * cut_in <= lateral_margin
             lead, keep = max(vx * tx + vy * ty, 0.0), 0.0
             grow = time_gap * min(lead / TIME_GAP_SPEED, 1.0)  # the time gap at the robot's own speed, behind a moving leader
-        along = 0.5 * lengths[k] * cos_rel + 0.5 * widths[k] * sin_rel
         behind_it = s - along - front - gap
         s_stop = behind_it - keep
         if walker[k] and counts and gap_across > ped_margin and v * v > 2.0 * comfort * max(s_stop - s0, 0.0):
-            clear = (ahead + along + 0.5 * length - centre_offset + ped_margin) / pace
-            if gap_across - toward * clear > ped_margin:  # past the point of no return
+            if gap_across - toward * passed > ped_margin:  # past the point of no return
                 counts = False
         if not counts:
             continue

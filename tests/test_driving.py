@@ -275,15 +275,14 @@ def test_a_walker_who_pauses_on_the_crossing_is_still_yielded_to_for_a_moment():
 
 def test_past_the_point_of_no_return_a_car_goes_on_before_a_walker_who_cannot_reach_its_path():
     """A walker 6.5 m beside the path, 30 m ahead, walking towards it at 1.25 m/s (it may reach
-    the path within the car's time there at the faster of its speed and pedestrian_reach: it
-    counts). At 13 m/s the car can no longer stop before it at its comfort deceleration (13^2 / 6
-    = 28 m > 23.5 m) and the walker needs over 4 s to the path at its own speed against the 2.5 s
-    the car needs to pass: it goes on. At 8 m/s it can still stop: it yields. A walker within the
-    margin of the path always counts; one 8 m beside it cannot come within the margin at 1.5 m/s
-    in the 3.75 s the car at 8 m/s needs, and does not count."""
+    the path before the car has passed her with the margin, at the faster of her speed and
+    pedestrian_reach: it counts at 8 m/s, 4 s to pass, and the car yields). At 13 m/s the car has
+    passed in 2.5 s, before she can come within the margin of its path: it goes on. A walker within the
+    margin of the path always counts; one 9 m beside it cannot come within the margin at 1.5 m/s
+    in the 4 s the car at 8 m/s needs to have passed her with the margin, and does not count."""
     params = Anticipation(pedestrian_margin=1.0, pedestrian_reach=1.5)
     counted = []
-    for speed, y in ((13.0, -6.5), (8.0, -6.5), (13.0, -1.5), (8.0, -8.0)):
+    for speed, y in ((13.0, -6.5), (8.0, -6.5), (13.0, -1.5), (8.0, -9.0)):
         world, task = one_lane_world(30.0, y, kind="pedestrian", velocity=(0.0, 1.25))
         world.states[0, 3] = speed
         counted.append(len(stop_points(world, 0, task, params)))
@@ -388,3 +387,20 @@ def test_the_tracking_law_comes_within_its_comfort_limit_at_the_steering_rate(sh
         if abs(previous) > comfort + CAR_LIMITS.steer_rate_max * DT:  # beyond reach of comfort this step: as near as the rate allows
             assert abs(applied) == pytest.approx(abs(previous) - CAR_LIMITS.steer_rate_max * DT)
         previous, v = applied, v + accel * DT
+
+
+def test_a_slow_car_yields_to_a_walker_who_reaches_its_path_before_it_has_passed_her():
+    """As in the lane change's seed 1 at N = 10, 12.4 s: a car at 2.8 m/s, its front 4.5 m before
+    a walker's path, she 5.3 m from its side walking towards it at 1.37 m/s. She is within the
+    margin of its path after 3.1 s, before its rear has passed her with the margin (3.4 s): she
+    counts, and the car stops before her. (Counting only until its rear axle got to her, 2.8 s,
+    she did not; in that run the car stood with its nose on her path and she passed 0.11 m from
+    it.)"""
+    params = Anticipation(pedestrian_margin=1.0, pedestrian_reach=1.5)
+    front = CAR.centre_offset + 0.5 * CAR.length
+    world, task = one_lane_world(front + 4.5, 0.9 + 5.3 + 0.15, kind="pedestrian", velocity=(0.0, -1.37))
+    world.states[0, 3] = 2.8
+    world.obstacles[0] = dataclasses.replace(world.obstacles[0], length=0.3, width=0.5, heading=-np.pi / 2)
+    stops = stop_points(world, 0, task, params)
+    assert len(stops) == 1 and stops[0, 1] == 0.0
+    assert stops[0, 0] < 4.5 - params.gap  # it stops with the gap and the margin before her

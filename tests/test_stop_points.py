@@ -30,7 +30,7 @@ def numpy_stop_points(world: WorldState, i: int, task: PathReference, params: An
     step_out = np.array([world.obstacles[a - first].step_out_speed(params.pedestrian_reach, params.walkway_time) if w else 0.0
                          for a, w in zip(others, walker)])
     speed = np.hypot(velocity[:, 0], velocity[:, 1])
-    arrive_max = params.look / max(abs(state[3]), 1.0)
+    arrive_max = (params.look + params.pedestrian_margin + robot.length + 1.0) / max(abs(state[3]), 1.0)
     reach_max = np.where(walker, speed * arrive_max + step_out * arrive_max, speed * params.cut_in)
     bound = (off0 + params.look + max(params.pedestrian_margin, params.lateral_margin) + 0.5 * np.hypot(lengths, widths)
              + 0.5 * robot.width + reach_max)
@@ -54,9 +54,10 @@ def numpy_stop_points(world: WorldState, i: int, task: PathReference, params: An
     gap_across = off - across_ext - 0.5 * robot.width
     across = -side * np.einsum("ij,ij->i", vel, normal)
     toward = np.maximum(0.0, across)
-    arrive = ahead / max(abs(state[3]), 1.0)
+    # when its rear has passed her (and the margin) at its speed, at least 1 m/s
+    passed = (ahead + along + params.pedestrian_margin + 0.5 * robot.length - robot.centre_offset) / max(abs(state[3]), 1.0)
     step_out = np.where(across < -WALK_AWAY, 0.0, step_out)  # walking away: not taken to turn back
-    reach = np.where(walker, np.maximum(toward * arrive, step_out * np.minimum(arrive, abs(state[3]) / params.decel)),
+    reach = np.where(walker, np.maximum(toward * passed, step_out * np.minimum(passed, abs(state[3]) / params.decel)),
                      toward * params.cut_in)
     counts = gap_across - reach <= np.where(walker, params.pedestrian_margin, params.lateral_margin)
     if held is not None and walker.any():
