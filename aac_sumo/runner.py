@@ -103,6 +103,7 @@ def loop(setup: Setup, rec: Recording) -> None:
         if STOP.is_set():  # asked to stop (aac-sumo run's SIGINT/SIGTERM handler), between two periods
             raise KeyboardInterrupt
         world = sim.observe() if setup.prepare is None else setup.prepare(sim.observe())
+        world.crossings = tuple(rec.crossings or ())
         check_finite(world)
         rec.traj += [dict(t=round(world.t, 9), **a) for a in sim.agents()]
         done = np.asarray(setup.finished(world), dtype=bool)

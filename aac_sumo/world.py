@@ -79,6 +79,18 @@ class Obstacle:
         return np.array([self.centre[0], self.centre[1], self.length, self.width, self.heading])
 
 
+@dataclass(frozen=True)
+class Crossing:
+    """A pedestrian crossing of the map, world frame: its centre-line ``shape`` (m, 2) [m], the
+    strip of its ``width`` [m] round it where walkers cross, and ``lane_width`` [m], the width
+    of the vehicle lanes it crosses (the band of a car's lane across the crossing)."""
+
+    name: str
+    shape: np.ndarray
+    width: float
+    lane_width: float
+
+
 @dataclass
 class WorldState:
     """Controlled robots (states (n, 4), specs) and uncontrolled obstacles at time ``t`` [s].
@@ -86,13 +98,15 @@ class WorldState:
     ``present`` (n,) says which robots are on the road now (None: all). A robot that is not,
     a SUMO vehicle before its departure or after it left, stands still far away from
     everything (:func:`parking_spot`), so that no geometry sees it; coordinators give it no
-    turn and the runner records nothing of it."""
+    turn and the runner records nothing of it. ``crossings``: the map's pedestrian crossings
+    (static; none without a map)."""
 
     t: float
     states: np.ndarray
     robots: list[RobotSpec]
     obstacles: list[Obstacle] = field(default_factory=list)
     present: np.ndarray | None = None
+    crossings: tuple[Crossing, ...] = ()
 
     @property
     def on_road(self) -> np.ndarray:

@@ -216,6 +216,41 @@ def anticipated_speeds(world: WorldState, i: int, task: PathReference, steps: in
                          task.s, limits, task.stop_at_end, task.decel, task.length)  # speed_cap, stage by stage, compiled
 
 
+#: A stop row of what moves slower than this [m/s] can hold a robot up beyond a crossing.
+CLEAR_SPEED = 1.0
+
+
+def crossing_rows(world: WorldState, i: int, task: PathReference, stops: np.ndarray, margin: float) -> np.ndarray:
+    """Stop rows ``[s_stop, 0, 0]`` (rear axle, arc length on ``task`` [m]) before each of the
+    world's pedestrian crossings ahead on robot ``i``'s path that it could not clear: a row of
+    ``stops`` of something standing or slower than ``CLEAR_SPEED`` would stop it with its
+    footprint on the crossing or within ``margin`` [m] of it. It then waits with its front
+    ``margin`` before the crossing (a car that stopped in a queue at the crossing's edge had a
+    walker pass 0.63 m in front of it). A crossing whose strip the robot's front has reached
+    gives no row: it drives on through."""
+    if not world.crossings:
+        return np.zeros((0, 3))
+    robot, state = world.robots[i], world.states[i]
+    front, rear = robot.centre_offset + 0.5 * robot.length, 0.5 * robot.length - robot.centre_offset
+    s0 = task.project(state[:2])[0]
+    slow = stops[stops[:, 1] <= CLEAR_SPEED, 0] if len(stops) else np.zeros(0)
+    rows = []
+    for crossing in world.crossings:
+        ends = np.asarray(crossing.shape, dtype=float)[[0, -1]]
+        s_ends, offsets = task.project_many(ends)
+        poses = task.pose_at(s_ends)
+        side = np.sign(-np.sin(poses[:, 2]) * (ends[:, 0] - poses[:, 0]) + np.cos(poses[:, 2]) * (ends[:, 1] - poses[:, 1]))
+        signed = side * offsets
+        if signed[0] * signed[1] >= 0.0:
+            continue  # the path does not cross it
+        s_x = s_ends[0] + (s_ends[1] - s_ends[0]) * signed[0] / (signed[0] - signed[1])
+        half = 0.5 * crossing.width + margin
+        s_stop, s_clear = s_x - half - front, s_x + half + rear
+        if s0 < s_stop and np.any((slow > s_stop) & (slow < s_clear)):
+            rows.append([s_stop, 0.0, 0.0])
+    return np.array(rows, dtype=float).reshape(-1, 3)
+
+
 def near_pedestrian(world: WorldState, i: int, distance: float) -> bool:
     """Whether a pedestrian's centre lies within ``distance`` [m] of robot ``i``'s centre."""
     centre = world.robot_centres()[i]

@@ -13,19 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from aac_sumo.geometry import pairwise_rect_clearance
-from aac_sumo.world import WorldState
-
-
-@dataclass(frozen=True)
-class Crossing:
-    """A pedestrian crossing of the map, world frame: its centre-line ``shape`` (m, 2) [m], the
-    strip of its ``width`` [m] round it where walkers cross, and ``lane_width`` [m], the width
-    of the vehicle lanes it crosses (the band of a car's lane across the crossing)."""
-
-    name: str
-    shape: np.ndarray
-    width: float
-    lane_width: float
+from aac_sumo.world import Crossing, WorldState
 
 
 @dataclass
