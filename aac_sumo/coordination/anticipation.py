@@ -138,6 +138,8 @@ def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipa
     for row, name in walkers:
         if counted[row]:
             held[name] = world.t
+    if world.crossings:  # and before a crossing it could not clear (what stands beyond would stop it on it)
+        stops = np.vstack([stops, crossing_rows(world, i, task, stops, params.pedestrian_margin)])
     return stops
 
 

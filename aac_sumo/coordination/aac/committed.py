@@ -21,7 +21,7 @@ from aac_sumo.coordination.base import Decision, RobotDecision
 from aac_sumo.coordination.commitments import CommitmentBook, reach_radii, stopping_commitment
 from aac_sumo.coordination.detour import Detours
 from aac_sumo.coordination.make_room import STILL_SPEED, MakeRoom
-from aac_sumo.coordination.anticipation import crossing_rows, speed_cap, stop_points
+from aac_sumo.coordination.anticipation import speed_cap, stop_points
 from aac_sumo.coordination.tracking import track, track_course
 from aac_sumo.kernels import limited_steer
 from aac_sumo.references import PathReference
@@ -147,7 +147,6 @@ class CommittedAac(AacCoordinator):
         head = np.asarray(head, dtype=float).reshape(-1, 2)
         rules, robot = self.anticipation, world.robots[i]
         stops = stop_points(world, i, task, rules, self.held[i])  # [s_stop, v_lead, grow]: what it must stay behind, as now
-        stops = np.vstack([stops, crossing_rows(world, i, task, stops, rules.pedestrian_margin)])  # and crossings it cannot clear
         state = self.fleet.rollout(np.array([i]), world.states[[i]], head[None], cfg.dt)[0, -1]
         steer = float(head[-1, 1]) if len(head) else float(self.last_inputs[i, 1])
         shift = self.keep_right_shift(world, i)
