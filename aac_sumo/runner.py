@@ -97,13 +97,14 @@ def loop(setup: Setup, rec: Recording) -> None:
     dt, duration = scenario["scenario.dt"], scenario["scenario.duration"]
     stop, patience = scenario["metrics.stop_speed"], scenario["metrics.deadlock_time"]
     window = int(round(patience / dt))
+    crossings = tuple(rec.crossings or ())  # the map's, static: every period's world holds them
     history: deque[np.ndarray] = deque(maxlen=window + 1)  # rear-axle positions, for the deadlock rule
     active_overlaps: set = set()
     for k in range(int(round(duration / dt)) + 1):
         if STOP.is_set():  # asked to stop (aac-sumo run's SIGINT/SIGTERM handler), between two periods
             raise KeyboardInterrupt
         world = sim.observe() if setup.prepare is None else setup.prepare(sim.observe())
-        world.crossings = tuple(rec.crossings or ())
+        world.crossings = crossings
         check_finite(world)
         rec.traj += [dict(t=round(world.t, 9), **a) for a in sim.agents()]
         done = np.asarray(setup.finished(world), dtype=bool)

@@ -111,6 +111,8 @@ def budget_markdown(run_dir: str) -> str:
     """The time budget of the run in ``run_dir`` as a Markdown table, with its mean row."""
     run = read_run(run_dir)
     sc = run.scenario
+    if sc["scenario.kind"] != "lane_change":
+        raise RunDirError(f"{run_dir}: expected a run of a road scenario (kind lane_change), got kind {sc['scenario.kind']}")
     table = time_budget(run.steps, run.trajectories, sc["lane_change.speed"], sc["scenario.dt"], sc["lane_change.lane_tolerance"])
     m = run.metrics
     task = m.get("task_duration_s")
@@ -130,7 +132,7 @@ def main(argv: list[str] | None = None) -> int:
     for run_dir in args.runs:
         try:
             print(budget_markdown(run_dir) + "\n")
-        except (RunDirError, KeyError) as exc:
+        except RunDirError as exc:
             print(f"python -m aac_sumo.time_budget: error: {exc}", file=sys.stderr)
             return 2
     return 0

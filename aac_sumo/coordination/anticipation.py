@@ -18,8 +18,8 @@ speed with a comfortable stopping profile, as a driver's car following does:
   ``v_lead^2 / 2|a|`` further on, where it stops at that rate (a SUMO car braking hard for a walker);
 - a pedestrian near or on the path counts with ``v_lead = 0``: the robot yields, it does not
   overtake. A walker counts when it is within ``pedestrian_margin`` of the path, or may be by
-  the time the robot gets there at its current speed: the longer of her velocity towards the
-  path times that time and ``pedestrian_reach`` [m/s] (she may step out at any moment, as the
+  the time the robot, at its current speed, has passed her with the margin: the longer of her
+  velocity towards the path times that time and ``pedestrian_reach`` [m/s] (she may step out at any moment, as the
   planner and the safety stop assume) times that time or the robot's comfortable stopping
   time, whichever is shorter (so a robot creeps past a walker who stands beside its lane
   instead of waiting for good). A walker who walks away from the path is not taken to turn
@@ -238,19 +238,30 @@ def crossing_rows(world: WorldState, i: int, task: PathReference, stops: np.ndar
     slow = stops[stops[:, 1] <= CLEAR_SPEED, 0] if len(stops) else np.zeros(0)
     rows = []
     for crossing in world.crossings:
-        ends = np.asarray(crossing.shape, dtype=float)[[0, -1]]
-        s_ends, offsets = task.project_many(ends)
-        poses = task.pose_at(s_ends)
-        side = np.sign(-np.sin(poses[:, 2]) * (ends[:, 0] - poses[:, 0]) + np.cos(poses[:, 2]) * (ends[:, 1] - poses[:, 1]))
-        signed = side * offsets
-        if signed[0] * signed[1] >= 0.0:
-            continue  # the path does not cross it
-        s_x = s_ends[0] + (s_ends[1] - s_ends[0]) * signed[0] / (signed[0] - signed[1])
+        s_x = crossing_point(task, crossing)
+        if s_x is None:
+            continue
         half = 0.5 * crossing.width + margin
         s_stop, s_clear = s_x - half - front, s_x + half + rear
         if s0 < s_stop and np.any((slow > s_stop) & (slow < s_clear)):
             rows.append([s_stop, 0.0, 0.0])
     return np.array(rows, dtype=float).reshape(-1, 3)
+
+
+def crossing_point(task: PathReference, crossing) -> float | None:
+    """Arc length [m] on ``task``'s path where it crosses ``crossing``'s centre-line (between
+    its two ends' projections, where their signed offsets change sign), None where it does not;
+    cached on the path (both are static)."""
+    cache = task.__dict__.setdefault("_crossing_points", {})
+    if crossing.name not in cache:
+        ends = np.asarray(crossing.shape, dtype=float)[[0, -1]]
+        s_ends, offsets = task.project_many(ends)
+        poses = task.pose_at(s_ends)
+        side = np.sign(-np.sin(poses[:, 2]) * (ends[:, 0] - poses[:, 0]) + np.cos(poses[:, 2]) * (ends[:, 1] - poses[:, 1]))
+        signed = side * offsets
+        cache[crossing.name] = (None if signed[0] * signed[1] >= 0.0
+                                else float(s_ends[0] + (s_ends[1] - s_ends[0]) * signed[0] / (signed[0] - signed[1])))
+    return cache[crossing.name]
 
 
 def near_pedestrian(world: WorldState, i: int, distance: float) -> bool:
