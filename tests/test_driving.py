@@ -12,7 +12,7 @@ from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from aac_sumo import config, runner
-from aac_sumo.coordination.anticipation import Anticipation, anticipated_reference, speed_cap, stop_points
+from aac_sumo.coordination.anticipation import Anticipation, anticipated_reference, intended_courses, speed_cap, stop_points
 from aac_sumo.coordination.lfc import LfcCoordinator
 from aac_sumo.coordination.tracking import track
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
@@ -404,3 +404,28 @@ def test_a_slow_car_yields_to_a_walker_who_reaches_its_path_before_it_has_passed
     stops = stop_points(world, 0, task, params)
     assert len(stops) == 1 and stops[0, 1] == 0.0
     assert stops[0, 0] < 4.5 - params.gap  # it stops with the gap and the margin before her
+
+
+def lane_change_path(x0: float, y0: float, dy: float, start: float = 5.0, length: float = 40.0) -> PathReference:
+    """A lane change of ``dy`` [m] from (x0, y0), beginning ``start`` [m] on and ``length`` [m] long."""
+    x = x0 + np.linspace(0.0, 200.0, 401)
+    u = np.clip((x - x0 - start) / length, 0.0, 1.0)
+    return PathReference(np.column_stack([x, y0 + dy * (3.0 * u**2 - 2.0 * u**3)]), 10.0)
+
+
+def test_a_car_changing_lanes_beside_one_that_changes_the_same_way_is_not_cutting_in():
+    """Two cars 9 m apart in neighbouring lanes both move one lane to the left. Seen at its
+    heading (straight on, as at the start), the car ahead cuts into the diagonal path of the car
+    behind, which brakes for it; seen on its course along its own task, it does not count. A
+    car ahead that keeps its lane is in the way of the one merging into that lane on either
+    view."""
+    params = Anticipation()
+    behind, ahead = lane_change_path(0.0, -3.2, 3.2), lane_change_path(9.0, 0.0, 3.2)
+    keeping = PathReference(np.column_stack([9.0 + np.linspace(0.0, 200.0, 401), np.zeros(401)]), 10.0)
+    states = np.array([[0.0, -3.2, 0.0, 10.0], [9.0, 0.0, 0.0, 10.0]])
+    world = WorldState(0.0, states, [CAR, CAR])
+    assert len(stop_points(world, 0, behind, params)) == 1  # at its heading
+    parallel = intended_courses(world, [behind, ahead], 0.5 * params.cut_in)
+    assert len(stop_points(dataclasses.replace(world), 0, behind, params, courses=parallel)) == 0
+    staying = intended_courses(world, [behind, keeping], 0.5 * params.cut_in)
+    assert len(stop_points(dataclasses.replace(world), 0, behind, params, courses=staying)) == 1

@@ -88,32 +88,51 @@ def across_extent(length, width, relative_heading) -> np.ndarray:
     return 0.5 * np.abs(length * np.sin(relative_heading)) + 0.5 * np.abs(width * np.cos(relative_heading))
 
 
-def agents(world: WorldState) -> tuple[np.ndarray, ...]:
+def agents(world: WorldState, courses: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
     """Every agent on the road but the robots off it, as arrays over them: the robot index
     (-1 for an obstacle), footprint centre (K, 2) [m], heading [rad], length and width [m],
     velocity (K, 2) [m/s], whether it is a walker, and its longitudinal acceleration [m/s^2]
-    (an obstacle's estimate, :attr:`~aac_sumo.world.Obstacle.accel`; 0 for a robot). Computed
-    once per world (a snapshot)."""
-    cached = world.__dict__.get("_agents")
+    (an obstacle's estimate, :attr:`~aac_sumo.world.Obstacle.accel`; 0 for a robot). With
+    ``courses`` (n,) [rad], a robot's velocity points along its course there (where its task
+    takes it, :func:`intended_courses`) instead of its heading. Computed once per world (a
+    snapshot) and courses."""
+    key = ("_agents", courses is None)
+    cached = world.__dict__.get(key)
     if cached is None:
         robots = np.flatnonzero(world.on_road)
         obstacles = world.obstacles
         heading = world.states[robots, 2]
+        course = heading if courses is None else np.asarray(courses, dtype=float)[robots]
         cached = (np.r_[robots, np.full(len(obstacles), -1)],
                   np.vstack([world.robot_centres()[robots]] + [o.centre[None, :] for o in obstacles]).reshape(-1, 2),
                   np.r_[heading, [o.heading for o in obstacles]],
                   np.r_[[world.robots[j].length for j in robots], [o.length for o in obstacles]],
                   np.r_[[world.robots[j].width for j in robots], [o.width for o in obstacles]],
-                  np.vstack([world.states[robots, 3:4] * np.column_stack([np.cos(heading), np.sin(heading)])]
+                  np.vstack([world.states[robots, 3:4] * np.column_stack([np.cos(course), np.sin(course)])]
                             + [np.asarray(o.velocity, dtype=float)[None, :] for o in obstacles]).reshape(-1, 2),
                   np.array([False] * len(robots) + [o.kind == "pedestrian" for o in obstacles], dtype=bool),
                   np.r_[np.zeros(len(robots)), [o.accel for o in obstacles]])
-        world.__dict__["_agents"] = cached
+        world.__dict__[key] = cached
     return cached
 
 
+def intended_courses(world: WorldState, tasks: list[PathReference], preview: float) -> np.ndarray:
+    """Each robot's course [rad] (n,): the heading of its task's path ``preview`` [s] ahead at its
+    speed (at least 1 m/s), where the path takes it; its heading where the path leaves the heading
+    free (the goal approach). The robots share their tasks: a car that changes lanes beside
+    another that changes lanes the same way is not cutting into its path (seen at its heading, a
+    car keeping straight in its lane was cutting into the diagonal path of each car beside it that
+    moved into that lane, and the 15 cars of the bundled road braked each other from 10 to 5 m/s)."""
+    courses = world.states[:, 2].copy()
+    for j, (task, state) in enumerate(zip(tasks, world.states)):
+        if world.on_road[j] and not task.heading_free(state):
+            s = task.project(state[:2])[0] + max(abs(float(state[3])), 1.0) * preview
+            courses[j] = float(task.pose_at(s)[0, 2])
+    return courses
+
+
 def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipation, held: dict | None = None,
-                projected: tuple[float, float] | None = None) -> np.ndarray:
+                projected: tuple[float, float] | None = None, courses: np.ndarray | None = None) -> np.ndarray:
     """Rows ``[s_stop, v_lead, grow]`` (K, 3) of what robot ``i`` must stay behind on ``task``'s
     path: the arc length [m] where its rear axle must be able to come down to the speed
     ``v_lead`` [m/s] (>= 0) of what lies ahead, and how much room [m] per m/s of the robot's
@@ -121,11 +140,12 @@ def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipa
     [s]). ``held`` (walker name -> the time [s] it last counted, updated here) keeps a walker
     counting for ``hold`` seconds after it last did, while it is still ahead on the path and not
     walking away from it: a walker who pauses on the crossing for a moment is yielded to still.
-    ``projected``: the robot's ``task.project`` when the caller has it. The loop is compiled
+    ``projected``: the robot's ``task.project`` when the caller has it; ``courses``: the robots'
+    courses (:func:`intended_courses`; None: their headings). The loop is compiled
     (:func:`aac_sumo.kernels.stop_rows`)."""
     robot, state = world.robots[i], world.states[i]
     s0, off0 = task.project(state[:2]) if projected is None else projected
-    index, centres, headings, lengths, widths, velocity, walker, accel = agents(world)
+    index, centres, headings, lengths, widths, velocity, walker, accel = agents(world, courses)
     rows = np.flatnonzero(index == i)
     held_since = np.full(len(index), -np.inf)
     walkers = _walker_rows(world) if held is not None else []
@@ -185,7 +205,7 @@ def speed_cap(stops: np.ndarray, s, decel: float) -> np.ndarray:
 
 
 def anticipated_reference(world: WorldState, i: int, task: PathReference, steps: int, dt: float, params: Anticipation,
-                          held: dict | None = None, stop_ahead=()) -> np.ndarray:
+                          held: dict | None = None, stop_ahead=(), courses: np.ndarray | None = None) -> np.ndarray:
     """Robot ``i``'s reference (steps+1, 4) along ``task``'s path: its speeds start at the
     robot's speed and change by at most ``accel`` / ``decel`` [m/s^2] from stage to stage
     towards the path's speed, capped by :func:`speed_cap` of :func:`stop_points`; with ``brake``
@@ -194,21 +214,21 @@ def anticipated_reference(world: WorldState, i: int, task: PathReference, steps:
     (``robot.a_comfort``). Its positions follow the speeds.
     ``held``: the walkers it yields to, as in :func:`stop_points`. ``stop_ahead`` [m]: more
     places to stop at, as distances of the rear axle along the path from where it is (before a
-    walker's path, where the safety stop holds the robot)."""
+    walker's path, where the safety stop holds the robot). ``courses``: as in :func:`stop_points`."""
     state = world.states[i]
-    s, v = anticipated_speeds(world, i, task, steps, dt, params, held, stop_ahead)
+    s, v = anticipated_speeds(world, i, task, steps, dt, params, held, stop_ahead, courses)
     poses = task.pose_at(s)
     heading = state[2] + wrap_angle(poses[:, 2] - state[2])
     return np.column_stack([poses[:, :2], heading, v])
 
 
 def anticipated_speeds(world: WorldState, i: int, task: PathReference, steps: int, dt: float, params: Anticipation,
-                       held: dict | None = None, stop_ahead=()) -> tuple[np.ndarray, np.ndarray]:
+                       held: dict | None = None, stop_ahead=(), courses: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The arc lengths [m] and speeds [m/s] (steps+1,) of :func:`anticipated_reference`."""
     state = world.states[i]
     projected = task.project(state[:2])
     s0 = projected[0]
-    stops = stop_points(world, i, task, params, held, projected)
+    stops = stop_points(world, i, task, params, held, projected, courses)
     ahead = np.asarray(stop_ahead, dtype=float).reshape(-1)
     if ahead.size:
         stops = np.vstack([stops, np.column_stack([s0 + ahead, np.zeros((ahead.size, 2))])])

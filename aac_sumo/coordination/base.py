@@ -11,7 +11,7 @@ from typing import Callable
 import numpy as np
 
 from aac_sumo.barriers import ObstaclePrediction, RegionTrack
-from aac_sumo.coordination.anticipation import Anticipation, anticipated_reference, anticipated_speeds, near_pedestrian
+from aac_sumo.coordination.anticipation import Anticipation, anticipated_reference, anticipated_speeds, intended_courses, near_pedestrian
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.coordination.safety import SafetyCheck, WalkerSpeeds
 from aac_sumo.mpc.planner import FALLBACK_TURN_TIME, MpcPlanner, Plan
@@ -114,6 +114,7 @@ class Coordinator(ABC):
         self.held: list[dict] = [{} for _ in tasks]  # per robot, the walkers it yields to (anticipation.stop_points)
         self.walker_speeds = WalkerSpeeds()  # the walkers' speeds of late, for the safety stop
         self.strips: np.ndarray | None = None  # this period's distances to walkers' paths the safety stop holds robots before
+        self.courses: np.ndarray | None = None  # this period's courses of the robots along their tasks (anticipation.intended_courses)
         cfg = planner.config
         self.speeds = SpeedHistory(cfg.prediction_window, cfg.dt) if cfg.prediction == "constant_acceleration" else None
 
@@ -128,6 +129,8 @@ class Coordinator(ABC):
         if self.speeds is not None:
             world = self.speeds.annotate(world)
         self.strips = None
+        if self.anticipation is not None:
+            self.courses = intended_courses(world, self.tasks, 0.5 * self.anticipation.cut_in)
         decision = self._decide(world)
         decision.compute_ms = (time.perf_counter() - start) * 1e3
         self.last_inputs = decision.inputs.copy()
@@ -162,7 +165,7 @@ class Coordinator(ABC):
         cfg = self.planner.config
         if self.anticipation is not None and not self.tasks[i].heading_free(world.states[i]):
             return anticipated_reference(world, i, self.tasks[i], cfg.horizon, cfg.dt, self.anticipation, self.held[i],
-                                         self.strips_ahead(i))
+                                         self.strips_ahead(i), self.courses)
         return self.tasks[i].horizon(world.states[i], cfg.horizon, cfg.dt)
 
     def tracking_lat(self) -> float | None:
@@ -215,7 +218,7 @@ class Coordinator(ABC):
             return None
         dt = self.planner.config.dt
         ahead = max(1, int(round(1.0 / (speed_gain * dt))))
-        v = anticipated_speeds(world, i, self.tasks[i], ahead, dt, self.anticipation, self.held[i], self.strips_ahead(i))[1]
+        v = anticipated_speeds(world, i, self.tasks[i], ahead, dt, self.anticipation, self.held[i], self.strips_ahead(i), self.courses)[1]
         ends = max(1, int(np.argmax(np.abs(v - v[-1]) < 1e-9)))  # the first stage at the ramp's last speed
         return float(v[0] + (v[ends] - v[0]) / (ends * dt * speed_gain))
 

@@ -146,7 +146,7 @@ class CommittedAac(AacCoordinator):
             return None
         head = np.asarray(head, dtype=float).reshape(-1, 2)
         rules, robot = self.anticipation, world.robots[i]
-        stops = stop_points(world, i, task, rules, self.held[i])  # [s_stop, v_lead, grow]: what it must stay behind, as now
+        stops = stop_points(world, i, task, rules, self.held[i], courses=self.courses)  # [s_stop, v_lead, grow]: what it must stay behind, as now
         state = self.fleet.rollout(np.array([i]), world.states[[i]], head[None], cfg.dt)[0, -1]
         steer = float(head[-1, 1]) if len(head) else float(self.last_inputs[i, 1])
         shift = self.keep_right_shift(world, i)
