@@ -129,7 +129,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("table", help="one of the paper's tables, ours beside the paper's values; or the circle swap",
                        description="swarm: Table I (AAC vs LFC, horizons 5/10/15); lane-change: Table II (SUMO); "
-                       "braking: Table III (CBF vs F-CBF, once per controller.prediction, the scenario's own first); circle-swap: AAC vs LFC with 8/16/24 robots on radii 4/6/8 m "
+                       "braking: Table III (CBF vs F-CBF, in the paper's formulation without a terminal condition, then in ours with it; once per "
+                       "controller.prediction, the scenario's own first); circle-swap: AAC vs LFC with 8/16/24 robots on radii 4/6/8 m "
                        "(not in the paper). swarm and circle-swap give AAC and LFC the same emergency layers in every "
                        "run (the safety_layers column): off = neither has the safety stop (the paper), on = both have it.")
     p.add_argument("name", choices=TABLES, metavar="{" + ",".join(TABLES) + "}")
@@ -137,6 +138,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--layers", choices=LAYER_CHOICES, metavar="{" + ",".join(LAYER_CHOICES) + "}",
                    help="swarm and circle-swap: aac.safety_stop and lfc.safety_stop, set together: off (the paper), "
                    "on, or both settings (default: both for swarm, off for circle-swap)")
+    p.add_argument("--sensitivity", action="store_true",
+                   help="braking: also each barrier over gamma (and F-CBF over mu1) on the next K seeds, "
+                   "into sensitivity.md and sensitivity.csv")
     add_set(p)
     p.add_argument("--out", type=Path, help="output directory (default out/table/<name>)")
     add_executor(p, resume=True)
@@ -370,6 +374,10 @@ def cmd_table(args) -> int:
             raise UsageError(f"table {args.name}: --layers: expected one of the tables {', '.join(tables.LAYERED)} "
                              f"(table {args.name} does not switch emergency layers)")
         extra["layers"] = args.layers
+    if args.sensitivity:
+        if args.name != "braking":
+            raise UsageError(f"table {args.name}: --sensitivity: expected table braking (the only table with a sensitivity grid)")
+        extra["sensitivity"] = True
     _check_out(out)
     _, text, runs = tables.BUILDERS[args.name](args.seeds, args.workers, out, list(args.sets), progress=not args.no_progress,
                                                 scheduler=args.scheduler, resume=args.resume, **extra)

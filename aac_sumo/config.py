@@ -185,7 +185,8 @@ COMMON: dict[str, dict[str, Key]] = {
         "tree_step": Key(float, 0.3, "sampling-tree step length [m]", **P),
         "sample_radius": Key(float, 3.0, "sampling-tree samples are drawn within this radius of the robot [m]", **P),
         "collision_radius": Key(float, 1.0, "a tree node closer than this to another robot costs (1 - d/r)^2 [m]", **P),
-        "safety_stop": Key(bool, True, "non-authority robots brake when their stored input would take them into another's region"),
+        "safety_stop": Key(bool, False, "non-authority robots brake when their stored input would take them into another's region "
+                           "(off by default, as lfc.safety_stop: the paper has no such layer)"),
         "safety_margin": Key(float, 0.1, "footprint gap below which the safety stop triggers [m]", **NN),
         "lookahead": Key(float, 1.0, "pure-pursuit lookahead of the tracking law for robots without a plan [m]", **P),
         "speed_gain": Key(float, 1.0, "speed-error gain of the tracking law [1/s]", **P),

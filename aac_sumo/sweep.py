@@ -157,7 +157,8 @@ def read_results(path: Path, grid_keys: list[str]) -> list[dict]:
                          f"({', '.join(grid_keys)}) and the metric columns, got grid keys {got}")
     # a row cut short by a hard kill while it was written is not a finished run
     rows = [r for r in rows if None not in r and None not in r.values() and r.get("status") in ("ok", "error")]
-    return [{k: (v if k in ("status", "error") else _parse_cell(v)) for k, v in r.items()} for r in rows]
+    text = ("status", "error", *PROVENANCE_KEYS)  # as written: a hash such as 5394e80056649392 is no number
+    return [{k: (v if k in text else _parse_cell(v)) for k, v in r.items()} for r in rows]
 
 
 def _parse_cell(text: str) -> Any:

@@ -470,7 +470,7 @@ def test_a_robot_whose_solve_fails_brakes_or_tracks(fallback):
     passes here (driving along the cone does not bring the footprints closer)."""
     world, tasks = hemmed_in_world()
     lfc = LfcCoordinator(planner(), tasks, params=LfcParams(safety_stop=True, safety_margin=0.05, fallback=fallback, lookahead=1.0))
-    aac = AacCoordinator(planner(), tasks, params=AacParams(close_distance=0.5, safety_margin=0.05, fallback=fallback, commit=False))
+    aac = AacCoordinator(planner(), tasks, params=AacParams(close_distance=0.5, safety_stop=True, safety_margin=0.05, fallback=fallback, commit=False))
     for decision in (lfc.decide(world), aac.decide(world)):
         assert decision.robots[0].authority and decision.robots[0].status in ("infeasible", "failed")
         if fallback == "brake":
@@ -509,7 +509,7 @@ def test_the_authority_may_leave_its_follower_to_the_safety_stop(ignore):
     goals = np.array([[10.0, 0.0], [10.0, 0.0], [10.0, 0.6]])
     world = WorldState(0.0, states, [robot(i) for i in range(3)])
     pl = RecordingPlanner(planner().config)
-    aac = AacCoordinator(pl, straight_tasks(states, goals), params=AacParams(close_distance=0.1, ignore_followers=ignore, commit=False))
+    aac = AacCoordinator(pl, straight_tasks(states, goals), params=AacParams(close_distance=0.1, safety_stop=True, ignore_followers=ignore, commit=False))
     aac.decide(world)
     (name, seen), = pl.calls
     assert name == "robot0" and "robot2" in seen

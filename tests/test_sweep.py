@@ -85,14 +85,14 @@ def test_braking_table_short(capsys, tmp_path):
                "--no-progress"])
     assert rc == 0, capsys.readouterr().err
     cols, rows = read_rows(tmp_path / "table.csv")
-    assert cols[:3] == ["barrier", "speed", "prediction"]
+    assert cols[:4] == ["barrier", "speed", "formulation", "prediction"]
     assert {"infeasibility_rate", "min_distance_m", "ttc_mean_s", "collisions", "min_clearance_m",
             "paper_infeasibility_rate", "paper_min_distance_m", "paper_ttc_mean_s"} <= set(cols)
     assert not any(c.endswith("_std") for c in cols)
     own = config.load("braking")["controller.prediction"]
     order = sorted(PREDICTIONS, key=lambda p: p != own)  # the scenario's own prediction first
-    assert [(r["prediction"], r["barrier"], r["speed"]) for r in rows] == [
-        (p, b, str(s)) for p in order for s in (5, 10, 15, 20, 25) for b in ("cbf", "fcbf")]
+    assert [(r["formulation"], r["prediction"], r["barrier"], r["speed"]) for r in rows] == [  # the paper's formulation first
+        (f, p, b, str(s)) for f in ("paper", "ours") for p in order for s in (5, 10, 15, 20, 25) for b in ("cbf", "fcbf")]
     paper = {(r["prediction"], r["barrier"], r["speed"]): (r["paper_infeasibility_rate"], r["paper_min_distance_m"]) for r in rows}
     for p in PREDICTIONS:
         assert paper[(p, "cbf", "5")] == ("0.433", "1.5")
@@ -100,11 +100,13 @@ def test_braking_table_short(capsys, tmp_path):
         assert paper[(p, "fcbf", "25")] == ("", "")
     md = (tmp_path / "table.md").read_text()
     assert "| CBF | 5 |" in md and "43.3%" in md and "—" in md
-    assert md.index("## Prediction: " + own.replace("_", " ") + " (the scenario's default)") < md.index("## Prediction: " + order[1].replace("_", " "))
+    assert md.index("## The paper's formulation") < md.index("### Prediction: " + own.replace("_", " ") + " (the scenario's default)") \
+        < md.index("### Prediction: " + order[1].replace("_", " ")) < md.index("## Ours: with the terminal stopping condition")
     assert md in capsys.readouterr().out
     _, results = read_rows(tmp_path / "results.csv")
-    assert len(results) == 20
+    assert len(results) == 40
     assert {r["prediction"] for r in results} == set(PREDICTIONS)
+    assert {r["formulation"] for r in results} == {"paper", "ours"}
 
 
 def test_braking_table_sets_the_prediction_itself(capsys, tmp_path):
@@ -112,6 +114,32 @@ def test_braking_table_sets_the_prediction_itself(capsys, tmp_path):
     assert rc == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "controller.prediction" in err
+
+
+def sensitivity_run(barrier, gamma, mu1, speed, collisions=0, infeasible=0.0, distance=1.0):
+    return {"barrier": barrier, "gamma": gamma, "mu1": mu1, "braking.speed": speed, "status": "ok", "collisions": collisions,
+            "infeasibility_rate": infeasible, "min_distance_m": distance, "min_clearance_m": distance - 1.0}
+
+
+def test_the_sensitivity_table_picks_each_barriers_best_setting_and_states_which_claims_hold():
+    """Best: the fewest collisions, then the fewest infeasible solves, then the largest smallest
+    distance. The claims count the settings at 5-15 m/s only (20 m/s is not the paper's)."""
+    runs = [sensitivity_run("cbf", 0.1, None, 5, infeasible=0.2), sensitivity_run("cbf", 0.1, None, 20, collisions=1),
+            sensitivity_run("cbf", 0.3, None, 5, collisions=1), sensitivity_run("cbf", 0.3, None, 20),
+            sensitivity_run("fcbf", 0.1, 0.2, 5, distance=1.0), sensitivity_run("fcbf", 0.1, 0.2, 20, collisions=1),
+            sensitivity_run("fcbf", 0.3, 0.2, 5, distance=2.0), sensitivity_run("fcbf", 0.3, 0.2, 20, collisions=1, distance=2.0)]
+    rows = table_braking.sensitivity_rows(runs, seeds=1)
+    assert table_braking.best_settings(rows) == {"cbf": ("cbf", 0.3, None), "fcbf": ("fcbf", 0.3, 0.2)}
+    claims = "\n".join(table_braking.sensitivity_claims(rows))
+    assert "(the paper's claim): 2 of 2 settings." in claims  # F-CBF's collisions are at 20 m/s only
+    assert "(the paper's contrast): 2 of 2 settings." in claims
+    assert "F-CBF no worse than CBF at the same γ" in claims
+
+
+def test_only_the_braking_table_has_a_sensitivity_grid(capsys, tmp_path):
+    assert main(["table", "swarm", "--sensitivity", "--out", str(tmp_path / "t"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "--sensitivity" in err
 
 
 def test_table_rows_with_seeds():
@@ -224,3 +252,18 @@ def test_executor_map_yields_exceptions_and_results():
 
 def _reciprocal(x: float) -> float:
     return 1 / x
+
+
+def test_resumed_rows_keep_their_provenance_as_written(tmp_path):
+    """A scenario hash or a commit that reads as a number (5394e80056649392 is 5394 x 10^80056649392)
+    comes back as the text it was, so a resumed results.csv is the file it was."""
+    keys = ["controller.barrier"]
+    row = {c: "" for c in sweep.columns(keys)} | {"controller.barrier": "cbf", "seed": "0", "status": "ok",
+                                                   "scenario_hash": "5394e80056649392", "git_commit": "1234567e12"}
+    path = tmp_path / "results.csv"
+    with open(path, "w", newline="") as fh:
+        writer = csv.DictWriter(fh, fieldnames=sweep.columns(keys), lineterminator="\n")
+        writer.writeheader()
+        writer.writerow(row)
+    (back,) = sweep.read_results(path, keys)
+    assert back["scenario_hash"] == "5394e80056649392" and back["git_commit"] == "1234567e12" and back["seed"] == 0

@@ -55,7 +55,7 @@ class AacParams:
 
     close_distance: float = 2.0
     proximity: ProximityParams = ProximityParams()
-    safety_stop: bool = True
+    safety_stop: bool = False
     safety_margin: float = 0.1
     lookahead: float = 1.0
     speed_gain: float = 1.0
