@@ -236,6 +236,9 @@ COMMON: dict[str, dict[str, Key]] = {
         "ignore_followers": Key(bool, False, "a robot does not avoid robots straight behind it: they keep their distance "
                                 "through the safety stop (needs safety_stop); nor does the safety stop brake for uncontrolled vehicles "
                                 "behind a robot that drive its way (SUMO's cars keep their own distance)"),
+        "commit": Key(bool, False, "committed plans (prioritized planning): every robot plans in index order around the "
+                      "others' commitments and commits only where the exact check passes, with [aac]'s committed-plan "
+                      "settings and deadlock rules; false = the paper's LFC"),
     },
     "metrics": {
         "accel_threshold": Key(float, 3.0, "|longitudinal acceleration| that counts as aggressive [m/s^2]", **P),

@@ -15,6 +15,7 @@ from aac_sumo.coordination.anticipation import Anticipation
 from aac_sumo.coordination.base import Coordinator, Finished
 from aac_sumo.coordination.independent import IndependentCoordinator
 from aac_sumo.coordination.lfc import LfcCoordinator, LfcParams
+from aac_sumo.coordination.prioritized import PrioritizedLfc
 from aac_sumo.coordination.proximity import ProximityParams
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.geometry import pairwise_rect_clearance
@@ -116,8 +117,17 @@ def aac_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corridors, f
 
 
 @register_coordinator("lfc")
-def lfc_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corridors, finished) -> LfcCoordinator:
+def lfc_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corridors, finished) -> LfcCoordinator | PrioritizedLfc:
+    """The paper's LFC, or with ``lfc.commit`` prioritized planning on committed plans (its
+    committed-plan settings from ``[aac]``, its safety options from ``[lfc]``)."""
     _check_safety_options(scenario, "lfc")
+    if scenario["lfc.commit"]:
+        f = scenario.data["lfc"]
+        params = dataclasses.replace(aac_params(scenario), commit=True, safety_stop=f["safety_stop"], safety_margin=f["safety_margin"],
+                                     fallback=f["fallback"], lookahead=f["lookahead"], speed_gain=f["speed_gain"],
+                                     ignore_followers=f["ignore_followers"],
+                                     detour=scenario["aac.detour"] and scenario["aac.commit"])
+        return PrioritizedLfc(planner, tasks, corridors, finished, params=params)
     return LfcCoordinator(planner, tasks, corridors, finished, params=lfc_params(scenario))
 
 
