@@ -125,19 +125,23 @@ def build_parser() -> argparse.ArgumentParser:
     add_executor(p, resume=False)
 
     from aac_sumo.table_common import LAYER_CHOICES
+    from aac_sumo.table_ablation import CASES as ABLATION_CASES
     from aac_sumo.tables import TABLES
 
     p = sub.add_parser("table", help="one of the paper's tables, ours beside the paper's values; or the circle swap",
                        description="swarm: Table I (AAC vs LFC, horizons 5/10/15); lane-change: Table II (SUMO); "
                        "braking: Table III (CBF vs F-CBF, in the paper's formulation without a terminal condition, then in ours with it; once per "
                        "controller.prediction, the scenario's own first); circle-swap: AAC vs LFC with 8/16/24 robots on radii 4/6/8 m "
-                       "(not in the paper). swarm and circle-swap give AAC and LFC the same emergency layers in every "
+                       "(not in the paper); ablation: AAC and LFC as in the paper, with committed plans and with everything, "
+                       "beside the baselines, on S1, the circle swaps, the random crossing, S2 and the highway. swarm and circle-swap give AAC and LFC the same emergency layers in every "
                        "run (the safety_layers column): off = neither has the safety stop (the paper), on = both have it.")
     p.add_argument("name", choices=TABLES, metavar="{" + ",".join(TABLES) + "}")
     p.add_argument("--seeds", type=_positive_int, default=1, metavar="K", help="seeds per cell (default 1)")
     p.add_argument("--layers", choices=LAYER_CHOICES, metavar="{" + ",".join(LAYER_CHOICES) + "}",
                    help="swarm and circle-swap: aac.safety_stop and lfc.safety_stop, set together: off (the paper), "
                    "on, or both settings (default: both for swarm, off for circle-swap)")
+    p.add_argument("--cases", default=None, metavar="C1,C2,...",
+                   help="ablation: only these cases (default all: " + ",".join(c[0] for c in ABLATION_CASES) + ")")
     p.add_argument("--sensitivity", action="store_true",
                    help="braking: also each barrier over gamma (and F-CBF over mu1) on the next K seeds, "
                    "into sensitivity.md and sensitivity.csv")
@@ -374,6 +378,12 @@ def cmd_table(args) -> int:
             raise UsageError(f"table {args.name}: --layers: expected one of the tables {', '.join(tables.LAYERED)} "
                              f"(table {args.name} does not switch emergency layers)")
         extra["layers"] = args.layers
+    if args.cases is not None:
+        if args.name != "ablation":
+            raise UsageError(f"table {args.name}: --cases: expected table ablation (the only table with cases)")
+        from aac_sumo.table_ablation import CASES
+
+        extra["cases"] = _names(args.cases, "--cases", tuple(c[0] for c in CASES))
     if args.sensitivity:
         if args.name != "braking":
             raise UsageError(f"table {args.name}: --sensitivity: expected table braking (the only table with a sensitivity grid)")
@@ -382,18 +392,19 @@ def cmd_table(args) -> int:
     _, text, runs = tables.BUILDERS[args.name](args.seeds, args.workers, out, list(args.sets), progress=not args.no_progress,
                                                 scheduler=args.scheduler, resume=args.resume, **extra)
     print(text, end="")
-    print(f"outputs: {out / 'table.csv'}, {out / 'table.md'}, {out / 'results.csv'}")
+    runs_file = out / "CASE" / "results.csv" if args.name == "ablation" else out / "results.csv"
+    print(f"outputs: {out / 'table.csv'}, {out / 'table.md'}, {runs_file}")
     return _report_failures(runs)
 
 
 def _names(text: str | None, flag: str, known: tuple[str, ...]) -> tuple[str, ...]:
-    """The comma-separated names of a bench ``flag`` (all of ``known`` without it); a one-line
-    usage error for a name not among them."""
+    """The comma-separated names of a ``flag`` (all of ``known`` without it); a one-line usage
+    error for a name not among them."""
     if text is None:
         return known
     names = tuple(s.strip() for s in text.split(","))
     if not names or any(s not in known for s in names):
-        raise UsageError(f"bench: {flag} {text!r}: expected names among {', '.join(known)}")
+        raise UsageError(f"{flag} {text!r}: expected names among {', '.join(known)}")
     return names
 
 

@@ -16,12 +16,13 @@ from __future__ import annotations
 from pathlib import Path
 
 from aac_sumo import config, sweep
+from aac_sumo.table_ablation import ablation_table
 from aac_sumo.table_braking import braking_table
 from aac_sumo.table_common import (COORDINATORS, LAYER_KEYS, SAFETY_LAYERS, check_table_sets, fill_metrics, layer_sets,
                                    layered_markdown, layers_of, run_grid, write_csv)
 
 
-TABLES = ("swarm", "lane-change", "braking", "circle-swap")
+TABLES = ("swarm", "lane-change", "braking", "circle-swap", "ablation")
 
 # --- Tables I and II: AAC against LFC over the MPC horizon ------------------------------------
 
@@ -264,7 +265,7 @@ def lane_change_table(seeds: int, workers: int | None, out: Path, sets: list[str
     return rows, text, runs
 
 
-BUILDERS = {"swarm": swarm_table, "lane-change": lane_change_table, "braking": braking_table,
+BUILDERS = {"swarm": swarm_table, "lane-change": lane_change_table, "braking": braking_table, "ablation": ablation_table,
             "circle-swap": circle_swap_table}
 
 #: The tables that run AAC and LFC with switchable emergency layers, and their ``--layers`` default.
