@@ -140,6 +140,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--layers", choices=LAYER_CHOICES, metavar="{" + ",".join(LAYER_CHOICES) + "}",
                    help="swarm and circle-swap: aac.safety_stop and lfc.safety_stop, set together: off (the paper), "
                    "on, or both settings (default: both for swarm, off for circle-swap)")
+    p.add_argument("--baselines", action="store_true",
+                   help="swarm, circle-swap, lane-change: also the baseline coordinators that drive the table's kind "
+                   "(ORCA and CBF-QP on the swarms, SUMO's own driver on the road), with the paper's layer setting")
     p.add_argument("--cases", default=None, metavar="C1,C2,...",
                    help="ablation: only these cases (default all: " + ",".join(c[0] for c in ABLATION_CASES) + ")")
     p.add_argument("--sensitivity", action="store_true",
@@ -378,6 +381,10 @@ def cmd_table(args) -> int:
             raise UsageError(f"table {args.name}: --layers: expected one of the tables {', '.join(tables.LAYERED)} "
                              f"(table {args.name} does not switch emergency layers)")
         extra["layers"] = args.layers
+    if args.baselines:
+        if args.name not in ("swarm", "circle-swap", "lane-change"):
+            raise UsageError(f"table {args.name}: --baselines: expected table swarm, circle-swap or lane-change")
+        extra["baselines"] = True
     if args.cases is not None:
         if args.name != "ablation":
             raise UsageError(f"table {args.name}: --cases: expected table ablation (the only table with cases)")

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from aac_sumo import config, sweep
 from aac_sumo.registry import COORDINATORS
-from aac_sumo.table_common import _fmt, _num, fill_metrics, run_grid, write_csv
+from aac_sumo.table_common import BASELINE_LABELS, BASELINES, _fmt, _num, baselines_for, fill_metrics, run_grid, write_csv
 
 #: Keys that switch AAC's extensions and emergency layer off (the paper's plain settings).
 AAC_PLAIN = ("aac.safety_stop=false", "aac.fallback=brake", "aac.ignore_followers=false", "aac.make_room=false",
@@ -35,11 +35,6 @@ VARIANTS = (
                                           "lfc.fallback=brake", "lfc.ignore_followers=false")),
     ("lfc_committed", "LFC, committed plans (prioritized)", ("controller.coordinator=lfc", "lfc.commit=true")),
 )
-#: Baseline coordinators and the scenario kinds they drive.
-BASELINES = {"orca": ("swarm_rescue", "circle_swap", "random_crossing"),
-             "cbf_qp": ("swarm_rescue", "circle_swap", "random_crossing"),
-             "sumo": ("lane_change",)}
-BASELINE_LABELS = {"orca": "ORCA (RVO2)", "cbf_qp": "CBF-QP safety filter", "sumo": "SUMO's own driver"}
 #: ``(case, scenario, overrides, label)``: S1, the paired circle swaps, the 20-robot crossing, S2, the highway.
 CASES = (
     ("swarm", "swarm_rescue", (), "S1 swarm rescue"),
@@ -61,11 +56,7 @@ COLUMNS = (("Completed", "completed", "pct"), ("Task [s]", "task_duration_s", "f
 
 def variants_for(kind: str) -> list[tuple[str, str, tuple[str, ...]]]:
     """The AAC and LFC variants, then every registered baseline that drives ``kind``."""
-    out = list(VARIANTS)
-    for name, kinds in BASELINES.items():
-        if kind in kinds and name in COORDINATORS:
-            out.append((name, BASELINE_LABELS[name], (f"controller.coordinator={name}",)))
-    return out
+    return list(VARIANTS) + [(name, BASELINE_LABELS[name], (f"controller.coordinator={name}",)) for name in baselines_for(kind)]
 
 
 def missing_baselines(kind: str) -> list[str]:

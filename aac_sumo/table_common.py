@@ -60,7 +60,19 @@ def plan_bundled_tasks(scenario: str, sets: list[str], bundles, grid, seeds: int
 
 
 COORDINATORS = ("aac", "lfc")
-COORDINATOR_LABELS = {"aac": "AAC-MPC-FCBF", "lfc": "LFC-MPC-FCBF"}
+#: Baseline coordinators (``controller.coordinator``), the scenario kinds they drive, and their labels.
+BASELINES = {"orca": ("swarm_rescue", "circle_swap", "random_crossing"),
+             "cbf_qp": ("swarm_rescue", "circle_swap", "random_crossing"),
+             "sumo": ("lane_change",)}
+BASELINE_LABELS = {"orca": "ORCA (RVO2)", "cbf_qp": "CBF-QP safety filter", "sumo": "SUMO's own driver"}
+COORDINATOR_LABELS = {"aac": "AAC-MPC-FCBF", "lfc": "LFC-MPC-FCBF"} | BASELINE_LABELS
+
+
+def baselines_for(kind: str) -> tuple[str, ...]:
+    """The registered baseline coordinators that drive scenarios of ``kind``."""
+    from aac_sumo.registry import COORDINATORS as REGISTERED
+
+    return tuple(name for name, kinds in BASELINES.items() if kind in kinds and name in REGISTERED)
 
 
 def _cell(value) -> str:
@@ -133,7 +145,8 @@ def markdown_table(rows: list[dict], first, columns) -> list[str]:
     lines = ["| " + " | ".join([h for h, _ in first] + [h for h, _, _ in columns]) + " |",
              "|---|" + "---:|" * (len(first) - 1 + len(columns))]
     for r in rows:
-        cells = [COORDINATOR_LABELS.get(r[key], r[key]) if key == "coordinator" else str(r[key]) for _, key in first]
+        cells = [COORDINATOR_LABELS.get(r[key], r[key]) if key == "coordinator" else "—" if r[key] is None else str(r[key])
+                 for _, key in first]
         for _, key, kind in columns:
             plain = key.startswith("paper_") or kind == "pct"
             cells.append(_fmt(r[key], None if plain else r.get(f"{key}_std"), kind))

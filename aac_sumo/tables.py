@@ -18,8 +18,8 @@ from pathlib import Path
 from aac_sumo import config, sweep
 from aac_sumo.table_ablation import ablation_table
 from aac_sumo.table_braking import braking_table
-from aac_sumo.table_common import (COORDINATORS, LAYER_KEYS, SAFETY_LAYERS, check_table_sets, fill_metrics, layer_sets,
-                                   layered_markdown, layers_of, run_grid, write_csv)
+from aac_sumo.table_common import (COORDINATORS, LAYER_KEYS, SAFETY_LAYERS, baselines_for, check_table_sets, fill_metrics,
+                                   layer_sets, layered_markdown, layers_of, run_grid, write_csv)
 
 
 TABLES = ("swarm", "lane-change", "braking", "circle-swap", "ablation")
@@ -60,15 +60,15 @@ def horizon_rows(runs: list[dict], seeds: int, metrics, paper: dict, paper_metri
     table = []
     for values, group in sweep.groups(runs, keys):
         horizon, coordinator = values[:2]
-        row: dict = {"coordinator": coordinator, "horizon": int(horizon)}
+        row: dict = {"coordinator": coordinator, "horizon": None if horizon is None else int(horizon)}  # a baseline has no horizon
         if layered:
             row["safety_layers"] = values[2]
         fill_metrics(row, group, seeds, metrics)
-        paper_values = paper.get((coordinator, int(horizon))) if row.get("safety_layers", "off") == "off" else None
+        paper_values = paper.get((coordinator, row["horizon"])) if row.get("safety_layers", "off") == "off" else None
         for m, value in zip(paper_metrics, paper_values or (None,) * len(paper_metrics)):
             row[f"paper_{m}"] = value
         table.append(row)
-    return sorted(table, key=lambda r: (_layer_rank(r), r["horizon"], _coordinator_rank(r)))
+    return sorted(table, key=lambda r: (_layer_rank(r), r["horizon"] is None, r["horizon"] or 0, _coordinator_rank(r)))
 
 
 def horizon_columns(seeds: int, metrics, paper_metrics, layered: bool = False) -> list[str]:
@@ -80,12 +80,30 @@ def horizon_columns(seeds: int, metrics, paper_metrics, layered: bool = False) -
 
 def run_horizon_table(scenario: str, seeds: int, workers: int | None, out: Path, sets: list[str] | None,
                       progress: bool, desc: str, scheduler: str | None = None, resume: bool = False,
-                      layers: tuple[str, ...] | None = None) -> list[dict]:
+                      layers: tuple[str, ...] | None = None, baselines: bool = False) -> list[dict]:
     """Every (horizon, coordinator) x seeds run of ``scenario``; the per-run rows. With ``layers``
-    (``safety_layers`` values) the grid runs once per setting, AAC and LFC alike in each."""
+    (``safety_layers`` values) the grid runs once per setting, AAC and LFC alike in each. With
+    ``baselines``, also :func:`baseline_runs`."""
     grid = [("controller.horizon", [str(h) for h in HORIZONS]), ("controller.coordinator", list(COORDINATORS))]
     bundles = [((("safety_layers", layer),), layer_sets(layer)) for layer in layers] if layers else None
-    return run_grid(scenario, grid, seeds, workers, out, sets, progress, desc, scheduler, resume, bundles)
+    runs = run_grid(scenario, grid, seeds, workers, out, sets, progress, desc, scheduler, resume, bundles)
+    if baselines:
+        runs += baseline_runs(scenario, seeds, workers, out, sets, progress, desc, scheduler, resume,
+                              [((("safety_layers", "off"),), layer_sets("off"))] if layers else None)
+    return runs
+
+
+def baseline_runs(scenario: str, seeds: int, workers: int | None, out: Path, sets: list[str] | None, progress: bool, desc: str,
+                  scheduler: str | None, resume: bool, bundles=None) -> list[dict]:
+    """Every registered baseline that drives ``scenario``'s kind x seeds (x ``bundles``, the paper's
+    layer setting only: a baseline has no emergency layer of ours), into ``out/baselines``; the
+    MPC horizon means nothing to them, so their rows have none."""
+    names = baselines_for(config.load(scenario)["scenario.kind"])
+    if not names:
+        return []
+    (out / "baselines").mkdir(parents=True, exist_ok=True)
+    return run_grid(scenario, [("controller.coordinator", list(names))], seeds, workers, out / "baselines", sets, progress,
+                    f"{desc} --baselines", scheduler, resume, bundles)
 
 
 SWARM_COLUMNS = (
@@ -121,14 +139,14 @@ def swarm_markdown(rows: list[dict], scenario: config.Scenario, seeds: int) -> s
 
 def swarm_table(seeds: int, workers: int | None, out: Path, sets: list[str] | None = None,
                 progress: bool = True, scheduler: str | None = None, resume: bool = False,
-                layers: str = "both") -> tuple[list[dict], str, list[dict]]:
+                layers: str = "both", baselines: bool = False) -> tuple[list[dict], str, list[dict]]:
     """Run Table I (safety layers x horizons x coordinators x seeds) and write results.csv,
     table.csv and table.md. ``layers`` (``off``, ``on`` or ``both``) sets ``aac.safety_stop``
-    and ``lfc.safety_stop`` together in every run."""
+    and ``lfc.safety_stop`` together in every run; ``baselines`` adds their rows."""
     sets = list(sets or [])
     check_table_sets(sets, LAYER_KEYS, "swarm")
     runs = run_horizon_table("swarm_rescue", seeds, workers, out, sets, progress, "table swarm", scheduler, resume,
-                             layers=layers_of(layers))
+                             layers=layers_of(layers), baselines=baselines)
     rows = horizon_rows(runs, seeds, SWARM_METRICS, PAPER_TABLE_I, PAPER_I_METRICS)
     write_csv(rows, horizon_columns(seeds, SWARM_METRICS, PAPER_I_METRICS, layered=True), out / "table.csv")
     text = swarm_markdown(rows, config.load("swarm_rescue", sets), seeds)
@@ -193,7 +211,7 @@ def circle_markdown(rows: list[dict], scenario: config.Scenario, seeds: int) -> 
 
 def circle_swap_table(seeds: int, workers: int | None, out: Path, sets: list[str] | None = None,
                       progress: bool = True, scheduler: str | None = None, resume: bool = False,
-                      layers: str = "off") -> tuple[list[dict], str, list[dict]]:
+                      layers: str = "off", baselines: bool = False) -> tuple[list[dict], str, list[dict]]:
     """Run the circle-swap table (safety layers x (robots, radius) of :data:`CIRCLE_SIZES` x
     coordinators x seeds) and write results.csv, table.csv and table.md. ``layers`` (``off``
     by default, ``on`` or ``both``) sets ``aac.safety_stop`` and ``lfc.safety_stop`` together."""
@@ -204,6 +222,9 @@ def circle_swap_table(seeds: int, workers: int | None, out: Path, sets: list[str
                for layer in layers_of(layers) for n, radius in CIRCLE_SIZES]
     grid = [("controller.coordinator", list(COORDINATORS))]
     runs = run_grid("circle_swap", grid, seeds, workers, out, sets, progress, "table circle-swap", scheduler, resume, bundles)
+    if baselines:
+        runs += baseline_runs("circle_swap", seeds, workers, out, sets, progress, "table circle-swap", scheduler, resume,
+                              [b for b in bundles if dict(b[0])["safety_layers"] == "off"] or None)
     rows = circle_rows(runs, seeds)
     write_csv(rows, circle_columns(seeds), out / "table.csv")
     text = circle_markdown(rows, config.load("circle_swap", sets), seeds)
@@ -255,9 +276,12 @@ def lane_change_markdown(rows: list[dict], scenario: config.Scenario, seeds: int
 
 
 def lane_change_table(seeds: int, workers: int | None, out: Path, sets: list[str] | None = None,
-                      progress: bool = True, scheduler: str | None = None, resume: bool = False) -> tuple[list[dict], str, list[dict]]:
-    """Run Table II (horizons x coordinators x seeds) and write results.csv, table.csv and table.md."""
-    runs = run_horizon_table("lane_change", seeds, workers, out, sets, progress, "table lane-change", scheduler, resume)
+                      progress: bool = True, scheduler: str | None = None, resume: bool = False,
+                      baselines: bool = False) -> tuple[list[dict], str, list[dict]]:
+    """Run Table II (horizons x coordinators x seeds) and write results.csv, table.csv and table.md;
+    ``baselines`` adds their rows."""
+    runs = run_horizon_table("lane_change", seeds, workers, out, sets, progress, "table lane-change", scheduler, resume,
+                             baselines=baselines)
     rows = horizon_rows(runs, seeds, LANE_METRICS, PAPER_TABLE_II, PAPER_II_METRICS)
     write_csv(rows, horizon_columns(seeds, LANE_METRICS, PAPER_II_METRICS), out / "table.csv")
     text = lane_change_markdown(rows, config.load("lane_change", list(sets or [])), seeds)
