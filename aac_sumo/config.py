@@ -258,6 +258,9 @@ COMMON["orca"] = {
     "turn_time": Key(float, 0.3, "tracking law: time constant of turning the heading towards the ORCA velocity's direction [s]", **P),
     "reverse": Key(bool, True, "tracking law: drive backwards when the ORCA velocity points behind the robot (needs robot.allow_reverse)"),
 }
+_coordinator = COMMON["controller"]["coordinator"]  # declared here, not only when registered: sweep/tune load scenarios first
+COMMON["controller"]["coordinator"] = Key(_coordinator.type + ("orca",), _coordinator.default,
+                                          _coordinator.doc + ", orca (RVO2's ORCA on covering discs, a baseline; docs/baselines.md)")
 
 KIND_SECTIONS: dict[str, dict[str, Key]] = {
     "braking": {

@@ -136,3 +136,14 @@ def test_orca_on_a_kind_it_does_not_serve_ends_with_exit_2(capsys):
     assert main(["run", "braking", "--set", "controller.coordinator=orca"]) == 2
     err = capsys.readouterr().err
     assert len(err.splitlines()) == 1 and "controller.coordinator" in err
+
+
+def test_orca_is_a_valid_coordinator_before_any_experiment_is_imported():
+    """``aac-sumo sweep`` and ``tune`` load the scenario before the experiments register
+    their coordinators: the value is declared in the schema itself."""
+    import subprocess
+    import sys
+
+    code = "from aac_sumo import config; print(config.load('circle_swap', ['controller.coordinator=orca'])['controller.coordinator'])"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "orca"
