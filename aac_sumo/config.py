@@ -257,6 +257,9 @@ COMMON["orca"] = {
     "pref_noise": Key(float, 0.0, "seeded random perturbation of each preferred velocity, up to this size (0: plain ORCA) [m/s]", **NN),
     "turn_time": Key(float, 0.3, "tracking law: time constant of turning the heading towards the ORCA velocity's direction [s]", **P),
     "reverse": Key(bool, True, "tracking law: drive backwards when the ORCA velocity points behind the robot (needs robot.allow_reverse)"),
+    "tracking": Key(("direct", "halfplanes"), "direct", "tracking law's speed: direct (the ORCA speed times the cosine of the "
+                    "heading error, within the limits) or halfplanes (the speed reachable in one period along the next heading "
+                    "nearest that which keeps ORCA's half-planes, else the one violating them least)"),
 }
 _coordinator = COMMON["controller"]["coordinator"]  # declared here, not only when registered: sweep/tune load scenarios first
 COMMON["controller"]["coordinator"] = Key(_coordinator.type + ("orca",), _coordinator.default,

@@ -147,3 +147,12 @@ def test_orca_is_a_valid_coordinator_before_any_experiment_is_imported():
     code = "from aac_sumo import config; print(config.load('circle_swap', ['controller.coordinator=orca'])['controller.coordinator'])"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "orca"
+
+
+def test_the_halfplane_tracking_law_keeps_a_head_on_swap_apart():
+    """With ``orca.tracking = halfplanes`` the speed keeps ORCA's half-planes where the robot
+    can: the head-on swap still passes without an overlap and both robots arrive."""
+    scenario = headon("x").with_overrides(["orca.tracking=halfplanes"])
+    m = runner.run(scenario).metrics
+    assert m["completed"] is True, m.get("incomplete_reason")
+    assert m["collisions"] == 0 and m["min_clearance_m"] > 0

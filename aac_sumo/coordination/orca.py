@@ -24,7 +24,10 @@ What it does each control period:
    the velocity points behind it, its back), with time constant ``turn_time``, and drives its
    speed in one period towards the ORCA speed times the cosine of the heading error (slower
    while it turns), all within the vehicle limits: acceleration, braking, steering angle,
-   steering rate and lateral acceleration. The simulator then moves the bicycle and counts
+   steering rate and lateral acceleration (``tracking = "direct"``, the default). With
+   ``tracking = "halfplanes"`` the speed is instead the one reachable this period along the
+   next heading that keeps ORCA's half-planes (RVO2's ORCA lines of the robot) and is nearest
+   that speed, or else the one violating them least. The simulator then moves the bicycle and counts
    collisions on the rectangular footprints; ORCA's guarantees hold only for discs that take
    their velocity instantly, so overlaps can and do happen, and they are counted.
 """
@@ -48,6 +51,13 @@ STATIC_KINDS = ("static", "cone")
 DIRECTION_HYSTERESIS = 0.2
 #: ORCA speeds below this [m/s] count as standing: the heading is kept, the robot brakes.
 STANDING = 1e-3
+#: How the tracking law picks the speed: ``direct`` (the tracking speed, clipped to the limits,
+#: whatever ORCA's half-planes say; the default, the tables' law), ``halfplanes`` (among the
+#: speeds it can reach in one period along its next heading, the one nearest the tracking speed
+#: that keeps every ORCA half-plane, or else the one that violates them least).
+TRACKING = ("direct", "halfplanes")
+#: Speeds tried per period by the ``halfplanes`` tracking law, evenly over the reachable interval.
+SPEED_SAMPLES = 41
 
 
 @dataclass(frozen=True)
@@ -55,8 +65,8 @@ class OrcaParams:
     """RVO2's agent settings (neighbour distance [m], most neighbours, time horizons [s] against
     agents and against obstacles, most speed [m/s], 0: each robot's task speed), the disc's
     extra radius [m], the preferred velocity's look-ahead along the path [m] and seeded noise
-    [m/s], and the tracking law's heading time constant [s] and whether it may drive backwards
-    (when the robot may)."""
+    [m/s], the tracking law's heading time constant [s], whether it may drive backwards (when the
+    robot may), and how it picks the speed (``TRACKING``)."""
 
     neighbor_dist: float = 3.0
     max_neighbors: int = 10
@@ -69,6 +79,7 @@ class OrcaParams:
     turn_time: float = 0.3
     reverse: bool = True
     seed: int = 0
+    tracking: str = "direct"
 
 
 def rectangle_polygon(centre, length: float, width: float, heading: float) -> list[tuple[float, float]]:
@@ -159,7 +170,8 @@ class OrcaCoordinator(Coordinator):
         return pref
 
     def orca_velocities(self, world: WorldState, pref: np.ndarray) -> np.ndarray:
-        """RVO2's new velocity (n, 2) [m/s] of every disc for this period."""
+        """RVO2's new velocity (n, 2) [m/s] of every disc for this period (its half-planes stay
+        readable in the simulator until the next step: :meth:`half_planes`)."""
         if self._rvo is None:
             self._rvo = self._build(world)
         sim = self._rvo
@@ -169,6 +181,32 @@ class OrcaCoordinator(Coordinator):
             sim.set_agent_pref_velocity(i, (float(u[0]), float(u[1])))
         sim.do_step()
         return np.array([sim.get_agent_velocity(i).to_tuple() for i in range(len(world.robots))]).reshape(-1, 2)
+
+    def half_planes(self, i: int) -> tuple[np.ndarray, np.ndarray]:
+        """Robot ``i``'s ORCA half-planes of this period, obstacles' first: directions (k, 2) and
+        points (k, 2); a velocity ``u`` keeps line j when ``det(direction_j, point_j - u) <= 0``
+        (RVO2's convention: the permitted side is left of the direction)."""
+        sim = self._rvo
+        lines = [sim.get_agent_orca_line(i, k) for k in range(sim.get_agent_num_orca_lines(i))]
+        if not lines:
+            return np.zeros((0, 2)), np.zeros((0, 2))
+        arr = np.array(lines, dtype=float)
+        return arr[:, 0], arr[:, 1]
+
+    def pick_speed(self, i: int, direction: np.ndarray, low: float, high: float, target: float) -> float:
+        """The speed in [``low``, ``high``] [m/s] whose velocity along the unit ``direction``
+        keeps robot ``i``'s ORCA half-planes and is nearest ``target``; when none does, the one
+        that violates them least (by the largest violation [m/s]), then nearest ``target``."""
+        dirs, points = self.half_planes(i)
+        if high - low < 1e-12:
+            return low
+        speeds = np.unique(np.r_[np.linspace(low, high, SPEED_SAMPLES), min(max(target, low), high)])
+        if len(dirs) == 0:
+            return float(speeds[np.argmin(np.abs(speeds - target))])
+        rel = points[None, :, :] - speeds[:, None, None] * direction[None, None, :]
+        violation = np.maximum(dirs[None, :, 0] * rel[..., 1] - dirs[None, :, 1] * rel[..., 0], 0.0).max(axis=1)
+        best = violation <= violation.min() + 1e-6
+        return float(speeds[best][np.argmin(np.abs(speeds[best] - target))])
 
     def track_velocity(self, world: WorldState, i: int, velocity: np.ndarray) -> np.ndarray:
         """Input ``[accel, steer]`` of robot ``i`` towards the disc velocity ``velocity`` [m/s]
@@ -192,13 +230,26 @@ class OrcaCoordinator(Coordinator):
             target_v = min(target_v, 0.0) if backward else max(target_v, 0.0)
         target_v = min(max(target_v, lim.v_min), lim.v_max)
         accel = min(max((target_v - v) / dt, lim.a_min), lim.a_max)
-        v_next = v + accel * dt
-        if abs(v_next) > 1e-6:
-            turn = min(1.0, dt / self.params.turn_time) * float(wrap_angle(target_h - h))
-            steer = float(np.arctan2(model.wheelbase * turn * np.sign(v_next), abs(v_next) * dt))
-        else:
-            steer = previous
-        return np.array([accel, float(model.limit_steer(steer, v, previous, dt, accel))])
+        steer = self.steer_towards(model, h, v, v + accel * dt, target_h, previous, dt)
+        steer = float(model.limit_steer(steer, v, previous, dt, accel))
+        if self.params.tracking == "halfplanes":
+            heading = h + v * np.tan(steer) / model.wheelbase * dt  # the heading the next period drives along
+            low = max(v + lim.a_min * dt, lim.v_min)
+            high = min(v + lim.a_max * dt, lim.v_max)
+            if not (self.params.reverse and lim.v_min < 0.0):
+                low = max(low, min(0.0, v))  # forward only: never drive it backwards
+            v_next = self.pick_speed(i, np.array([np.cos(heading), np.sin(heading)]), low, max(low, high), v + accel * dt)
+            accel = min(max((v_next - v) / dt, lim.a_min), lim.a_max)
+            steer = float(model.limit_steer(steer, v, previous, dt, accel))
+        return np.array([accel, steer])
+
+    def steer_towards(self, model, h: float, v: float, v_next: float, target_h: float, previous: float, dt: float) -> float:
+        """The steering angle [rad] that turns heading ``h`` towards ``target_h`` with the time
+        constant ``turn_time`` at the speed ``v_next`` (``previous`` at standstill), before limits."""
+        if abs(v_next) <= 1e-6:
+            return previous
+        turn = min(1.0, dt / self.params.turn_time) * float(wrap_angle(target_h - h))
+        return float(np.arctan2(model.wheelbase * turn * np.sign(v_next), abs(v_next) * dt))
 
     def _decide(self, world: WorldState) -> Decision:
         n = len(world.robots)

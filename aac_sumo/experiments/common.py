@@ -135,7 +135,8 @@ def orca_params(scenario: Scenario) -> OrcaParams:
     """The ORCA settings of ``[orca]``; its preferred-velocity noise is seeded by the scenario seed."""
     o = scenario.data["orca"]
     return OrcaParams(o["neighbor_dist"], o["max_neighbors"], o["time_horizon"], o["time_horizon_obst"], o["radius_margin"],
-                      o["max_speed"], o["lookahead"], o["pref_noise"], o["turn_time"], o["reverse"], scenario["scenario.seed"])
+                      o["max_speed"], o["lookahead"], o["pref_noise"], o["turn_time"], o["reverse"], scenario["scenario.seed"],
+                      o["tracking"])
 
 
 @register_coordinator("orca")
