@@ -166,7 +166,7 @@ class OrcaCoordinator(Coordinator):
         if self.params.pref_noise > 0.0:
             angle = self.rng.uniform(0.0, 2.0 * np.pi, len(pref))
             size = self.rng.uniform(0.0, self.params.pref_noise, len(pref))
-            pref[~done] += (size * np.column_stack([np.cos(angle), np.sin(angle)]).T).T[~done]
+            pref[~done] += (size[:, None] * np.column_stack([np.cos(angle), np.sin(angle)]))[~done]
         return pref
 
     def orca_velocities(self, world: WorldState, pref: np.ndarray) -> np.ndarray:
