@@ -249,6 +249,26 @@ COMMON: dict[str, dict[str, Key]] = {
     },
 }
 
+#: The ORCA baseline's own keys (controller.coordinator = "orca", aac_sumo/coordination/orca.py, docs/baselines.md).
+COMMON["orca"] = {
+    "neighbor_dist": Key(float, 3.0, "RVO2 neighbour distance: other discs farther than this are ignored [m]", **P),
+    "max_neighbors": Key(int, 10, "RVO2: most neighbours each robot considers", check=lambda n: 1 <= n <= 1000, expect="in 1..1000"),
+    "time_horizon": Key(float, 2.0, "RVO2 time horizon against other robots [s]", **P),
+    "time_horizon_obst": Key(float, 2.0, "RVO2 time horizon against static obstacles (debris polygons) [s]", **P),
+    "radius_margin": Key(float, 0.0, "added to each robot's covering-disc radius hypot(length, width) / 2 [m]", **NN),
+    "max_speed": Key(float, 0.0, "RVO2 most speed, at most robot.v_max (0: each robot's cruise speed, as the preferred speed) [m/s]", **NN),
+    "lookahead": Key(float, 1.0, "the preferred velocity points at the path point this far ahead of the rear axle's projection [m]", **P),
+    "pref_noise": Key(float, 0.0, "seeded random perturbation of each preferred velocity, up to this size (0: plain ORCA) [m/s]", **NN),
+    "turn_time": Key(float, 0.3, "tracking law: time constant of turning the heading towards the ORCA velocity's direction [s]", **P),
+    "reverse": Key(bool, True, "tracking law: drive backwards when the ORCA velocity points behind the robot (needs robot.allow_reverse)"),
+    "tracking": Key(("direct", "halfplanes"), "direct", "tracking law's speed: direct (the ORCA speed times the cosine of the "
+                    "heading error, within the limits) or halfplanes (the speed reachable in one period along the next heading "
+                    "nearest that which keeps ORCA's half-planes, else the one violating them least)"),
+}
+_coordinator = COMMON["controller"]["coordinator"]  # declared here, not only when registered: sweep/tune load scenarios first
+COMMON["controller"]["coordinator"] = Key(_coordinator.type + ("orca",), _coordinator.default,
+                                          _coordinator.doc + ", orca (RVO2's ORCA on covering discs, a baseline; docs/baselines.md)")
+
 KIND_SECTIONS: dict[str, dict[str, Key]] = {
     "braking": {
         "speed": Key(float, 10.0, "initial speed of ego and lead [m/s]", **P),

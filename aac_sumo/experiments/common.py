@@ -15,6 +15,7 @@ from aac_sumo.coordination.anticipation import Anticipation
 from aac_sumo.coordination.base import Coordinator, Finished
 from aac_sumo.coordination.independent import IndependentCoordinator
 from aac_sumo.coordination.lfc import LfcCoordinator, LfcParams
+from aac_sumo.coordination.orca import OrcaCoordinator, OrcaParams
 from aac_sumo.coordination.prioritized import PrioritizedLfc
 from aac_sumo.coordination.proximity import ProximityParams
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
@@ -135,6 +136,24 @@ def lfc_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corridors, f
 def independent_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corridors, finished) -> IndependentCoordinator:
     return IndependentCoordinator(planner, tasks, corridors, finished)
 
+
+#: The scenario kinds the ORCA baseline runs on (internal simulator, robots with goals).
+ORCA_KINDS = ("swarm_rescue", "circle_swap", "random_crossing")
+
+
+def orca_params(scenario: Scenario) -> OrcaParams:
+    """The ORCA settings of ``[orca]``; its preferred-velocity noise is seeded by the scenario seed."""
+    o = scenario.data["orca"]
+    return OrcaParams(o["neighbor_dist"], o["max_neighbors"], o["time_horizon"], o["time_horizon_obst"], o["radius_margin"],
+                      o["max_speed"], o["lookahead"], o["pref_noise"], o["turn_time"], o["reverse"], scenario["scenario.seed"],
+                      o["tracking"])
+
+
+@register_coordinator("orca")
+def orca_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corridors, finished) -> OrcaCoordinator:
+    if scenario.kind not in ORCA_KINDS:
+        raise ScenarioError(scenario.source, "controller.coordinator", f"orca only with scenario.kind {', '.join(ORCA_KINDS)}", "orca")
+    return OrcaCoordinator(planner, tasks, corridors, finished, params=orca_params(scenario))
 
 def coordinator(scenario: Scenario, tasks: list[PathReference], corridors=None, finished: Finished | None = None,
                 band: bool | None = None) -> Coordinator:
