@@ -20,7 +20,6 @@ import math
 from pathlib import Path
 
 from aac_sumo import config, sweep
-from aac_sumo.registry import COORDINATORS
 from aac_sumo.table_common import BASELINE_LABELS, BASELINES, _fmt, _num, baselines_for, fill_metrics, run_grid, write_csv
 
 #: Keys that switch AAC's extensions and emergency layer off (the paper's plain settings).
@@ -61,7 +60,7 @@ def variants_for(kind: str) -> list[tuple[str, str, tuple[str, ...]]]:
 
 def missing_baselines(kind: str) -> list[str]:
     """Baselines that would drive ``kind`` but are not registered here."""
-    return [name for name, kinds in BASELINES.items() if kind in kinds and name not in COORDINATORS]
+    return [name for name, kinds in BASELINES.items() if kind in kinds and name not in baselines_for(kind)]
 
 
 def ablation_rows(runs: list[dict], seeds: int, case: str) -> list[dict]:

@@ -5,6 +5,7 @@ formatting (:mod:`aac_sumo.tables`)."""
 from __future__ import annotations
 
 import csv
+import importlib
 import dataclasses
 import math
 from pathlib import Path
@@ -69,8 +70,11 @@ COORDINATOR_LABELS = {"aac": "AAC-MPC-FCBF", "lfc": "LFC-MPC-FCBF"} | BASELINE_L
 
 
 def baselines_for(kind: str) -> tuple[str, ...]:
-    """The registered baseline coordinators that drive scenarios of ``kind``."""
+    """The registered baseline coordinators that drive scenarios of ``kind`` (the bundled ones
+    register when the experiments are imported, here)."""
     from aac_sumo.registry import COORDINATORS as REGISTERED
+
+    importlib.import_module("aac_sumo.experiments")
 
     return tuple(name for name, kinds in BASELINES.items() if kind in kinds and name in REGISTERED)
 

@@ -51,3 +51,22 @@ def test_cases_belong_to_the_ablation_table(capsys, tmp_path):
     assert main(["table", "ablation", "--cases", "nowhere", "--out", str(tmp_path / "u")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 2 and "--cases" in err[0] and "circle8" in err[1]
+
+
+@pytest.mark.slow
+def test_baselines_add_their_rows_to_table_one_once_without_a_horizon(tmp_path, capsys):
+    rc = main(["table", "swarm", "--baselines", "--layers", "off", "--seeds", "1", "--workers", "2", "--no-progress",
+               "--set", "scenario.duration=1", "--out", str(tmp_path)])
+    assert rc == 0, capsys.readouterr().err
+    with open(tmp_path / "table.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    baseline = [r for r in rows if r["coordinator"] not in ("aac", "lfc")]
+    assert {r["coordinator"] for r in baseline} >= {"orca"}
+    assert all(r["horizon"] == "" and r["safety_layers"] == "off" and r["errors"] == "0" for r in baseline)
+    assert [r["coordinator"] for r in rows][-len(baseline):] == [r["coordinator"] for r in baseline]  # after AAC and LFC
+    assert "| ORCA (RVO2) | — |" in (tmp_path / "table.md").read_text()
+
+
+def test_baselines_belong_to_the_tables_with_baselines(capsys, tmp_path):
+    assert main(["table", "braking", "--baselines", "--out", str(tmp_path / "t")]) == 2
+    assert "--baselines" in capsys.readouterr().err
