@@ -5,7 +5,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo demo-braking test test-fast bench clean
+.PHONY: demo demo-braking test test-fast bench results clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -27,6 +27,10 @@ test-fast: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/aac-sumo bench mpc --out out/bench
+
+# Every published table into docs/results/ (hours on 2 cores; `python -m aac_sumo.results --list` shows the jobs).
+results: $(STAMP)
+	$(BIN)/python -m aac_sumo.results
 
 clean:
 	rm -rf $(VENV) out .pytest_cache .hypothesis
