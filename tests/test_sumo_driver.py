@@ -123,3 +123,12 @@ def test_applied_inputs_give_back_the_speed_change_and_the_steering_of_the_turn(
     assert u[0, 0] == pytest.approx(5.0) and u[1, 0] == 0.0
     assert 10.0 * math.tan(u[0, 1]) / 2.6 == pytest.approx(1.0)  # yaw rate 1 rad/s
     assert u[1, 1] == 0.0  # standing: no steering to speak of
+
+
+@pytest.mark.slow
+def test_the_highway_work_zone_with_sumo_driving_completes():
+    m = runner.run(config.load("highway_work_zone", ["controller.coordinator=sumo"])).metrics
+    assert "error" not in m
+    assert m["n_robots"] == 100 and m["completed"] is True
+    assert m["collisions"] == 0 and m["sim_collisions"] == 0
+    assert "lane_changes" not in m  # our gap rule's counts: SUMO's driver judged the gaps
