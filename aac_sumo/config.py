@@ -106,9 +106,10 @@ COMMON: dict[str, dict[str, Key]] = {
         "duration": Key(float, 20.0, "time limit, at most a day [s]", check=lambda d: 0 < d <= 86400.0, expect="in (0, 86400]"),
     },
     "controller": {
-        "coordinator": Key(("aac", "lfc", "independent"), "aac",
+        "coordinator": Key(("aac", "lfc", "independent", "sumo"), "aac",
                            "who plans when: aac (one authority robot per period), lfc (every robot in index-priority order), "
-                           "independent (every robot for itself)"),
+                           "independent (every robot for itself)"
+                           ", sumo (SUMO's own driver moves the cars, kind lane_change: docs/baselines_sumo.md)"),
         "barrier": Key(("fcbf", "cbf"), "fcbf", "F-CBF (velocity-stretched ellipse) or plain CBF (footprint ellipse)"),
         "horizon": Key(int, 10, "MPC horizon N [steps]", check=lambda n: 1 <= n <= 100, expect="in 1..100"),
         "solver": Key(("fatrop", "sqp", "ipopt"), "fatrop", "NLP solver of the fast path"),

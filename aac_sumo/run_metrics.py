@@ -10,6 +10,7 @@ import pandas as pd
 
 from aac_sumo.config import Scenario
 from aac_sumo.provenance import provenance
+from aac_sumo.registry import COORDINATORS
 from aac_sumo.metrics import compute_metrics, jain, pedestrian_waits
 from aac_sumo.sim.base import Crossing
 
@@ -84,7 +85,8 @@ def assemble_metrics(scenario: Scenario, rec: Recording, steps: pd.DataFrame, pe
         metrics["error"] = rec.error
     if rec.collisions:
         metrics["completed"], metrics["task_duration_s"] = False, None
-        reasons.append(f"{rec.collisions} collision(s); wrecked robots stop where they hit")
+        drives = getattr(COORDINATORS.get(c["coordinator"]), "simulator_drives", False)  # SUMO's driver: SUMO drives on
+        reasons.append(f"{rec.collisions} collision(s); " + ("SUMO's driver drove on" if drives else "wrecked robots stop where they hit"))
     if rec.deadlock:
         reasons.append(f"deadlock: no unfinished robot got further than {stop * patience:.2f} m, at any time in the last "
                        f"{patience} s, from where it was {patience} s before (t = {len(rec.periods) * dt:.1f} s)")

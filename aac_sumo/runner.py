@@ -131,6 +131,7 @@ def loop(setup: Setup, rec: Recording) -> None:
         if contacts.sim_collisions is not None:
             rec.sim_collisions = (rec.sim_collisions or 0) + contacts.sim_collisions
         rec.periods.append(dict(t=world.t, compute_ms=decision.compute_ms, **decision.notes))
+        inputs = decision.inputs if contacts.applied is None else contacts.applied  # what the robots did (SUMO's driver)
         for i, (robot, r) in enumerate(zip(world.robots, decision.robots)):
             if not here[i]:
                 continue
@@ -138,7 +139,7 @@ def loop(setup: Setup, rec: Recording) -> None:
             ref = reference_point(setup, i, x)
             rec.steps.append(dict(
                 t=world.t, robot=robot.name, x=x[0], y=x[1], heading=x[2], v=x[3],
-                accel=decision.inputs[i, 0], steer=decision.inputs[i, 1],
+                accel=inputs[i, 0], steer=inputs[i, 1],
                 ref_x=ref[0], ref_y=ref[1], ref_heading=ref[2], ref_v=ref[3],
                 status=r.status, solver=r.solver, solve_ms=r.solve_ms, iterations=r.iterations, capped=r.capped,
                 authority=r.authority,

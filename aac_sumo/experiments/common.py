@@ -18,6 +18,7 @@ from aac_sumo.coordination.lfc import LfcCoordinator, LfcParams
 from aac_sumo.coordination.orca import OrcaCoordinator, OrcaParams
 from aac_sumo.coordination.prioritized import PrioritizedLfc
 from aac_sumo.coordination.proximity import ProximityParams
+from aac_sumo.coordination.sumo_driver import SumoDriver
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.geometry import pairwise_rect_clearance
 from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
@@ -26,6 +27,14 @@ from aac_sumo.registry import COORDINATORS, register_coordinator
 from aac_sumo.sim.base import Simulator
 from aac_sumo.world import RobotSpec, WorldState
 
+
+
+@dataclass
+class PlannerSettings:
+    """The planner's settings without its solvers, for a coordinator that solves nothing (the
+    simulator drives): building an MPC problem would only cost set-up time."""
+
+    config: MpcConfig
 
 
 @dataclass
@@ -155,15 +164,35 @@ def orca_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corridors, 
         raise ScenarioError(scenario.source, "controller.coordinator", f"orca only with scenario.kind {', '.join(ORCA_KINDS)}", "orca")
     return OrcaCoordinator(planner, tasks, corridors, finished, params=orca_params(scenario))
 
+
+@register_coordinator("sumo")
+def sumo_coordinator(scenario: Scenario, planner, tasks, corridors, finished) -> SumoDriver:
+    """SUMO's own driver moves the cars (:mod:`aac_sumo.coordination.sumo_driver`); road kinds only."""
+    if scenario.kind != "lane_change":
+        raise ScenarioError(scenario.source, "controller.coordinator", "a coordinator of ours on this kind (sumo: SUMO's own driver, "
+                            "for kind lane_change, whose cars SUMO hosts)", "sumo")
+    return SumoDriver(planner, tasks, corridors, finished)
+
+
+sumo_coordinator.simulator_drives = True  # the builder starts its simulator with SUMO driving (sumo_driver's module)
+
+
+def simulator_drives(scenario: Scenario) -> bool:
+    """Whether ``controller.coordinator`` leaves driving to the simulator (its factory declares
+    ``simulator_drives``): the builder then starts the simulator in that mode."""
+    return bool(getattr(COORDINATORS.get(scenario["controller.coordinator"]), "simulator_drives", False))
+
+
 def coordinator(scenario: Scenario, tasks: list[PathReference], corridors=None, finished: Finished | None = None,
                 band: bool | None = None) -> Coordinator:
     """The registered ``controller.coordinator`` with its own MPC planner; ``finished`` tells it
     which robots have finished their task (they no longer take authority). Its planner keeps
     robots within lateral bands when ``band`` is true (None: when ``corridors`` holds one)."""
     band = any(isinstance(c, LateralBand) for c in corridors or []) if band is None else band
-    planner = MpcPlanner(dataclasses.replace(mpc_config(scenario), band=band))
+    config = dataclasses.replace(mpc_config(scenario), band=band)
+    planner = PlannerSettings(config) if simulator_drives(scenario) else MpcPlanner(config)
     coord = COORDINATORS[scenario["controller.coordinator"]](scenario, planner, tasks, corridors, finished)
-    coord.anticipation = anticipation(scenario)
+    coord.anticipation = None if simulator_drives(scenario) else anticipation(scenario)
     return coord
 
 

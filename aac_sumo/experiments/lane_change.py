@@ -33,14 +33,15 @@ import numpy as np
 
 from aac_sumo import network, package_data
 from aac_sumo.config import Scenario, ScenarioError
-from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_spec
+from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_spec, simulator_drives
+from aac_sumo.experiments.sumo_driver import lane_indices
 from aac_sumo.experiments.routed_cars import build_routed
 from aac_sumo.experiments.lane_geometry import (
     BAND_SETTLE, MIN_LANES, ROAD_MARGIN, along, blend, lane_edges, smooth_reference,
 )
 from aac_sumo.references import LateralBand, PathReference
 from aac_sumo.registry import register_experiment
-from aac_sumo.sim.sumo import SumoOptions, sumo_simulator
+from aac_sumo.sim.sumo import LaneOrder, SumoOptions, sumo_simulator
 from aac_sumo.sim.sumo_config import SumoConfig, read_config, xml_problem
 from aac_sumo.world import WorldState
 
@@ -162,7 +163,7 @@ def sumo_options(scenario: Scenario, net_path: Path, routes: list[Path]) -> Sumo
     config = sumo_config(scenario) if su["config"].strip() else None
     options = SumoOptions(net_path, routes, tuple(t.strip() for t in su["cone_types"].split(",") if t.strip()),
                           su["gui"], scenario["scenario.seed"], su["delay"], out, outputs, config.path if config else None,
-                          tuple(shlex.split(su["extra_args"])), su["lateral_resolution"])
+                          tuple(shlex.split(su["extra_args"])), su["lateral_resolution"], simulator_drives(scenario))
     if config is not None:
         overridden = config.overridden(options.our_options(scenario["scenario.dt"]))
         if overridden:
@@ -208,6 +209,10 @@ def build_lane_change(scenario: Scenario) -> Setup:
         centre_lines = [PathReference(line, 1.0, stop_at_end=False) for line in rd.lanes]
         cone_lane = _cone_lane(rd, centre_lines, cones)
         targets = [target_lane(int(a), cone_lane, lanes) for a in start_lane]
+        if simulator_drives(scenario):  # SUMO's driver: each car is asked for its target lane once it has driven change_start
+            net = network.read(net_path, "sumo.net", src)
+            for k, b in enumerate(targets):
+                sim.order_lanes(k, [LaneOrder(lc["change_start"], lane_indices(net, rd.edges, b))])
         run_on = lc["speed"] * scenario["scenario.duration"]  # beyond the road's end, along it: farther than any car gets
         tasks = [smooth_reference(lane_change_path(rd, int(a), b, s0[k], lc["change_start"], lc["change_length"]), lc["speed"],
                                   min(lc["curve_lat_accel"], scenario["robot.a_lat_max"]), run_on)

@@ -59,13 +59,14 @@ import numpy as np
 
 from aac_sumo import network
 from aac_sumo.config import Scenario, ScenarioError
-from aac_sumo.experiments.common import Setup, coordinator, robot_spec
+from aac_sumo.experiments.common import Setup, coordinator, robot_spec, simulator_drives
+from aac_sumo.experiments.sumo_driver import lane_indices
 from aac_sumo.experiments.lane_gaps import GapRule, GapVerdict, judge_gap
 from aac_sumo.experiments.lane_geometry import (
     BAND_SETTLE, CURVE_DECEL, MIN_LANES, ROAD_MARGIN, SAMPLE_STEP, along, lane_reference, offset_polyline, smooth_road, smoothstep,
 )
 from aac_sumo.references import LateralBand, PathReference
-from aac_sumo.sim.sumo import SumoOptions, sumo_simulator
+from aac_sumo.sim.sumo import LaneOrder, SumoOptions, sumo_simulator
 from aac_sumo.sim.base import Simulator
 from aac_sumo.sim.sumo_routes import RoutedVehicle, RoutesError, controlled, read_routes
 from aac_sumo.world import WorldState, parking_spot
@@ -295,6 +296,7 @@ class RoutedCars:
         self.admitted = np.zeros(n, dtype=bool)
         self.cone_centres: list[np.ndarray] | None = None
         self.coordinator = None
+        self.sumo_drives = False  # SUMO's own driver moves the cars: it gets each car's lanes, and judges the gaps itself
         self.rule = GapRule(lc["gap_time"], lc["gap_decel"], lc["gap_min"]) if lc["gap_acceptance"] else None
         #: how far the tracking law looks ahead [m], and from how far before a change its gap is judged [m]:
         #: beyond where the MPC's reference (the horizon at the cruise speed) and that law reach
@@ -345,7 +347,8 @@ class RoutedCars:
         take the finished cars off the road."""
         for k in np.flatnonzero(world.on_road & ~self.admitted):
             self.admit(world, int(k))
-        self.judge(world)
+        if not self.sumo_drives:
+            self.judge(world)
         leaving = np.flatnonzero(self.done & world.on_road)
         for k in leaving:
             self.sim.retire(int(k))
@@ -369,6 +372,8 @@ class RoutedCars:
         line, end_s = self.finish[k]
         self.free_flow[k] = world.t + self.tasks[k].project(line.pose_at(end_s)[0, :2])[0] / lc["speed"]
         self.coordinator.admit(world, k)
+        if self.sumo_drives:  # each change asked once the car has driven to its begin (its start lane's metres)
+            self.sim.order_lanes(k, [LaneOrder(max(c.begin - s0, 0.0), lane_indices(self.net, self.edges[k], c.lane)) for c in changes])
 
     def rebuild(self, k: int) -> None:
         """Car ``k``'s reference, band and finish line from its lane plan. While it waits for a
@@ -538,6 +543,7 @@ def build_routed(scenario: Scenario, net_path: Path, routes: list[Path], options
         raise ScenarioError(scenario.source, "lane_change.speed", f"at most robot.v_max ({v_max})", scenario["lane_change.speed"])
     states = np.array([parking_spot(k) for k in range(len(robots))])
     cars = RoutedCars(scenario, net, vehicles, robots, None)
+    cars.sumo_drives = simulator_drives(scenario)
     sim = sumo_simulator(robots, states, scenario["scenario.dt"], [], options, scenario["sumo.isolate"], frozenset(v.id for v in vehicles))
     try:
         cars.sim = sim
@@ -546,7 +552,8 @@ def build_routed(scenario: Scenario, net_path: Path, routes: list[Path], options
 
         coord = coordinator(scenario, cars.tasks, cars.bands, finished, band=True)
         cars.coordinator = coord
-        return Setup(scenario, sim, coord, cars.tasks, finished, cars.free_flow, prepare=cars.prepare, figures=lambda: dict(cars.counts))
+        return Setup(scenario, sim, coord, cars.tasks, finished, cars.free_flow, prepare=cars.prepare,
+                     figures=None if cars.sumo_drives else lambda: dict(cars.counts))  # SUMO's driver: our gap rule counted nothing
     except BaseException:
         sim.close()
         raise

@@ -23,11 +23,14 @@ class ContactReport:
     ``clearance[i]`` is robot i's smallest footprint gap to anything [m] (negative = overlap),
     ``overlaps`` the set of overlapping ``(robot name, other name)`` pairs, and
     ``sim_collisions`` the simulator's own collision count this step (None if it has none).
+    ``applied`` holds the inputs (n, 2) the robots actually followed this step when the
+    simulator moved them itself (SUMO's own driver), None when they followed the given ones.
     """
 
     clearance: np.ndarray
     overlaps: set[tuple[str, str]]
     sim_collisions: int | None = None
+    applied: np.ndarray | None = None
 
 
 def footprint_contacts(world: WorldState) -> ContactReport:

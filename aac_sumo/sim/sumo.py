@@ -16,6 +16,20 @@ the road (a car frozen there stood in the way of the cars behind it as a ghost),
 finished, is left out of the collision checks, and the event is reported on stderr and in
 :attr:`SumoSimulator.events`. The network's pedestrian crossings are read once at the start
 (:meth:`SumoSimulator.crossings`), for the metrics.
+
+**SUMO drives** (``SumoOptions.sumo_drives``, the ``sumo`` coordinator's mode): SUMO's own
+car-following and lane-change models (LC2013; SL2015 with ``lateral_resolution`` > 0) move the
+controlled vehicles instead of our model, and :meth:`SumoSimulator.step` ignores its inputs. A
+placed vehicle is inserted as a SUMO user inserts one (``vehicle.add`` with the lane, lane
+position and speed of its start state, the edge SUMO's ``convertRoad`` finds under its front),
+with SUMO's default vType apart from our length and width; a routed one keeps SUMO's control from
+its departure. Speed mode and lane-change mode stay SUMO's defaults and nothing moves them with
+``moveToXY``. The experiment hands each vehicle its lanes (:class:`LaneOrder`,
+:meth:`SumoSimulator.order_lanes`), asked with ``vehicle.changeLane`` once the vehicle has driven
+far enough. Their states (pose and speed) are read from SUMO, and each step reports the inputs
+that match SUMO's motion (:attr:`~aac_sumo.sim.base.ContactReport.applied`: the change of speed
+over the step, and the steering angle whose yaw rate turns the heading as SUMO's angle turned),
+so that the runner records what SUMO's driver did. A vehicle SUMO removes leaves the road.
 """
 
 from __future__ import annotations
@@ -41,6 +55,8 @@ from aac_sumo.sim.sumo_frames import (
 from aac_sumo.world import Obstacle, RobotSpec, WorldState, parking_spot
 
 ROUTE_ID = "aac_road"
+#: How long [s] a lane SUMO's driver is asked to take (``vehicle.changeLane``) is held: the whole run.
+LANE_HOLD = 1e6
 #: netconvert's id of a pedestrian crossing's lane: ``:NODE_cK_0`` (walking areas are ``:NODE_wK_0``).
 CROSSING_LANE = re.compile(r"^:.+_c\d+_\d+$")
 #: The width [m] of the lanes a crossing crosses when no vehicle lane cuts its centre-line.
@@ -86,6 +102,7 @@ class SumoOptions:
     config: Path | None = None  # a user's .sumocfg, loaded first: ours override what it sets
     extra_args: tuple[str, ...] = ()  # more SUMO options, before ours
     lateral_resolution: float = 0.0  # SUMO's sublane model's lateral resolution [m]; 0: off (not set by us)
+    sumo_drives: bool = False  # SUMO's own driver moves the controlled vehicles (see the module)
 
     def our_options(self, dt: float) -> dict[str, str]:
         """The SUMO options the co-simulation sets itself, name -> value."""
@@ -110,6 +127,17 @@ class SumoOptions:
         if self.gui:
             cmd += ["--start", "--delay", repr(float(self.delay))]
         return cmd
+
+
+@dataclass(frozen=True)
+class LaneOrder:
+    """A lane SUMO's driver is asked to take once the vehicle has driven ``after`` metres since
+    its departure (SUMO's odometer, ``vehicle.getDistance``): per edge id, that lane's SUMO index
+    on the edge (lane counts and sidewalks may differ between edges). On an edge it does not
+    name (a junction's internal lane) the last lane asked holds."""
+
+    after: float
+    lanes: dict[str, int]
 
 
 #: sumo-gui colours (RGBA) of the controlled vehicles: plain, holding authority, in a safety stop.
@@ -156,6 +184,10 @@ class SumoSimulator(Simulator):
         self._obstacle_dims: dict[str, tuple[float, float, str]] = {}
         self._walkway_lanes: dict[str, float | None] = {}  # lane id -> its length [m] when only pedestrians may use it
         self.t = 0.0
+        self.drives = options.sumo_drives
+        self.orders: dict[int, list[LaneOrder]] = {}  # SUMO-driven vehicles' lanes, by robot index (order_lanes)
+        self._asked: dict[int, int] = {}  # the lane index last asked of each, by robot index
+        self._applied = np.zeros((len(self.robots), 2))
         self.model = FleetModel([r.model for r in self.robots])
         try:
             self.api.start(options.command(dt))
@@ -189,13 +221,54 @@ class SumoSimulator(Simulator):
                 self.api.vehicletype.copy("DEFAULT_VEHTYPE", vtype)
                 self.api.vehicletype.setLength(vtype, robot.length)
                 self.api.vehicletype.setWidth(vtype, robot.width)
-                self.api.vehicletype.setMinGap(vtype, 0.0)
+                if not self.drives:  # SUMO's driver keeps its own standstill gap
+                    self.api.vehicletype.setMinGap(vtype, 0.0)
                 self.api.vehicletype.setColor(vtype, PLAIN)
+            if self.drives:
+                self._insert_driven(robot, self.states[i], edges, vtype)
+                continue
             v.add(robot.name, ROUTE_ID, vtype, depart="now", departSpeed="0")
             v.setSpeedMode(robot.name, 0)
             v.setLaneChangeMode(robot.name, 0)
             x, y, angle = sumo_from_state(self.states[i], robot.length, robot.model.wheelbase)
             v.moveToXY(robot.name, "", -1, x, y, angle, keepRoute=2)
+
+    def _insert_driven(self, robot: RobotSpec, state: np.ndarray, edges: list[str], vtype: str) -> None:
+        """Insert ``robot`` for SUMO's driver at ``state``: on the lane and lane position SUMO
+        finds under its front bumper, at its speed, on the route from that edge on."""
+        x, y, _ = sumo_from_state(state, robot.length, robot.model.wheelbase)
+        edge, pos, lane = self.api.simulation.convertRoad(x, y, False, VEHICLE_CLASS)
+        if edge not in edges:
+            raise SumoError(f"{robot.name}'s start ({x:.1f}, {y:.1f}) lies on {edge or 'no edge'}, not on the road {' '.join(edges)}")
+        route = ROUTE_ID if edge == edges[0] else f"{ROUTE_ID}@{edge}"
+        if route not in self.api.route.getIDList():
+            self.api.route.add(route, edges[edges.index(edge):])
+        self.api.vehicle.add(robot.name, route, vtype, depart="now", departLane=str(lane), departPos=repr(float(pos)),
+                             departSpeed=repr(float(state[3])))
+
+    def order_lanes(self, i: int, orders: list[LaneOrder]) -> None:
+        """The lanes SUMO's driver is to take with robot ``i`` (see :class:`LaneOrder`), in the
+        order they come; only when SUMO drives."""
+        if not self.drives:
+            raise SumoError("lane orders need SUMO's own driver (SumoOptions.sumo_drives)")
+        self.orders[i] = sorted(orders, key=lambda o: o.after)
+
+    def _ask_lanes(self) -> None:
+        """Ask SUMO's driver (``vehicle.changeLane``) for the lane of each vehicle's last order
+        it has driven far enough for, on the edge it is on, when that differs from the last asked."""
+        v = self.api.vehicle
+        for i, orders in self.orders.items():
+            name = self.robots[i].name
+            if name in self.removed or not self.present[i]:
+                continue
+            distance = v.getDistance(name)
+            due = [o for o in orders if o.after <= distance]
+            if not due:
+                continue
+            lane = due[-1].lanes.get(v.getRoadID(name))
+            if lane is not None and self._asked.get(i) != lane:
+                v.changeLane(name, lane, LANE_HOLD)
+                self._asked[i] = lane
 
     # -- reading -----------------------------------------------------------------------------
 
@@ -207,7 +280,7 @@ class SumoSimulator(Simulator):
             if robot.name in self.removed or robot.name in present or not self.present[i]:
                 continue
             self.removed.add(robot.name)
-            if robot.name in self.routed:
+            if robot.name in self.routed or self.drives:
                 self._park(i)
                 continue
             event = f"t={self.t:.2f} s: SUMO removed controlled vehicle {robot.name}; it drives on off SUMO's road, counted finished"
@@ -226,8 +299,9 @@ class SumoSimulator(Simulator):
             i = self.index.get(vid)
             if i is None or vid not in self.routed or self.present[i] or vid in self.removed:
                 continue
-            v.setSpeedMode(vid, 0)
-            v.setLaneChangeMode(vid, 0)
+            if not self.drives:
+                v.setSpeedMode(vid, 0)
+                v.setLaneChangeMode(vid, 0)
             robot = self.robots[i]
             x, y = v.getPosition(vid)
             self.states[i] = state_from_sumo(x, y, v.getAngle(vid), v.getSpeed(vid), robot.length, robot.model.wheelbase)
@@ -252,7 +326,10 @@ class SumoSimulator(Simulator):
                 continue
             x, y = v.getPosition(robot.name)
             angle = v.getAngle(robot.name)
-            self.states[i, :3] = state_from_sumo(x, y, angle, 0.0, robot.length, robot.model.wheelbase)[:3]
+            if self.drives:
+                self.states[i] = state_from_sumo(x, y, angle, v.getSpeed(robot.name), robot.length, robot.model.wheelbase)
+            else:
+                self.states[i, :3] = state_from_sumo(x, y, angle, 0.0, robot.length, robot.model.wheelbase)[:3]
 
     def _read_crossings(self) -> list[Crossing]:
         """The network's pedestrian crossings (lanes named as :data:`CROSSING_LANE` that
@@ -340,10 +417,14 @@ class SumoSimulator(Simulator):
         inputs = np.asarray(inputs, dtype=float)
         with self._sumo_errors("stepping"):
             self._note_removed()  # removed since the last step (by another TraCI client, say)
-            moving = np.array([r.name not in self.wrecked for r in self.robots], dtype=bool) & self.present
-            self.states[moving] = self.model.step(self.states, inputs, self.dt)[moving]
+            before = self.states.copy()
+            if self.drives:
+                self._ask_lanes()
+            else:
+                moving = np.array([r.name not in self.wrecked for r in self.robots], dtype=bool) & self.present
+                self.states[moving] = self.model.step(self.states, inputs, self.dt)[moving]
             for i, robot in enumerate(self.robots):
-                if robot.name in self.removed or not self.present[i]:
+                if self.drives or robot.name in self.removed or not self.present[i]:
                     continue
                 x, y, angle = sumo_from_state(self.states[i], robot.length, robot.model.wheelbase)
                 self.api.vehicle.moveToXY(robot.name, "", -1, x, y, angle, keepRoute=2)
@@ -352,13 +433,17 @@ class SumoSimulator(Simulator):
             self.t = self.api.simulation.getTime() - self.t0
             self._take_departed()
             self._read_robots()
+            if self.drives:
+                self._applied = applied_inputs(before, self.states, self.dt, np.array([r.model.wheelbase for r in self.robots]))
             self._bodies, self._obstacles = self._read_obstacles()
             sim_pairs = self._sim_collision_pairs()
         report = self._contacts()
         self.wrecked.update(name for pair in report.overlaps for name in pair if name in {r.name for r in self.robots})
         for i, robot in enumerate(self.robots):
-            if robot.name in self.wrecked:
+            if robot.name in self.wrecked and not self.drives:  # SUMO's driver drives on: its collisions are counted, no more
                 self.states[i, 3] = 0.0
+        if self.drives:
+            report.applied = self._applied.copy()
         report.sim_collisions = len(sim_pairs - self._sim_pairs)
         self._sim_pairs = sim_pairs
         return report
@@ -430,6 +515,24 @@ def sumo_simulator(robots: list[RobotSpec], states: np.ndarray, dt: float, edges
         return IsolatedSimulator(SumoSimulator, (robots, states, dt, edges, options, routed), name="SUMO", error=SumoError,
                                  mirror=("t", "dt", "removed", "events"))
     return SumoSimulator(robots, states, dt, edges, options, routed)
+
+
+#: The steering angle [rad] the inputs :func:`applied_inputs` reports stay within (a lane change
+#: SUMO makes in one step turns no heading; a car turning on the spot would need 90 degrees).
+APPLIED_STEER_MAX = 1.5
+
+
+def applied_inputs(before: np.ndarray, after: np.ndarray, dt: float, wheelbase: np.ndarray) -> np.ndarray:
+    """The inputs ``[accel, steer]`` (n, 2) of the bicycle model that match a step of ``dt`` [s]
+    from states ``before`` to ``after`` (n, 4) SUMO's driver made: the change of speed over the
+    step, and the steering angle whose yaw rate ``v tan(steer) / wheelbase`` at the speed before
+    turns the heading as it turned (0 below 0.1 m/s; within ``APPLIED_STEER_MAX``)."""
+    accel = (after[:, 3] - before[:, 3]) / dt
+    turn = np.angle(np.exp(1j * (after[:, 2] - before[:, 2]))) / dt
+    v = before[:, 3]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        steer = np.where(np.abs(v) > 0.1, np.arctan(wheelbase * turn / np.where(np.abs(v) > 0.1, v, 1.0)), 0.0)
+    return np.column_stack([accel, np.clip(steer, -APPLIED_STEER_MAX, APPLIED_STEER_MAX)])
 
 
 def polylines_cross(a: np.ndarray, b: np.ndarray) -> bool:
