@@ -375,6 +375,9 @@ SUMO_SECTION: dict[str, Key] = {
     "isolate": Key(bool, True, "run SUMO in a process of its own, so that a SUMO crash (a segfault in libsumo) ends the run with "
                    "its error and everything recorded until then, not the whole command (false: in aac-sumo's process; "
                    "sumo-gui always runs in its own)"),
+    "driver_speed": Key(float, -1.0, "controller.coordinator = sumo on kind lane_change: the most SUMO's driver drives the cars at "
+                        "[m/s]; -1: lane_change.speed, our references' cruise speed (a like-for-like comparison); 0: SUMO's "
+                        "own desired speed (the lane's limit times the vType's speed factor, 13.9 m/s on the bundled road)"),
     "lateral_resolution": Key(float, 0.0, "SUMO's sublane model: --lateral-resolution for SUMO's own traffic [m] (0: off, "
                               "the lane-based model, unless sumo.config or sumo.extra_args set it)", **NN),
     "output_dir": Key(str, "", "directory of SUMO's own output files and of its message log sumo.log (aac-sumo run sets it to --out; "

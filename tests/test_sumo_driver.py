@@ -21,7 +21,7 @@ TARGET = {0: 1, 1: 2, 2: 1}  # the bundled road's target lanes (cones close lane
 def pure_sumo(seed: int, n: int, steps: int, change_start: float = 5.0) -> dict[tuple[float, str], tuple[float, float, float]]:
     """The bundled scenario's cars in plain libsumo, without aac-sumo: inserted with
     ``vehicle.add`` at the scenario's starts (lane k mod 3, rear axle at the seeded arc length,
-    10 m/s), each asked for its target lane with ``changeLane`` once it has driven
+    10 m/s, at most 10 m/s as our references), each asked for its target lane with ``changeLane`` once it has driven
     ``change_start`` metres. Footprint centre and heading [rad] by (t, name), t = 0 after the
     insertion step."""
     import libsumo as traci
@@ -43,6 +43,7 @@ def pure_sumo(seed: int, n: int, steps: int, change_start: float = 5.0) -> dict[
         for k, name in enumerate(names):  # the front bumper is (length + wheelbase) / 2 ahead of the rear axle
             traci.vehicle.add(name, "road", "car", depart="now", departLane=str(lane[k]), departPos=repr(float(s0[k] + 0.5 * (LENGTH + WHEELBASE))),
                               departSpeed="10.0")
+            traci.vehicle.setMaxSpeed(name, 10.0)  # sumo.driver_speed = -1: our references' cruise speed
         traci.simulationStep()
         t0, asked = traci.simulation.getTime(), set()
         for _ in range(steps + 1):
@@ -132,3 +133,13 @@ def test_the_highway_work_zone_with_sumo_driving_completes():
     assert m["n_robots"] == 100 and m["completed"] is True
     assert m["collisions"] == 0 and m["sim_collisions"] == 0
     assert "lane_changes" not in m  # our gap rule's counts: SUMO's driver judged the gaps
+
+
+def test_sumo_drives_at_our_cruise_speed_unless_asked_for_its_own():
+    """By default SUMO's driver keeps to lane_change.speed (10 m/s), as our references do; with
+    sumo.driver_speed = 0 it takes its own desired speed, the lane's 13.89 m/s times its speed factor."""
+    base = ["controller.coordinator=sumo", "lane_change.vehicles=3", "scenario.duration=6"]
+    ours = runner.run(config.load("lane_change", base)).steps
+    own = runner.run(config.load("lane_change", base + ["sumo.driver_speed=0"])).steps
+    assert ours["v"].max() <= 10.0 + 1e-9
+    assert own["v"].max() > 11.0

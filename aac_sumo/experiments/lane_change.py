@@ -211,8 +211,11 @@ def build_lane_change(scenario: Scenario) -> Setup:
         targets = [target_lane(int(a), cone_lane, lanes) for a in start_lane]
         if simulator_drives(scenario):  # SUMO's driver: each car is asked for its target lane once it has driven change_start
             net = network.read(net_path, "sumo.net", src)
+            speed = lc["speed"] if su["driver_speed"] < 0.0 else su["driver_speed"]
             for k, b in enumerate(targets):
                 sim.order_lanes(k, [LaneOrder(lc["change_start"], lane_indices(net, rd.edges, b))])
+                if speed > 0.0:  # as fast as our references cruise, unless asked otherwise
+                    sim.limit_speed(k, speed)
         run_on = lc["speed"] * scenario["scenario.duration"]  # beyond the road's end, along it: farther than any car gets
         tasks = [smooth_reference(lane_change_path(rd, int(a), b, s0[k], lc["change_start"], lc["change_length"]), lc["speed"],
                                   min(lc["curve_lat_accel"], scenario["robot.a_lat_max"]), run_on)

@@ -246,6 +246,13 @@ class SumoSimulator(Simulator):
         self.api.vehicle.add(robot.name, route, vtype, depart="now", departLane=str(lane), departPos=repr(float(pos)),
                              departSpeed=repr(float(state[3])))
 
+    def limit_speed(self, i: int, speed: float) -> None:
+        """SUMO's driver drives robot ``i`` at ``speed`` [m/s] at most (``vehicle.setMaxSpeed``;
+        its desired speed is otherwise the lane's limit times its speed factor); only when SUMO drives."""
+        if not self.drives:
+            raise SumoError("speed limits for SUMO's driver need SUMO's own driver (SumoOptions.sumo_drives)")
+        self.api.vehicle.setMaxSpeed(self.robots[i].name, float(speed))
+
     def order_lanes(self, i: int, orders: list[LaneOrder]) -> None:
         """The lanes SUMO's driver is to take with robot ``i`` (see :class:`LaneOrder`), in the
         order they come; only when SUMO drives."""
