@@ -25,6 +25,7 @@ per run, with its outcome and reproducing command) and ``stress.md`` are written
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import math
 import shlex
@@ -128,12 +129,15 @@ def draw_lane_change(rng: np.random.Generator, campaign: "Campaign", index: int)
 class Kind:
     """A ``--kinds`` name: its bundled scenario, the ``scenario.duration`` cap of its runs [s]
     (a typical run takes 5-30 s of wall time here, docs/reliability.md), its draw, and the keys
-    (``--set`` keys, or descriptive columns for what a generated file holds) that draw sets."""
+    (``--set`` keys, or descriptive columns for what a generated file holds) that draw sets.
+    ``baseline``: the baseline coordinator every run of the kind uses (instead of AAC or LFC,
+    drawn); its collisions are reported, not failures of ours."""
 
     scenario: str
     duration: float
     draw: Callable[[np.random.Generator, "Campaign", int], dict[str, str]]
     keys: tuple[str, ...]
+    baseline: str | None = None
 
 
 KINDS: dict[str, Kind] = {
@@ -145,6 +149,10 @@ KINDS: dict[str, Kind] = {
                         ("lane_change.vehicles", "lane_change.spacing", "sumo.net", "sumo.routes", "road", "cones", "pedestrians")),
     "braking": Kind("braking", 20.0, draw_braking, ("braking.speed", "braking.gap", "braking.lead_decel")),
 }
+#: The baselines as kinds of their own: ``<baseline>-<kind>`` with the kind's draws (table_common.BASELINES).
+BASELINE_KINDS = {"orca": ("swarm", "circle", "crossing"), "cbf_qp": ("swarm", "circle", "crossing"), "sumo": ("lane-change",)}
+KINDS |= {f"{b}-{k}": dataclasses.replace(KINDS[k], baseline=b) for b, kinds in BASELINE_KINDS.items() for k in kinds
+          if b in config.COMMON["controller"]["coordinator"].type}  # the baselines this version has
 #: Columns that describe a generated file's content; they are not ``--set`` keys.
 DESCRIPTIVE = ("road", "cones", "pedestrians")
 ROUTES_TEXT = "_routes_xml"  # a draw's route-file content (written by :func:`prepare`, not a column)
@@ -287,6 +295,8 @@ def draw(campaign: Campaign, index: int, kinds: list[str]) -> Draw:
               "controller.coordinator": str(rng.choice(["aac", "lfc"])), "controller.barrier": str(rng.choice(["cbf", "fcbf"])),
               "controller.horizon": str(int(rng.choice(HORIZONS)))}
     values |= spec.draw(rng, campaign, index)
+    if spec.baseline is not None:
+        values["controller.coordinator"] = spec.baseline
     files = ((campaign.routes_path(index), values.pop(ROUTES_TEXT)),) if ROUTES_TEXT in values else ()
     sets = [f"{k}={v}" for k, v in values.items() if k not in DESCRIPTIVE]
     for _ in range(CROSSING_TRIES):
@@ -347,6 +357,11 @@ def prepare(draws: list[Draw], seed: int, out: Path) -> None:
 
 def _positive(value) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and value > 0
+
+
+def is_baseline(row: dict) -> bool:
+    """Whether a stress row ran one of the baselines (its collisions are not failures of ours)."""
+    return KINDS[row["kind"]].baseline is not None if row.get("kind") in KINDS else False
 
 
 def outcome(row: dict) -> str:

@@ -19,7 +19,7 @@ from aac_sumo.experiments import build
 from aac_sumo.metrics import METRIC_KEYS
 from aac_sumo.provenance import PROVENANCE_KEYS
 
-ALL = list(stress.KINDS)
+ALL = [k for k, v in stress.KINDS.items() if v.baseline is None]  # ours; the baselines' kinds draw the same
 
 
 def test_draws_are_a_pure_function_of_seed_and_index(tmp_path):
@@ -143,3 +143,15 @@ def test_ci_subset_has_no_collision_and_no_error(capsys, tmp_path):
     _, rows = read(tmp_path / "stress.csv")
     assert len(rows) == 20
     assert rc == 0, (tmp_path / "stress.md").read_text()
+
+
+def test_baselines_are_kinds_of_their_own_whose_collisions_are_not_failures_of_ours():
+    """``orca-circle`` draws as ``circle`` does and runs ORCA; a collision there is reported in its
+    row but does not count against our coordinators; the default kinds are ours alone."""
+    from aac_sumo.cli import build_parser
+
+    drawn = stress.draw(stress.Campaign(7, Path("/tmp/unused")), 0, ["orca-circle"])
+    assert drawn.values["controller.coordinator"] == "orca" and "circle_swap.n_robots" in drawn.values
+    assert stress.is_baseline({"kind": "orca-circle"}) and not stress.is_baseline({"kind": "circle"})
+    default = build_parser().parse_args(["stress"]).kinds.split(",")
+    assert default == ["swarm", "circle", "crossing", "lane-change", "braking"]
