@@ -245,6 +245,13 @@ COMMON: dict[str, dict[str, Key]] = {
     },
 }
 
+#: The CBF-QP baseline (controller.coordinator = "cbf_qp", aac_sumo.coordination.cbf_qp; docs/baselines_cbf_qp.md).
+COMMON["cbf_qp"] = {
+    "radius": Key(float, 5.0, "another robot whose footprint centre is within this of the ego's gets a barrier row [m]", **P),
+    "lookahead": Key(float, 1.0, "pure-pursuit lookahead of the nominal tracking law [m]", **P),
+    "speed_gain": Key(float, 1.0, "speed-error gain of the nominal tracking law [1/s]", **P),
+}
+
 KIND_SECTIONS: dict[str, dict[str, Key]] = {
     "braking": {
         "speed": Key(float, 10.0, "initial speed of ego and lead [m/s]", **P),

@@ -13,6 +13,7 @@ from aac_sumo.config import Scenario, ScenarioError
 from aac_sumo.coordination.aac import AacCoordinator, AacParams, Authorities
 from aac_sumo.coordination.anticipation import Anticipation
 from aac_sumo.coordination.base import Coordinator, Finished
+from aac_sumo.coordination.cbf_qp import CbfQpCoordinator, CbfQpParams
 from aac_sumo.coordination.independent import IndependentCoordinator
 from aac_sumo.coordination.lfc import LfcCoordinator, LfcParams
 from aac_sumo.coordination.proximity import ProximityParams
@@ -124,6 +125,12 @@ def lfc_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corridors, f
 @register_coordinator("independent")
 def independent_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corridors, finished) -> IndependentCoordinator:
     return IndependentCoordinator(planner, tasks, corridors, finished)
+
+
+@register_coordinator("cbf_qp")
+def cbf_qp_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corridors, finished) -> CbfQpCoordinator:
+    q = scenario.data["cbf_qp"]
+    return CbfQpCoordinator(planner, tasks, corridors, finished, params=CbfQpParams(q["radius"], q["lookahead"], q["speed_gain"]))
 
 
 def coordinator(scenario: Scenario, tasks: list[PathReference], corridors=None, finished: Finished | None = None,
