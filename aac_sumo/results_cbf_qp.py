@@ -1,5 +1,6 @@
 """The CBF-QP baseline's published figures (docs/baselines_cbf_qp.md): S1, the 16-robot circle
-swap on 6 m, the 20-robot random crossing and S2 (SUMO), each barrier, seeds 0-4, run by ``aac-sumo sweep``
+swap on 6 m, the 20-robot random crossing and S2 (SUMO, also with the nominal law not anticipating),
+each barrier, seeds 0-4, run by ``aac-sumo sweep``
 and summarised into ``docs/results/cbf_qp_seeds0-4.md`` and ``.csv`` (one row per case and
 barrier) and ``cbf_qp_seeds0-4_runs.csv`` (every run), headed by the command and commit.
 
@@ -20,6 +21,7 @@ CASES = [
     ("circle swap, 16 robots on 6 m", "circle_swap", ["circle_swap.n_robots=16", "circle_swap.radius=6.0"]),
     ("random crossing, 20 robots", "random_crossing", []),
     ("S2 lane change (SUMO), 15 cars", "lane_change", []),
+    ("S2, nominal law without anticipation", "lane_change", ["controller.anticipate=false"]),
 ]
 GRID = ["controller.coordinator=cbf_qp", "controller.barrier=fcbf,cbf"]
 SEEDS = 5
@@ -93,7 +95,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     frames, commands = [], []
     for label, scenario, sets in CASES:
-        folder = args.runs / scenario
+        folder = args.runs / (scenario + "".join(f"_{s.split('.')[-1].replace('=', '-')}" for s in sets))
         commands.append(sweep_command(scenario, sets, folder, args.workers))
         rows, _ = sweep.sweep(scenario, GRID, sets, SEEDS, args.workers, folder, progress=False, resume=args.resume)
         frames.append(pd.DataFrame(rows).assign(case=label))
