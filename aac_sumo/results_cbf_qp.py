@@ -15,13 +15,13 @@ from pathlib import Path
 
 import pandas as pd
 
-#: (label, bundled scenario, --set overrides) of every case.
+#: (label, bundled scenario, --set overrides, folder of its sweep) of every case.
 CASES = [
-    ("S1 swarm rescue, 5 robots", "swarm_rescue", []),
-    ("circle swap, 16 robots on 6 m", "circle_swap", ["circle_swap.n_robots=16", "circle_swap.radius=6.0"]),
-    ("random crossing, 20 robots", "random_crossing", []),
-    ("S2 lane change (SUMO), 15 cars", "lane_change", []),
-    ("S2, nominal law without anticipation", "lane_change", ["controller.anticipate=false"]),
+    ("S1 swarm rescue, 5 robots", "swarm_rescue", [], "swarm_rescue"),
+    ("circle swap, 16 robots on 6 m", "circle_swap", ["circle_swap.n_robots=16", "circle_swap.radius=6.0"], "circle_swap16"),
+    ("random crossing, 20 robots", "random_crossing", [], "random_crossing20"),
+    ("S2 lane change (SUMO), 15 cars", "lane_change", [], "lane_change"),
+    ("S2, nominal law without anticipation", "lane_change", ["controller.anticipate=false"], "lane_change_no_anticipation"),
 ]
 GRID = ["controller.coordinator=cbf_qp", "controller.barrier=fcbf,cbf"]
 SEEDS = 5
@@ -94,8 +94,8 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     args = parser.parse_args(argv)
     frames, commands = [], []
-    for label, scenario, sets in CASES:
-        folder = args.runs / (scenario + "".join(f"_{s.split('.')[-1].replace('=', '-')}" for s in sets))
+    for label, scenario, sets, name in CASES:
+        folder = args.runs / name
         commands.append(sweep_command(scenario, sets, folder, args.workers))
         rows, _ = sweep.sweep(scenario, GRID, sets, SEEDS, args.workers, folder, progress=False, resume=args.resume)
         frames.append(pd.DataFrame(rows).assign(case=label))
