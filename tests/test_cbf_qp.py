@@ -84,6 +84,20 @@ def test_an_impossible_row_is_reported_infeasible():
     assert not filter_input(nominal, rows, rhs, lo, hi, np.array([0.25, 1 / 0.36])).ok
 
 
+def test_the_row_binds_late_because_the_input_moves_the_disc_only_by_a_dt2():
+    """The one-step condition is myopic (docs/baselines_cbf_qp.md): at full speed toward a
+    standing obstacle, the nominal input passes at 1.8 m, is braked at 1.7 m, and no admissible
+    input meets the row at 1.6 m."""
+    state, nominal = np.array([0.0, 0.0, 0.0, 1.5]), np.array([0.0, 0.0])
+    offsets, radius = ego_discs(ROBOT, 1)
+    lo, hi = input_bounds(ROBOT, state, 0.0, DT)
+    outcomes = []
+    for x in (1.8, 1.7, 1.6):
+        rows, rhs = barrier_rows(ROBOT, state, nominal, circle_stages(x, 0.3, radius + D_SAFE), GAMMA, DT, offsets)
+        outcomes.append(filter_input(nominal, rows, rhs, lo, hi, np.array([0.25, 1 / 0.36])).outcome)
+    assert outcomes == ["unchanged", "solved", "primal_infeasible"]
+
+
 def test_two_robots_head_on_stay_collision_free():
     """Two robots driving at each other on one line (internal simulator): the filter keeps them apart."""
     sets = ["controller.coordinator=cbf_qp", "swarm_rescue.starts=[[0.0, 0.0, 0.0], [8.0, 0.0, 3.14159]]",
