@@ -141,3 +141,23 @@ def test_bad_cbf_qp_keys_exit_2_with_one_line(setting, capsys):
     assert main(["run", "swarm_rescue", "--set", "controller.coordinator=cbf_qp", "--set", setting, "--out", "/nonexistent/x"]) == 2
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and setting.split("=")[0] in err
+
+
+def test_the_results_table_counts_runs_as_the_docs_say():
+    """docs/results/cbf_qp_seeds0-4.md: completions, deadlocks and collisions are counted in runs
+    and episodes; the task time is the mean over completed runs only."""
+    import pandas as pd
+
+    from aac_sumo.results_cbf_qp import summarise
+
+    runs = pd.DataFrame({
+        "case": ["c"] * 3, "controller.barrier": ["fcbf"] * 3, "status": ["ok"] * 3,
+        "completed": [True, False, False], "deadlock": [False, True, True], "collisions": [0, 2, 0],
+        "sim_collisions": [None] * 3, "task_duration_s": [10.0, None, None], "infeasibility_rate": [0.0, 0.5, 0.1],
+        "min_clearance_m": [0.2, -0.1, 0.05], "min_distance_m": [1.0, 0.5, 0.7], "min_pedestrian_clearance_m": [None] * 3,
+        "compute_ms_median": [1.0, 2.0, 3.0], "emergency_brakes": [0, 1, 0],
+    })
+    row = summarise(runs).iloc[0]
+    assert (row.runs, row.completed, row.deadlocks, row.collision_runs, row.collisions) == (3, 1, 2, 1, 2)
+    assert row.task_duration_s == 10.0 and row.min_clearance_m == -0.1 and row.sim_collisions is None
+    assert row.infeasibility_rate == pytest.approx(0.2)
