@@ -3,6 +3,8 @@ one barrier row per neighbour, solved by OSQP (docs/baselines_cbf_qp.md)."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -161,3 +163,18 @@ def test_the_results_table_counts_runs_as_the_docs_say():
     assert (row.runs, row.completed, row.deadlocks, row.collision_runs, row.collisions) == (3, 1, 2, 1, 2)
     assert row.task_duration_s == 10.0 and row.min_clearance_m == -0.1 and row.sim_collisions is None
     assert row.infeasibility_rate == pytest.approx(0.2)
+
+
+def test_a_fresh_cli_process_accepts_cbf_qp_in_a_saved_run(tmp_path):
+    """The coordinator is registered when the experiments are imported: a new process that only
+    reads a saved scenario.toml (compare, animate) must know it too."""
+    import os
+    import subprocess
+    import sys
+
+    run = tmp_path / "run"
+    assert main(["run", "swarm_rescue", "--set", "controller.coordinator=cbf_qp", "--set", "scenario.duration=1.0", "--out", str(run)]) == 0
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1]))
+    done = subprocess.run([sys.executable, "-m", "aac_sumo.cli", "compare", str(run), str(run), "--out", str(tmp_path / "cmp")],
+                          capture_output=True, text=True, env=env, timeout=300)
+    assert done.returncode == 0, done.stderr
