@@ -269,6 +269,16 @@ COMMON["orca"] = {
 _coordinator = COMMON["controller"]["coordinator"]  # declared here, not only when registered: sweep/tune load scenarios first
 COMMON["controller"]["coordinator"] = Key(_coordinator.type + ("orca",), _coordinator.default,
                                           _coordinator.doc + ", orca (RVO2's ORCA on covering discs, a baseline; docs/baselines.md)")
+#: The CBF-QP baseline (controller.coordinator = "cbf_qp", aac_sumo.coordination.cbf_qp; docs/baselines_cbf_qp.md).
+COMMON["cbf_qp"] = {
+    "radius": Key(float, 5.0, "another robot whose footprint centre is within this of the ego's gets a barrier row [m]", **P),
+    "lookahead": Key(float, 1.0, "pure-pursuit lookahead of the nominal tracking law [m]", **P),
+    "speed_gain": Key(float, 1.0, "speed-error gain of the nominal tracking law [1/s]", **P),
+}
+_coordinator = COMMON["controller"]["coordinator"]
+COMMON["controller"]["coordinator"] = Key(_coordinator.type + ("cbf_qp",), _coordinator.default,
+                                          _coordinator.doc + ", cbf_qp (a CBF-QP safety filter on the tracking law, a baseline; "
+                                          "docs/baselines_cbf_qp.md)")
 
 KIND_SECTIONS: dict[str, dict[str, Key]] = {
     "braking": {

@@ -13,6 +13,7 @@ from aac_sumo.config import Scenario, ScenarioError
 from aac_sumo.coordination.aac import AacCoordinator, AacParams, Authorities
 from aac_sumo.coordination.anticipation import Anticipation
 from aac_sumo.coordination.base import Coordinator, Finished
+from aac_sumo.coordination.cbf_qp import CbfQpCoordinator, CbfQpParams
 from aac_sumo.coordination.independent import IndependentCoordinator
 from aac_sumo.coordination.lfc import LfcCoordinator, LfcParams
 from aac_sumo.coordination.orca import OrcaCoordinator, OrcaParams
@@ -181,6 +182,12 @@ def simulator_drives(scenario: Scenario) -> bool:
     """Whether ``controller.coordinator`` leaves driving to the simulator (its factory declares
     ``simulator_drives``): the builder then starts the simulator in that mode."""
     return bool(getattr(COORDINATORS.get(scenario["controller.coordinator"]), "simulator_drives", False))
+
+
+@register_coordinator("cbf_qp")
+def cbf_qp_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corridors, finished) -> CbfQpCoordinator:
+    q = scenario.data["cbf_qp"]
+    return CbfQpCoordinator(planner, tasks, corridors, finished, params=CbfQpParams(q["radius"], q["lookahead"], q["speed_gain"]))
 
 
 def coordinator(scenario: Scenario, tasks: list[PathReference], corridors=None, finished: Finished | None = None,
