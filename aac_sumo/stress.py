@@ -150,7 +150,8 @@ KINDS: dict[str, Kind] = {
     "braking": Kind("braking", 20.0, draw_braking, ("braking.speed", "braking.gap", "braking.lead_decel")),
 }
 #: The baselines as kinds of their own: ``<baseline>-<kind>`` with the kind's draws (table_common.BASELINES).
-BASELINE_KINDS = {"orca": ("swarm", "circle", "crossing"), "cbf_qp": ("swarm", "circle", "crossing"), "sumo": ("lane-change",)}
+BASELINE_KINDS = {"orca": ("swarm", "circle", "crossing"), "cbf_qp": ("swarm", "circle", "crossing", "lane-change"),
+                  "sumo": ("lane-change",)}
 KINDS |= {f"{b}-{k}": dataclasses.replace(KINDS[k], baseline=b) for b, kinds in BASELINE_KINDS.items() for k in kinds
           if b in config.COMMON["controller"]["coordinator"].type}  # the baselines this version has
 #: Columns that describe a generated file's content; they are not ``--set`` keys.

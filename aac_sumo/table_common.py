@@ -63,7 +63,7 @@ def plan_bundled_tasks(scenario: str, sets: list[str], bundles, grid, seeds: int
 COORDINATORS = ("aac", "lfc")
 #: Baseline coordinators (``controller.coordinator``), the scenario kinds they drive, and their labels.
 BASELINES = {"orca": ("swarm_rescue", "circle_swap", "random_crossing"),
-             "cbf_qp": ("swarm_rescue", "circle_swap", "random_crossing"),
+             "cbf_qp": ("swarm_rescue", "circle_swap", "random_crossing", "lane_change"),
              "sumo": ("lane_change",)}
 BASELINE_LABELS = {"orca": "ORCA (RVO2)", "cbf_qp": "CBF-QP safety filter", "sumo": "SUMO's own driver"}
 COORDINATOR_LABELS = {"aac": "AAC-MPC-FCBF", "lfc": "LFC-MPC-FCBF"} | BASELINE_LABELS
