@@ -23,7 +23,7 @@ from aac_sumo.coordination.regions import Fleet
 from aac_sumo.coordination.safety import BRAKING_TIE, STRIP_OVERSHOOT, SafetyCheck, WalkerSpeeds
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.kernels import STANDING_GAP, swept_hull_ellipses
-from aac_sumo.geometry import containing_ellipse, convex_hull, ellipse_signed_distance, rect_clearance_rows, rect_corners
+from aac_sumo.geometry import containing_ellipse, convex_hull, ellipse_signed_distance, rect_corners
 from aac_sumo.metrics import authority_jain
 from aac_sumo.mpc.planner import MpcConfig, MpcPlanner, Plan
 from aac_sumo.references import PathReference
