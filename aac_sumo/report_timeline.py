@@ -82,9 +82,19 @@ def authority_strip(ax, steps: pd.DataFrame, robots: list[str], colours) -> None
 
 
 def plot_fairness(result, path: Path, delays: np.ndarray | None = None) -> None:
-    """Bars per robot: authority received over its fair share, and its delay [s] (arrival time
-    minus free-flow time; ``delays`` by robot name, NaN for a robot that did not arrive). Only
-    robots with recorded steps are shown (a run stopped early misses those not yet departed)."""
+    """Write :func:`fairness_figure` of ``result`` and ``delays`` to ``path`` (PNG, 100 dpi)."""
+    fig = fairness_figure(result, delays)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def fairness_figure(result, delays: np.ndarray | None = None) -> plt.Figure:
+    """The fairness picture as a matplotlib figure of two axes: on top, bars per robot of the
+    authority received over its fair share (:func:`~aac_sumo.metrics.authority_share`) with the
+    fair share dashed; below, its delay [s] (arrival time minus free-flow time; ``delays`` by
+    robot name, NaN for a robot that did not arrive, drawn as a grey bar of height 0). Only
+    robots with recorded steps are shown (a run stopped early misses those not yet departed).
+    The caller closes it."""
     steps, m = result.steps, result.metrics
     order = list(dict.fromkeys(steps["robot"]))
     share = authority_share(steps).reindex(order)
@@ -108,8 +118,7 @@ def plot_fairness(result, path: Path, delays: np.ndarray | None = None) -> None:
     fig.suptitle(f"{m['scenario']}: {str(m['coordinator']).upper()}, N={m['horizon']}, seed {m['seed']}: fairness per robot",
                  fontsize="medium")
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    return fig
 
 
 def _fmt(x) -> str:

@@ -10,7 +10,7 @@ property checked here is that every point the algebraic barrier accepts has exac
 import casadi as ca
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from aac_sumo.barriers import (
@@ -334,9 +334,75 @@ def constraint_value(p_now, p_next, row_now, row_next, gamma):
     return active * (h_next - (1 - gamma) * h_now) + (1 - active)
 
 
-def test_stage_field_layout():
-    assert STAGE_FIELDS == ("cx", "cy", "cos", "sin", "inv_a2", "inv_b2", "active")
-    assert N_STAGE_FIELDS == 7
+@pytest.fixture(scope="module")
+def one_stage_problem():
+    """The compiled MPC problem of one stage, one obstacle slot and one ego disc (ipopt: built in
+    well under a second)."""
+    from aac_sumo.mpc.problem import MpcProblem, ProblemShape
+
+    return MpcProblem(ProblemShape(horizon=1, slots=1, discs=1, solver="ipopt", dt=0.1))
+
+
+def stage_zero_barrier(problem, state, rows, gamma, wheelbase=0.5, offset=0.3) -> float:
+    """The problem's own stage-0 barrier row (after the NZ dynamics rows), evaluated by casadi
+    with ``rows`` (2, N_STAGE_FIELDS) as the slot's parameters at stages 0 and 1, the ego at
+    rear-axle ``state`` driving straight on (zero inputs)."""
+    from aac_sumo.mpc.problem import NZ
+
+    p = problem.parameters(wheelbase=wheelbase, gamma=gamma, disc_offsets=offset, weights=np.zeros(12), x_ref=np.zeros(8),
+                           obstacles=rows, band=np.empty(0), limits=[3.0, 0.1], terminal=np.empty(0), stop_decel=np.empty(0))
+    w = problem.pack(np.array([state, state]), np.zeros((1, 2)), np.zeros(2))
+    return float(problem.solver.oracle()(w, p)[1][NZ])
+
+
+def closed_form(px, py, cx, cy, phi, inv_a2, inv_b2):
+    """``(x'/A)^2 + (y'/B)^2 - 1`` of a point in the frame of an ellipse centred at (cx, cy), turned by phi."""
+    dx, dy = px - cx, py - cy
+    along, across = np.cos(phi) * dx + np.sin(phi) * dy, -np.sin(phi) * dx + np.cos(phi) * dy
+    return along**2 * inv_a2 + across**2 * inv_b2 - 1.0
+
+
+field = st.floats(-5.0, 5.0)
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(x=field, y=field, heading=st.floats(-np.pi, np.pi), v=st.floats(0.0, 5.0), gamma=st.floats(0.05, 1.0),
+       now=st.tuples(field, field, st.floats(-np.pi, np.pi), st.floats(0.05, 4.0), st.floats(0.05, 4.0)),
+       nxt=st.tuples(field, field, st.floats(-np.pi, np.pi), st.floats(0.05, 4.0), st.floats(0.05, 4.0)),
+       active=st.sampled_from([0.0, 1.0]))
+def test_the_mpc_problem_reads_each_stage_field_where_stage_fields_names_it(one_stage_problem, x, y, heading, v, gamma, now, nxt, active):
+    """A slot's parameters laid out by name as ``STAGE_FIELDS`` says (centre, cos and sin of the
+    ellipse's turn, inverse squared semi-axes, active flag) give the compiled problem's barrier
+    row its written-out value: active * (h_1 - (1 - gamma) h_0) + 1 - active, with h_k the ellipse
+    of stage k at the ego disc, one Euler step on at stage 1 (driving straight on)."""
+    offset, dt = 0.3, 0.1
+
+    def row(cx, cy, phi, a, b, on):
+        named = {"cx": cx, "cy": cy, "cos": np.cos(phi), "sin": np.sin(phi), "inv_a2": a**-2, "inv_b2": b**-2, "active": on}
+        assert len(STAGE_FIELDS) == N_STAGE_FIELDS == len(named)
+        return [named[name] for name in STAGE_FIELDS]
+
+    rows = np.array([row(*now, 1.0), row(*nxt, active)])
+    got = stage_zero_barrier(one_stage_problem, np.array([x, y, heading, v]), rows, gamma, offset=offset)
+    disc = np.array([x, y]) + offset * np.array([np.cos(heading), np.sin(heading)])
+    h0 = closed_form(*disc, now[0], now[1], now[2], now[3] ** -2, now[4] ** -2)
+    h1 = closed_form(*(disc + v * dt * np.array([np.cos(heading), np.sin(heading)])), nxt[0], nxt[1], nxt[2], nxt[3] ** -2, nxt[4] ** -2)
+    expected = active * (h1 - (1 - gamma) * h0) + 1 - active
+    assert got == pytest.approx(expected, rel=1e-9, abs=1e-9)
+
+
+def test_stage_parameters_feed_the_problem_the_ellipse_they_were_made_from(one_stage_problem):
+    """Rows from :func:`stage_parameters` (clearance 0: the ellipse itself) put the problem's
+    barrier at zero on the ellipse's rim, negative inside and positive outside, whatever its turn."""
+    phi = 0.7
+    ell = np.array([[2.0, -1.0, 1.5, 0.5, phi], [2.0, -1.0, 1.5, 0.5, phi]])
+    rows = stage_parameters(ell, 0.0)
+    rim = np.array([2.0, -1.0]) + 1.5 * np.array([np.cos(phi), np.sin(phi)])  # the end of the major axis
+    for scale, sign in ((1.0, 0.0), (0.5, -1.0), (1.5, 1.0)):
+        disc = np.array([2.0, -1.0]) + scale * (rim - np.array([2.0, -1.0]))
+        state = np.array([*(disc - 0.3 * np.array([1.0, 0.0])), 0.0, 0.0])  # heading 0, standing: the disc 0.3 m ahead
+        h = stage_zero_barrier(one_stage_problem, state, rows, gamma=1.0)  # gamma 1: the row is h at stage 1
+        assert h == pytest.approx(scale**2 - 1.0, abs=1e-12) and np.sign(round(h, 12)) == sign
 
 
 @given(horizon=st.integers(1, 20), d=clearance_st)

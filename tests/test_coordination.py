@@ -9,7 +9,7 @@ import itertools
 import numpy as np
 import pandas as pd
 import pytest
-from hypothesis import example, given, settings
+from hypothesis import event, example, given, settings
 from hypothesis import strategies as st
 
 from aac_sumo.barriers import FcbfParams, barrier_value
@@ -23,7 +23,7 @@ from aac_sumo.coordination.regions import Fleet
 from aac_sumo.coordination.safety import BRAKING_TIE, STRIP_OVERSHOOT, SafetyCheck, WalkerSpeeds
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.kernels import STANDING_GAP, swept_hull_ellipses
-from aac_sumo.geometry import containing_ellipse, convex_hull, ellipse_signed_distance, rect_clearance_rows, rect_corners
+from aac_sumo.geometry import containing_ellipse, convex_hull, ellipse_signed_distance, rect_corners
 from aac_sumo.metrics import authority_jain
 from aac_sumo.mpc.planner import MpcConfig, MpcPlanner, Plan
 from aac_sumo.references import PathReference
@@ -245,45 +245,81 @@ def test_safety_stop_brakes_a_robot_heading_into_another(enabled):
         assert decision.inputs[2, 0] > LIMITS.a_min
 
 
-@settings(max_examples=40, deadline=None)
+AXES = np.array([[1.0, 0.0], [0.0, 1.0], [-1.0, 0.0], [0.0, -1.0]])  # the four axis-aligned headings, as unit vectors
+
+
+def box_gap(a, b) -> float:
+    """Signed clearance [m] of two axis-aligned boxes ``(cx, cy, half_x, half_y)``, in closed
+    form: the Euclidean gap when apart, minus the smaller penetration when they overlap."""
+    gx, gy = abs(a[0] - b[0]) - a[2] - b[2], abs(a[1] - b[1]) - a[3] - b[3]
+    return max(gx, gy) if gx < 0.0 and gy < 0.0 else float(np.hypot(max(gx, 0.0), max(gy, 0.0)))
+
+
+def straight_course(v0: float, first: float, stages: int, comfort: float) -> tuple[np.ndarray, np.ndarray]:
+    """Distance [m] covered (stages+1,) and speed of a robot driving straight on the model's Euler
+    steps: ``first`` [m/s^2] for one period (None: braking already), then braking at ``comfort``
+    [m/s^2] but never below standstill, its speed kept in [0, v_max]."""
+    s, v = np.zeros(stages + 1), np.zeros(stages + 1)
+    v[0] = v0
+    for k in range(stages):
+        a = first if (k == 0 and first is not None) else min(max(-v[k] / DT, -comfort), LIMITS.a_max)
+        s[k + 1], v[k + 1] = s[k] + v[k] * DT, min(max(v[k] + a * DT, LIMITS.v_min), LIMITS.v_max)
+    return s, v
+
+
+@settings(max_examples=100, deadline=None)
 @given(seed=st.integers(0, 100_000), margin=st.floats(0.0, 1.0))
 def test_safety_check_flags_exactly_what_its_definition_says(seed, margin):
-    """The check measures only pairs whose circumscribed discs come within the margin. It flags
-    the same robots as the definition applied to every pair but those it leaves out (the
-    walkers a robot answers by stopping before their paths): at some stage of the robot's
-    course some robot or obstacle gets closer than ``margin``, closer than now and than braking
-    at once would get at that stage (standing obstacles count only within ``STANDING_GAP``)."""
+    """An independent oracle of the check, on robots that drive along the axes (headings 0, 90,
+    180, 270 degrees, braking straight on), so that every course is closed-form 1-D kinematics
+    and every footprint an axis-aligned box: robot i must brake when, at some stage k >= 1 of its
+    course (its input once, then braking at its comfort deceleration), its gap to some target is
+    below ``margin`` and below, by more than ``BRAKING_TIE``, both its gap now and the gap
+    braking at once would leave at stage k. Targets: every other robot on its course and braking
+    at once, a cone that counts only within ``STANDING_GAP``, a cart moving at constant velocity,
+    and a standing walker whose box grows by the pedestrian margin plus her reach times the time,
+    counting only until robot i's course stands. Stages run until the fastest robot could have
+    stopped, plus two."""
     rng = np.random.default_rng(seed)
-    n = 5
+    n, comfort = 4, -LIMITS.a_min
     robots = [robot(i) for i in range(n)]
-    states = np.column_stack([rng.uniform(-4, 4, (n, 2)), rng.uniform(-np.pi, np.pi, n), rng.uniform(0, LIMITS.v_max, n)])
+    axis = rng.integers(0, 4, n)
+    states = np.column_stack([rng.uniform(-2.5, 2.5, (n, 2)), axis * np.pi / 2, rng.uniform(0, LIMITS.v_max, n)])
+    accel = rng.uniform(LIMITS.a_min, LIMITS.a_max, n)
+    cart_velocity = rng.uniform(-1, 1, 2)
     obstacles = [Obstacle("cone", "cone", rng.uniform(-2, 2, 2), np.zeros(2), 0.0, 0.3, 0.3),
-                 Obstacle("walker", "pedestrian", rng.uniform(-2, 2, 2), rng.uniform(-1, 1, 2), 0.0, 0.3, 0.5),
-                 Obstacle("cart", "scripted", rng.uniform(-2, 2, 2), rng.uniform(-1, 1, 2), 0.5, 0.8, 0.5)]
-    world = WorldState(0.0, states, robots, obstacles)
-    fleet = Fleet(robots)
+                 Obstacle("walker", "pedestrian", rng.uniform(-2, 2, 2), np.zeros(2), 0.0, 0.3, 0.5),
+                 Obstacle("cart", "scripted", rng.uniform(-2, 2, 2), cart_velocity, 0.0, 0.8, 0.5)]
     config = MpcConfig(dt=DT, pedestrian_reach=1.0, pedestrian_margin=0.2)
-    check = SafetyCheck(world, fleet, config, rng.uniform(-np.pi, np.pi, n), np.zeros(n))
-    inputs = np.column_stack([rng.uniform(LIMITS.a_min, LIMITS.a_max, n), rng.uniform(-0.6, 0.6, n)])
-    got = check.unsafe(np.arange(n), inputs, margin)
+    check = SafetyCheck(WorldState(0.0, states, robots, obstacles), Fleet(robots), config, states[:, 2], np.zeros(n))
+    got = check.unsafe(np.arange(n), np.column_stack([accel, np.zeros(n)]), margin)
 
-    steps, fixed, standing, growing = check.surroundings()
-    rows = fleet.footprints(np.arange(n), check.stopping_course(inputs, steps, -fleet.comfort))
-    targets = np.concatenate([rows, fixed])
+    stages = int(np.ceil(states[:, 3].max() / comfort / DT)) + 2
+    k = np.arange(stages + 1)
+
+    def boxes(i, first):  # robot i's footprint boxes (stages+1, 4) along its course
+        s, _ = straight_course(states[i, 3], first, stages, comfort)
+        centre = states[i, :2] + np.outer(s + robots[i].centre_offset, AXES[axis[i]])
+        half = np.abs(AXES[axis[i]]) * robots[i].length / 2 + np.abs(AXES[axis[i]][::-1]) * robots[i].width / 2
+        return np.column_stack([centre, np.tile(half, (stages + 1, 1))])
+
+    course = [boxes(i, accel[i]) for i in range(n)]
+    braking = [boxes(i, None) for i in range(n)]
+    cone, walker, cart = (np.tile([*o.centre, o.length / 2, o.width / 2], (stages + 1, 1)) for o in obstacles)
+    walker[:, 2:] += (config.pedestrian_margin + config.pedestrian_reach * DT * k)[:, None]
+    cart[:, :2] += DT * k[:, None] * cart_velocity
     expected = np.zeros(n, dtype=bool)
-    for i, t in itertools.product(range(n), range(len(targets))):
-        if t in (i, n + i) or check.ignored[i, t]:
-            continue
-        course = rect_clearance_rows(rows[i], targets[t])
-        braking = rect_clearance_rows(fixed[i], targets[t])
-        if standing[t]:
-            eased = max(margin - STANDING_GAP, 0.0)
-            course, braking = course + eased, braking + eased
-        moved = np.flatnonzero(np.any(rows[i, 1:] != rows[i, :-1], axis=1))
-        stands = moved[-1] + 2 if moved.size else 1  # a growing target counts while the course moves
-        later = course[1:stands] if growing[t] else course[1:]
-        braking = braking[: len(later) + 1]
-        expected[i] |= bool(np.any((later < margin) & (later < np.minimum(course[0], braking[1:]) - BRAKING_TIE)))
+    for i in range(n):
+        moved = [s for s in range(1, stages + 1) if np.any(course[i][s, :2] != course[i][s - 1, :2])]
+        targets = [(t, margin, stages) for j in range(n) if j != i for t in (course[j], braking[j])]
+        targets += [(cone, min(margin, STANDING_GAP), stages), (cart, margin, stages), (walker, margin, moved[-1] if moved else 0)]
+        for target, within, last in targets:
+            now = box_gap(course[i][0], target[0])
+            for s in range(1, last + 1):
+                later = box_gap(course[i][s], target[s])
+                if later < within and later < now - BRAKING_TIE and later < box_gap(braking[i][s], target[s]) - BRAKING_TIE:
+                    expected[i] = True
+    event(f"flagged {int(expected.sum())} of {n}")
     np.testing.assert_array_equal(got, expected)
 
 

@@ -227,10 +227,19 @@ def test_the_sublane_model_is_opt_in():
         config.load("lane_change", ["sumo.lateral_resolution=-1"])
 
 
-def test_a_run_with_the_sublane_model_completes_or_its_crash_is_contained():
-    result = runner.run(config.load("lane_change", SMALL + ["scenario.duration=2.0", "sumo.lateral_resolution=0.8"]))
-    assert result.metrics.get("error") is None or "SUMO's process died" in result.metrics["error"]
-    assert len(result.steps) > 0
+def test_a_seeded_run_with_the_sublane_model_completes_its_time():
+    """With SUMO 1.28 here, 2 s of the lane change (seed 0) with the sublane model at 0.8 m run to
+    their time limit in SUMO's own process: no error, every car recorded in each of the 20
+    periods and driving on at about its 10 m/s (19 m in 1.9 s), no collision by either count.
+    (That a SUMO crash mid-run is contained is the test above, with a crash that surely happens.)"""
+    result = runner.run(config.load("lane_change", SMALL + ["scenario.seed=0", "scenario.duration=2.0", "sumo.lateral_resolution=0.8"]))
+    m, steps = result.metrics, result.steps
+    assert m.get("error") is None and m["incomplete_reason"] == "time limit 2.0 s reached"
+    assert (m["collisions"], m["sim_collisions"]) == (0, 0)
+    assert steps.groupby("robot")["t"].count().to_dict() == {"veh0": 20, "veh1": 20, "veh2": 20}
+    assert steps["t"].max() == pytest.approx(1.9)
+    x = steps.groupby("robot")["x"]
+    assert ((x.last() - x.first()).between(15.0, 19.5)).all()
 
 
 @pytest.mark.slow

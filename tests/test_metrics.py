@@ -1,12 +1,17 @@
 """Per-step measurements and run metrics: time to collision in closed form and against a brute
 force, and what the metrics count."""
 
+import json
+import re
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 import pytest
 from hypothesis import assume, event, given, settings
 from hypothesis import strategies as st
 
+from aac_sumo import config, runner
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.geometry import pairwise_rect_clearance
 from aac_sumo.kernels import times_to_collision
@@ -210,12 +215,26 @@ def test_capped_solves_count_the_solves_stopped_at_their_iteration_cap_and_setup
     assert metrics_of(steps_table())["capped_solves"] == 0
 
 
-def test_new_metric_keys_come_last_in_their_order():
-    """setup_s and capped_solves are appended; the keys before them keep their order."""
-    before = ("scenario", "coordinator", "barrier", "horizon", "seed", "n_robots", "completed", "task_duration_s",
-              "compute_ms_mean", "compute_ms_median", "compute_ms_p95", "solves", "infeasible_solves",
-              "infeasibility_rate", "min_distance_m", "min_clearance_m", "collisions", "sim_collisions", "ttc_mean_s",
-              "aggressive_driving_rate", "tracking_error_m", "authority_jain", "delay_jain", "delay_max_s",
-              "realtime_factor", "safety_stops", "deadlock", "min_pedestrian_clearance_m")
-    assert METRIC_KEYS[: len(before) + 2] == before + ("setup_s", "capped_solves")
-    assert list(metrics_of(steps_table()))[: len(before) + 2] == list(before) + ["setup_s", "capped_solves"]
+def documented_metric_keys() -> list[str]:
+    """The keys of the README's "Metric keys" table, in its order (each row's first cell may name several)."""
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    table = text.split("Metric keys (also the columns of `results.csv`", 1)[1].split("\n\n", 2)[1]
+    rows = [line.split("|")[1] for line in table.splitlines() if line.startswith("| `")]
+    return [key for cell in rows for key in re.findall(r"`([a-z0-9_]+)`", cell)]
+
+
+def test_metrics_json_writes_the_documented_keys_in_the_documented_order(tmp_path):
+    """A run's real metrics.json starts with METRIC_KEYS, in order; the README documents every
+    one of them in that same order (keys are added at the end, so no script that reads columns
+    by position breaks), and every other key written is documented too (or named in its prose:
+    ``incomplete_reason``, ``error``)."""
+    documented = documented_metric_keys()
+    assert len(documented) == len(set(documented)) > len(METRIC_KEYS)
+    assert [k for k in documented if k in METRIC_KEYS] == list(METRIC_KEYS)
+    result = runner.run(config.load("swarm_rescue", ["scenario.duration=0.3", "controller.horizon=5"]))
+    runner.write_outputs(result, tmp_path, plot=False)
+    written = list(json.loads((tmp_path / "metrics.json").read_text()))
+    assert written[: len(METRIC_KEYS)] == list(METRIC_KEYS)
+    assert set(written[len(METRIC_KEYS):]) <= set(documented) | {"incomplete_reason", "error"}
+    assert "incomplete_reason" in written  # 0.3 s: the time limit, not an error
+    assert "error" not in written

@@ -138,9 +138,8 @@ def test_nearest_regions_equal_a_full_scan(obstacles, barrier, prediction, margi
     """Ranking on stage 0 alone and predicting only the nearest gives, bit for bit, the regions of
     predicting every obstacle, growing the walkers' and keeping the ``slots`` nearest."""
     cfg = MpcConfig(horizon=HORIZON, dt=DT, barrier=barrier, slots=4, prediction=prediction, pedestrian_margin=margin,
-                    pedestrian_reach=reach)
-    pl = MpcPlanner.__new__(MpcPlanner)  # the ranking needs no compiled problem
-    pl.config = cfg
+                    pedestrian_reach=reach, solver="ipopt", codegen=False)  # ipopt, not compiled to C: built once, in a second
+    pl = MpcPlanner(cfg)
     state = np.array([0.5, -1.0, 0.3, 4.0])
     got, _, _ = pl.nearest_regions(state, obstacles)
     if not obstacles:

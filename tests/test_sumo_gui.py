@@ -1,13 +1,18 @@
 """sumo-gui plumbing (a window cannot be opened in tests): the command line SUMO gets, the
-colours sent for authority and safety stops, and the run options that set them."""
+colours a real SUMO gets for authority and safety stops, and the run options that set them."""
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
-from types import SimpleNamespace
+
+import numpy as np
+import pytest
 
 from aac_sumo import config
 from aac_sumo.cli import _gui_overrides, main
+from aac_sumo.experiments.common import robot_spec
+from aac_sumo.experiments.lane_change import BUNDLED_NET
 from aac_sumo.sim.sumo import AUTHORITY, PLAIN, SAFETY_STOP, SumoOptions, SumoSimulator
 
 
@@ -19,38 +24,53 @@ def test_the_gui_starts_at_once_with_its_delay_and_stays_open_at_the_end():
     assert "--delay" not in SumoOptions(Path("road.net.xml")).command(0.1)
 
 
-class RecordingVehicles:
-    def __init__(self):
-        self.calls = []
-
-    def setColor(self, name, colour):  # noqa: N802 (TraCI's name)
-        self.calls.append((name, colour))
+NAMES = ("veh0", "veh1", "veh2")
 
 
-def gui_sim(names, gui=True):
-    sim = SumoSimulator.__new__(SumoSimulator)  # no SUMO: only the colouring is under test
-    sim.robots = [SimpleNamespace(name=n) for n in names]
-    sim.options = SumoOptions(Path("road.net.xml"), gui=gui)
-    sim.removed = set()
-    sim.present = [True] * len(names)
-    sim.api = SimpleNamespace(vehicle=RecordingVehicles())
-    return sim
+@pytest.fixture
+def shown_in_sumo():
+    """A real SUMO (libsumo) with three cars on the bundled road, started by the public
+    constructor, and a function that says whether the simulator shows a GUI. libsumo keeps every
+    vehicle's colour and reports it (``vehicle.getColor``) as sumo-gui would draw it; a window
+    cannot be opened in tests, so the GUI is said after the start (``options`` is public)."""
+    scenario = config.load("lane_change")
+    robots = [robot_spec(scenario, n) for n in NAMES]
+    states = np.array([[20.0, -8.0, 0.0, 0.0], [40.0, -4.8, 0.0, 0.0], [60.0, -1.6, 0.0, 0.0]])
+    sim = SumoSimulator(robots, states, 0.1, ["E0", "E1"], SumoOptions(BUNDLED_NET))
+
+    def with_gui(gui: bool) -> SumoSimulator:
+        sim.options = dataclasses.replace(sim.options, gui=gui)
+        return sim
+
+    try:
+        yield with_gui
+    finally:
+        with_gui(False).close()
 
 
-def test_authority_is_gold_a_safety_stop_red_and_only_changes_are_sent():
-    sim = gui_sim(["veh0", "veh1", "veh2"])
+def colours(sim) -> dict[str, tuple]:
+    return {n: tuple(sim.api.vehicle.getColor(n)) for n in NAMES}
+
+
+def test_authority_is_gold_a_safety_stop_red_and_only_changes_are_sent(shown_in_sumo):
+    sim = shown_in_sumo(True)
+    own = colours(sim)  # SUMO's colour before we show anything
+    assert AUTHORITY not in own.values() and SAFETY_STOP not in own.values()
     sim.show({"veh1"}, {"veh2"})
-    assert sim.api.vehicle.calls == [("veh1", AUTHORITY), ("veh2", SAFETY_STOP)]
+    assert colours(sim) == {"veh0": own["veh0"], "veh1": AUTHORITY, "veh2": SAFETY_STOP}  # veh0 was plain: nothing sent
+    marked = (1, 2, 3, 255)
+    sim.api.vehicle.setColor("veh1", marked)  # had show sent veh1's unchanged colour again, this would be gone
     sim.show({"veh1"}, {"veh2"})
-    assert len(sim.api.vehicle.calls) == 2
+    assert colours(sim) == {"veh0": own["veh0"], "veh1": marked, "veh2": SAFETY_STOP}
     sim.show({"veh0"}, set())
-    assert sim.api.vehicle.calls[2:] == [("veh0", AUTHORITY), ("veh1", PLAIN), ("veh2", PLAIN)]
+    assert colours(sim) == {"veh0": AUTHORITY, "veh1": PLAIN, "veh2": PLAIN}
 
 
-def test_without_a_gui_nothing_is_coloured():
-    sim = gui_sim(["veh0"], gui=False)
-    sim.show({"veh0"}, set())
-    assert sim.api.vehicle.calls == []
+def test_without_a_gui_nothing_is_coloured(shown_in_sumo):
+    sim = shown_in_sumo(False)
+    own = colours(sim)
+    sim.show({"veh0"}, {"veh1"})
+    assert colours(sim) == own
 
 
 def test_run_gui_and_delay_set_the_sumo_keys():

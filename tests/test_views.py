@@ -58,20 +58,39 @@ def test_every_run_writes_its_timeline_and_fairness_pictures(swarm_run):
 def test_the_fairness_picture_shows_only_the_robots_that_were_recorded(tmp_path):
     """A run stopped before every car departed (the highway: cars enter over time) has delays
     for all its robots but steps for those on the road; the picture is drawn for the latter (an
-    interrupted 100-car run lost its pictures to a shape mismatch)."""
+    interrupted 100-car run lost its pictures to a shape mismatch). Over three periods robot a
+    held authority twice and b once: a got 2 / 1.5 = 4/3 of its fair share, b 1 / 1.5 = 2/3.
+    Robot a arrived 1.5 s late, b did not arrive (a grey bar at 0), c never departed (no bar)."""
     from types import SimpleNamespace
 
+    import matplotlib.colors as mcolors
+    import matplotlib.pyplot as plt
     import numpy as np
 
-    from aac_sumo.report_timeline import plot_fairness
+    from aac_sumo.report_timeline import fairness_figure, plot_fairness
 
-    steps = pd.DataFrame({"t": [0.0, 0.0, 0.1, 0.1], "robot": ["a", "b", "a", "b"], "authority": [True, False, False, True],
-                          "arrived": [False] * 4})
-    result = SimpleNamespace(steps=steps, metrics={"authority_jain": 1.0, "delay_jain": None, "delay_max_s": None,
+    steps = pd.DataFrame({"t": [0.0, 0.0, 0.1, 0.1, 0.2, 0.2], "robot": ["a", "b"] * 3,
+                          "authority": [True, False, False, True, True, False], "arrived": [False] * 6})
+    result = SimpleNamespace(steps=steps, metrics={"authority_jain": 0.9, "delay_jain": None, "delay_max_s": 1.5,
                                                    "scenario": "highway_work_zone", "coordinator": "aac", "horizon": 10, "seed": 0})
-    plot_fairness(result, tmp_path / "fairness.png", pd.Series([1.5, np.nan, np.nan], index=["a", "b", "c"]))
+    delays = pd.Series([1.5, np.nan, np.nan], index=["a", "b", "c"])
+    fig = fairness_figure(result, delays)
+    try:
+        fig.canvas.draw()
+        top, bottom = fig.axes
+        assert [label.get_text() for label in bottom.get_xticklabels()] == ["a", "b"]
+        assert [p.get_height() for p in top.patches] == pytest.approx([4 / 3, 2 / 3])
+        assert [p.get_height() for p in bottom.patches] == pytest.approx([1.5, 0.0])
+        assert [mcolors.to_hex(p.get_facecolor()) for p in bottom.patches] == [mcolors.to_hex("tab:orange"), mcolors.to_hex("0.8")]
+        assert [line.get_ydata()[0] for line in top.get_lines()] == [1.0]  # the fair share
+        assert top.get_title() == "authority_jain 0.90"
+        assert bottom.get_title() == "delay_jain —, delay_max_s 1.50; grey: did not arrive"
+        assert "c" not in {t.get_text() for ax in fig.axes for t in ax.get_xticklabels()}
+    finally:
+        plt.close(fig)
+    plot_fairness(result, tmp_path / "fairness.png", delays)
     with Image.open(tmp_path / "fairness.png") as picture:
-        assert picture.format == "PNG"
+        assert picture.format == "PNG" and picture.size == (600, 650)
 
 
 @pytest.mark.parametrize("argv, expected", [
