@@ -27,7 +27,7 @@ from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.sim import sumo
 from aac_sumo.sim.internal import InternalSimulator
 from aac_sumo.sim.isolated import IsolatedSimulator
-from aac_sumo.sim.sumo import SumoError, SumoOptions, SumoSimulator
+from aac_sumo.sim.sumo import SumoOptions, SumoSimulator
 from aac_sumo.world import RobotSpec
 
 SMALL = ["controller.coordinator=independent", "controller.horizon=5", "lane_change.vehicles=3"]
