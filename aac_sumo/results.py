@@ -47,7 +47,8 @@ JOBS = (
         (("table.md", ".md"), ("table.csv", ".csv"), ("sensitivity.md", "_sensitivity.md"), ("sensitivity.csv", "_sensitivity.csv"))),
     Job("circle_swap_seeds0-4", ("table", "circle-swap", "--seeds", "5", "--baselines")),
     Job("ablation_seeds0-4", ("table", "ablation", "--seeds", "5")),
-    Job("highway_work_zone_seeds0-4", ("sweep", "highway_work_zone", "--seeds", "5"), SWEEP_OUTPUTS),
+    Job("highway_work_zone_seeds0-4", ("sweep", "highway_work_zone", "--grid", "controller.coordinator=aac", "--seeds", "5"),
+        SWEEP_OUTPUTS),
     Job("bench_lane_change_n10", ("bench", "aac", "--scenarios", "lane_change", "--horizons", "10"),
         (("bench.md", ".md"), ("bench.json", ".json")), parallel=False),
 )

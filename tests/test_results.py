@@ -15,6 +15,15 @@ def test_every_published_table_has_a_job_and_the_list_shows_their_commands(capsy
     assert any("--sensitivity" in line for line in lines) and any("--baselines" in line for line in lines)
 
 
+def test_every_job_is_a_command_line_the_tool_accepts():
+    from aac_sumo.cli import build_parser
+
+    for job in results.JOBS:
+        args = build_parser().parse_args(results.command(job, results.Path("out/x"), 2)[1:])
+        if args.command == "sweep":
+            assert args.grid, job.name  # a sweep needs a grid (one value is enough)
+
+
 def test_unknown_jobs_are_refused(capsys):
     assert results.main(["--only", "table9"]) == 2
     err = capsys.readouterr().err.strip()
