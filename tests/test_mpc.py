@@ -333,6 +333,19 @@ def test_fallback_brakes_turning_towards_the_reference_heading(heading, speed):
         assert errors[-1] < abs(heading)
 
 
+@given(heading=st.floats(-3.0, 3.0), speed=st.floats(0.0, 5.0))
+@settings(max_examples=30, deadline=None)
+def test_a_free_reference_heading_makes_the_fallback_brake_straight_on(heading, speed):
+    """Near a goal the reference leaves the heading free (NaN): the fallback then brakes along
+    the robot's heading, with finite inputs (a NaN steering stopped a CBF-QP run at t = 15.5 s)."""
+    pl = planner(barrier="fcbf", gamma=0.3, discs=1)
+    reference = straight_reference(0.0, speed)
+    reference[:, 2] = np.nan
+    states, inputs = pl.fallback(ROBOT, np.array([1.0, 2.0, heading, speed]), reference, np.zeros(2))
+    assert np.all(np.isfinite(inputs)) and np.all(inputs[:, 1] == 0.0)
+    np.testing.assert_allclose(states[:, 2], heading)
+
+
 # --------------------------------------------------------------------------------------------
 # Warm start and solver agreement
 # --------------------------------------------------------------------------------------------

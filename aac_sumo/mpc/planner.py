@@ -478,14 +478,16 @@ class MpcPlanner:
         stop, never reversing, while turning the heading towards the reference's (a car brakes
         in its lane instead of drifting across the road at the angle it had). The heading error
         closes with time constant ``FALLBACK_TURN_TIME`` [s], within the steering limits (angle,
-        rate from ``u_prev``'s steering, lateral acceleration)."""
+        rate from ``u_prev``'s steering, lateral acceleration). A free (NaN) reference heading, as
+        near a goal, keeps the robot's heading."""
         cfg, lim = self.config, robot.model.limits
         inputs = np.empty((cfg.horizon, 2))
         states = np.empty((cfg.horizon + 1, 4))
         states[0] = state
         for k in range(cfg.horizon):
             x = states[k]
-            steer = heading_hold_steer(x, reference[k, 2], cfg.dt, robot.model.wheelbase, lim.steer_max, FALLBACK_TURN_TIME)
+            heading = reference[k, 2] if np.isfinite(reference[k, 2]) else x[2]
+            steer = heading_hold_steer(x, heading, cfg.dt, robot.model.wheelbase, lim.steer_max, FALLBACK_TURN_TIME)
             accel = lim.braking_input(x[3], cfg.dt)[0]
             inputs[k] = [accel, robot.model.limit_steer(steer, x[3], inputs[k - 1, 1] if k else u_prev[1], cfg.dt, accel)]
             states[k + 1] = robot.model.step(x, inputs[k], cfg.dt)
