@@ -202,7 +202,6 @@ def main(argv: list[str] | None = None) -> int:
     args = None
     try:
         args = build_parser().parse_args(argv)
-        import aac_sumo.experiments  # noqa: F401  the registered coordinators (cbf_qp, ...) are valid values in every command
         return {"run": cmd_run, "sweep": cmd_sweep, "tune": cmd_tune, "table": cmd_table, "bench": cmd_bench,
                 "net": cmd_net, "stress": cmd_stress, **VIEW_COMMANDS}[args.command](args)
     except SystemExit as exc:  # --help

@@ -77,7 +77,6 @@ def plan_tasks(scenario: str, sets: list[str], grid: list[tuple[str, list[str]]]
     once here so a bad key or value raises :class:`~aac_sumo.config.ScenarioError` before any run."""
     if seeds < 1:
         raise SweepError(f"--seeds {seeds}: expected an integer >= 1")
-    import aac_sumo.experiments  # noqa: F401  the registered coordinators (cbf_qp, ...) are valid values before loading
     source = str(config.resolve(scenario).resolve())
     base_scenario = config.load(source, list(sets))  # the --set overrides alone, so their errors name no grid value
     keys = [k for k, _ in grid]
