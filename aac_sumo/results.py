@@ -27,13 +27,21 @@ DOCS = ROOT / "docs" / "results"
 
 @dataclass(frozen=True)
 class Job:
-    """``aac-sumo ARGS --out DIR`` (with ``--workers`` where it runs in parallel), then each
-    ``(file in DIR, suffix)`` of ``outputs`` is copied to ``docs/results/<name><suffix>``."""
+    """``aac-sumo ARGS --out DIR`` (with ``--workers`` where it runs in parallel; ``python -m
+    MODULE ARGS ...`` for another ``module``, a generator whose markdown names its own command and
+    commit), then each ``(file in DIR, suffix)`` of ``outputs`` is copied to
+    ``docs/results/<name><suffix>``."""
 
     name: str
     args: tuple[str, ...]
     outputs: tuple[tuple[str, str], ...] = (("table.md", ".md"), ("table.csv", ".csv"))
     parallel: bool = True
+    module: str = "aac_sumo.cli"
+
+    @property
+    def program(self) -> list[str]:
+        """How the command line starts, as a user types it."""
+        return ["aac-sumo"] if self.module == "aac_sumo.cli" else ["python", "-m", self.module]
 
 
 HELD_OUT = ("--set", "scenario.seed=5")
@@ -51,13 +59,15 @@ JOBS = (
         SWEEP_OUTPUTS),
     Job("bench_lane_change_n10", ("bench", "aac", "--scenarios", "lane_change", "--horizons", "10"),
         (("bench.md", ".md"), ("bench.json", ".json")), parallel=False),
+    Job("cbf_qp_seeds0-4", (), (("cbf_qp_seeds0-4.md", ".md"), ("cbf_qp_seeds0-4.csv", ".csv"),
+                                ("cbf_qp_seeds0-4_runs.csv", "_runs.csv")), module="aac_sumo.results_cbf_qp"),
 )
 
 
 def command(job: Job, out: Path, workers: int | None) -> list[str]:
     """The command line of ``job`` (as the user would type it, ``aac-sumo`` first)."""
     extra = ["--workers", str(workers)] if workers and job.parallel else []
-    return ["aac-sumo", *job.args, *extra, "--out", str(out)]
+    return [*job.program, *job.args, *extra, "--out", str(out)]
 
 
 def header(job: Job, cmd: list[str], commit: str | None) -> str:
@@ -73,7 +83,7 @@ def run_job(job: Job, out_root: Path, workers: int | None, docs: Path = DOCS) ->
     if out.exists():
         shutil.rmtree(out)
     cmd = command(job, out, workers)
-    status = subprocess.call([sys.executable, "-m", "aac_sumo.cli", *cmd[1:]])
+    status = subprocess.call([sys.executable, "-m", job.module, *cmd[len(job.program):]])
     commit = git_commit()
     docs.mkdir(parents=True, exist_ok=True)
     for source, suffix in job.outputs:
@@ -82,7 +92,8 @@ def run_job(job: Job, out_root: Path, workers: int | None, docs: Path = DOCS) ->
             continue
         target = docs / f"{job.name}{suffix}"
         text = path.read_text()
-        target.write_text(header(job, cmd, commit) + text if suffix.endswith(".md") else text)
+        own = job.module != "aac_sumo.cli"  # a generator's markdown names its command and commit itself
+        target.write_text(header(job, cmd, commit) + text if suffix.endswith(".md") and not own else text)
     return status
 
 

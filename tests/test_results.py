@@ -19,6 +19,9 @@ def test_every_job_is_a_command_line_the_tool_accepts():
     from aac_sumo.cli import build_parser
 
     for job in results.JOBS:
+        if job.module != "aac_sumo.cli":  # another generator: its own parser
+            assert results.command(job, results.Path("out/x"), 2)[:3] == ["python", "-m", job.module]
+            continue
         args = build_parser().parse_args(results.command(job, results.Path("out/x"), 2)[1:])
         if args.command == "sweep":
             assert args.grid, job.name  # a sweep needs a grid (one value is enough)
