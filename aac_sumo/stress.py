@@ -38,6 +38,7 @@ import numpy as np
 from aac_sumo import config, sweep
 from aac_sumo.config import ScenarioError
 from aac_sumo.executor import SweepError
+from aac_sumo.table_common import BASELINES
 
 #: Outcomes of a run, most severe first (see :func:`outcome`).
 OUTCOMES = ("collision", "error", "deadlock", "timeout", "completed")
@@ -149,11 +150,10 @@ KINDS: dict[str, Kind] = {
                         ("lane_change.vehicles", "lane_change.spacing", "sumo.net", "sumo.routes", "road", "cones", "pedestrians")),
     "braking": Kind("braking", 20.0, draw_braking, ("braking.speed", "braking.gap", "braking.lead_decel")),
 }
-#: The baselines as kinds of their own: ``<baseline>-<kind>`` with the kind's draws (table_common.BASELINES).
-BASELINE_KINDS = {"orca": ("swarm", "circle", "crossing"), "cbf_qp": ("swarm", "circle", "crossing", "lane-change"),
-                  "sumo": ("lane-change",)}
-KINDS |= {f"{b}-{k}": dataclasses.replace(KINDS[k], baseline=b) for b, kinds in BASELINE_KINDS.items() for k in kinds
-          if b in config.COMMON["controller"]["coordinator"].type}  # the baselines this version has
+#: The baselines as kinds of their own: ``<baseline>-<kind>`` with the kind's draws, for every kind whose
+#: scenario the baseline drives (:data:`~aac_sumo.table_common.BASELINES`) and that this version declares.
+KINDS |= {f"{b}-{k}": dataclasses.replace(kind, baseline=b) for b, scenarios in BASELINES.items() for k, kind in list(KINDS.items())
+          if kind.scenario in scenarios and b in config.COMMON["controller"]["coordinator"].type}
 #: Columns that describe a generated file's content; they are not ``--set`` keys.
 DESCRIPTIVE = ("road", "cones", "pedestrians")
 ROUTES_TEXT = "_routes_xml"  # a draw's route-file content (written by :func:`prepare`, not a column)
