@@ -502,9 +502,10 @@ def ramped_speeds(s0, v0, steps, dt, decel, accel, brake, stops, speed, path_s, 
                 target = min(target, math.sqrt(2.0 * path_decel * max(length - s[k], 0.0)))
             rate = decel
             for r in range(stops.shape[0]):
-                room = max(stops[r, 0] - s[k], 0.0)
+                ahead = stops[r, 0] + stops[r, 1] * k * dt - s[k]  # what moves goes on at its speed
+                room = max(ahead, 0.0)
                 bk = decel * stops[r, 2]
-                target = min(target, math.sqrt(max(bk * bk + stops[r, 1] ** 2 + 2.0 * decel * (stops[r, 0] - s[k]), 0.0)) - bk)
+                target = min(target, math.sqrt(max(bk * bk + stops[r, 1] ** 2 + 2.0 * decel * ahead, 0.0)) - bk)
                 closing = v[k - 1] - stops[r, 1]
                 if brake > decel and closing > 0.0:  # the rate that comes down to v_lead (going on at its speed) within the room left, grow v kept
                     left = room - stops[r, 2] * v[k - 1]

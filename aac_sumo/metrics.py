@@ -158,11 +158,17 @@ def _ttc_mean(ttc: pd.Series, ttc_max: float) -> float | None:
     return _finite(conflicts.mean()) if len(conflicts) else None
 
 
+#: How far [m/s^2] beyond a threshold a value may be by rounding alone (an input at the comfort bound, 2 m/s^2, came out as
+#: 2.0000000000000018 from a ramp summed stage by stage) and still not exceed it.
+ROUNDING = 1e-9
+
+
 def _aggressive_steps(steps: pd.DataFrame, info: dict) -> pd.Series:
-    """Whether each step's applied |accel| or v^2 |tan(steer)| / L exceeds the thresholds."""
+    """Whether each step's applied |accel| or v^2 |tan(steer)| / L exceeds the thresholds (by
+    more than ``ROUNDING``)."""
     wheelbase = steps["robot"].map(info["wheelbase"])
     lat = steps["v"] ** 2 * np.abs(np.tan(steps["steer"])) / wheelbase
-    return (steps["accel"].abs() > info["accel_threshold"]) | (lat > info["lat_accel_threshold"])
+    return (steps["accel"].abs() > info["accel_threshold"] + ROUNDING) | (lat > info["lat_accel_threshold"] + ROUNDING)
 
 
 def _aggressive_rate(steps: pd.DataFrame, info: dict) -> float:

@@ -189,6 +189,22 @@ def test_with_brake_a_stop_seen_late_is_met_braking_harder_within_comfort(distan
         assert slowing[0] == pytest.approx(-comfort * DT)
 
 
+def test_a_car_at_the_gap_it_keeps_behind_a_leader_at_its_speed_keeps_that_speed_over_the_horizon():
+    """A car at 8 m/s exactly at its stop row (the 2 m standstill gap plus the 1 s time gap) behind a
+    leader at 8 m/s: the leader goes on at its speed over the horizon, so the gap stays and the
+    reference keeps 8 m/s at every stage. (With the stop row held where the leader is now, the
+    ramp braked every follower at the comfortable rate and a platoon at 10 m/s fell to 5 m/s.)"""
+    params = Anticipation()
+    front = CAR.centre_offset + 0.5 * CAR.length
+    behind = front + 0.2 + params.gap + params.time_gap * 8.0  # the leader's centre, exactly at the gap
+    world, task = one_lane_world(behind, velocity=(8.0, 0.0), kind="scripted")
+    world.states[0, 3] = 8.0
+    stops = stop_points(world, 0, task, params)
+    assert stops[0, 0] == pytest.approx(params.time_gap * 8.0)
+    speeds = anticipated_reference(world, 0, task, 10, DT, params)[:, 3]
+    assert np.allclose(speeds, 8.0, atol=1e-9)
+
+
 def test_a_car_closer_to_its_leader_than_the_gap_it_keeps_falls_back_at_the_comfortable_rate():
     """A car at 8 m/s with a leader at 8 m/s only 1 m beyond its stop row (the 2 m standstill gap
     plus the 1 s time gap): its reference slows below the leader's speed, at most at the
@@ -207,7 +223,7 @@ def test_a_car_closer_to_its_leader_than_the_gap_it_keeps_falls_back_at_the_comf
     assert cap < 8.0
     assert speed_cap(stops, [0.0], params.decel)[0] == pytest.approx(cap, rel=1e-9)
     speeds = anticipated_reference(world, 0, task, 10, DT, params)[:, 3]
-    assert speeds[-1] < 8.0 - 0.5 and np.all(np.diff(speeds) >= -params.decel * DT - 1e-9)
+    assert np.all(speeds[1:] < 8.0) and np.all(np.diff(speeds) >= -params.decel * DT - 1e-9)
     far, task = one_lane_world(behind + 40.0, velocity=(8.0, 0.0), kind="scripted")
     far.states[0, 3] = 8.0
     assert np.all(anticipated_reference(far, 0, task, 10, DT, params)[:, 3] >= 8.0 - 1e-9)

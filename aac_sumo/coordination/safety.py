@@ -284,7 +284,7 @@ class SafetyCheck:
             into * along_path, out_of * along_path)
         turn_back = np.maximum(step_out - slowest, 0.0)[None, :]
         ahead_of_her = behind >= -half[None, :] - turn_back * np.where(turn_back > 0.0, leave, 0.0)
-        blocked = through & ahead_of_her & (leave >= reaches)
+        blocked = through & ahead_of_her & (leave >= reaches) & np.isfinite(reaches)  # one who walks away never comes back
         strongest = -fleet.a_min[moving, None]
         room = into - 0.5 * v[:, None] * dt - 0.125 * strongest * dt * dt  # Euler steps overshoot up to a dt^2 / 8
         # it answers her while braking at its strongest still stops it short of her strip, or within STRIP_OVERSHOOT of its
