@@ -950,3 +950,20 @@ def test_a_walker_far_along_her_sidewalk_stays_on_it_and_a_car_drives_past_her(w
                         dataclasses.replace(WALKERS, walkway_time=10.0), _arc_headings(radius, 60)[None, :], np.zeros(1))
     cruise = np.array([[0.0, np.arctan(2.6 / radius)]])  # holding the arc at its speed
     assert check.unsafe(np.array([0]), cruise, 0.0).tolist() == [not stays]
+
+
+@pytest.mark.parametrize("leader_speed, held", [(7.0, False), (0.0, True)])
+def test_a_car_behind_a_car_that_drives_on_is_not_held_for_a_walker_it_clears_in_time(leader_speed, held):
+    """Two cars in a lane along +x at 7 m/s and 18 m apart (rear axles at 0 and 18 m); a walker
+    14 m beside the lane walks towards it at 1.2 m/s on a path across it at x = 40 m. Driving on,
+    the rear car's rear leaves her strip (her footprint's diagonal plus the 1 m margin either
+    side) 6.0 s from now, before she could come within the margin of its lane at her 1.5 m/s
+    reach (8.0 s): the car ahead, driving on at 7 m/s, stops before her strip if it must, and
+    does not hold the rear car. A car standing 18 m ahead would leave it no room to clear her
+    strip: then it stops before her path."""
+    states = np.array([[0.0, 0.0, 0.0, 7.0], [18.0, 0.0, 0.0, leader_speed]])
+    walker = Obstacle("p0", "pedestrian", np.array([40.0, 14.0]), np.array([0.0, -1.2]), -np.pi / 2, 0.3, 0.5)
+    world = WorldState(0.0, states, [HIGHWAY_CAR, HIGHWAY_CAR], [walker])
+    check = SafetyCheck(world, Fleet([HIGHWAY_CAR, HIGHWAY_CAR]), WALKERS, np.zeros(2), np.zeros(2))
+    _, need, enter, _ = check.walker_paths()
+    assert bool(need[0, 0] > 0.0) == held and bool(np.isfinite(enter[0, 0])) == held

@@ -39,7 +39,7 @@ from collections import deque
 
 import numpy as np
 
-from aac_sumo.coordination.anticipation import across_extent
+from aac_sumo.coordination.anticipation import CLEAR_SPEED, across_extent
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.dynamics import heading_hold_steer
 from aac_sumo.geometry import rect_corners
@@ -301,18 +301,23 @@ class SafetyCheck:
 
     def room_ahead(self, robots: np.ndarray) -> np.ndarray:
         """How far [m] each of ``robots`` (r,) can surely drive on along its braking course's
-        heading: to the nearest footprint ahead of it in its way (another robot or a vehicle,
-        beside it by less than their half widths), plus where that one stops braking at its
-        strongest from its speed now (robots) or at once (vehicles); inf with none. A robot
-        passes a walker's path only when its rear can leave her strip with this much room (a car
-        that set off behind a queue would stop in her path)."""
+        heading: to the nearest footprint ahead of it in its way (another robot slower than
+        ``CLEAR_SPEED``, or a vehicle, beside it by less than their half widths), plus where that
+        one stops braking at its strongest from its speed now (robots) or at once (vehicles); inf
+        with none. A robot passes a walker's path only when its rear can leave her strip with this
+        much room (a car that set off behind a queue would stop in her path). A robot ahead that
+        drives on at ``CLEAR_SPEED`` or faster does not hold it, as in the anticipation
+        (:func:`~aac_sumo.coordination.anticipation.crossing_rows`): one that must stop for her
+        stops before her path, and the robot behind it too (taken to stop at once, a car ahead
+        at 7 m/s held the cars behind it for a walker 14 m from their lane, and the queue missed
+        its gap before the second walker)."""
         world, fleet = self.world, self.fleet
         vehicles = [o for o in world.obstacles if o.kind in VEHICLE_KINDS]
         centres = np.vstack([world.robot_centres()] + [o.centre[None, :] for o in vehicles]).reshape(-1, 2)
         length = np.r_[fleet.length, [o.length for o in vehicles]]
         width = np.r_[fleet.width, [o.width for o in vehicles]]
         runout = np.r_[np.maximum(world.states[:, 3], 0.0) ** 2 / (-2.0 * np.minimum(fleet.a_min, -1e-9)), np.zeros(len(vehicles))]
-        present = np.r_[world.on_road, np.ones(len(vehicles), dtype=bool)]
+        present = np.r_[world.on_road & (world.states[:, 3] < CLEAR_SPEED), np.ones(len(vehicles), dtype=bool)]  # robots that drive on pass
         ahead = np.column_stack([np.cos(self.headings[robots]), np.sin(self.headings[robots])])  # (r, 2)
         rel = centres[None, :, :] - centres[robots][:, None, :]  # (r, K, 2)
         along = np.einsum("rkj,rj->rk", rel, ahead)
