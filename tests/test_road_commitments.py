@@ -71,3 +71,47 @@ def test_the_bundled_lane_change_completes_with_committed_plans_and_no_emergency
     assert "error" not in m
     assert m["completed"] is True and m["collisions"] == 0 and m["sim_collisions"] == 0
     assert m["safety_stops"] == 0 and m["min_pedestrian_clearance_m"] >= 1.0
+
+
+def test_a_continuation_made_behind_a_standing_car_is_renewed_once_that_car_drives_on():
+    """Two cars crawl at 0.5 m/s in one lane, the front one 12 m ahead (rear axles): the rear
+    car's first commitment crawls on behind it for its whole 4 s continuation. Ten periods on,
+    the front car drives at 3 m/s: at its next try (every ``RENEW`` periods), still within its
+    continuation and without authority, the rear car renews it as the anticipation now allows;
+    the new one speeds up, ends further along its lane, and passes the exact check."""
+    from aac_sumo.coordination.aac.committed import RENEW
+    from aac_sumo.coordination.base import RobotDecision
+
+    tasks = [PathReference([[-50.0, 0.0], [800.0, 0.0]], 10.0, stop_at_end=False) for _ in CARS]
+    config_ = MpcConfig(dt=DT, horizon=10, comfort_accel=2.0, comfort_lat=2.0, pedestrian_margin=1.0)
+    aac = AacCoordinator(MpcPlanner(config_), tasks, params=AacParams(commit=True, safety_stop=False, make_room=False, cruise=4.0,
+                                                                      lookahead=10.0))
+    aac.anticipation = Anticipation(pedestrian_margin=1.0)
+    aac.decide(WorldState(0.0, np.array([[0.0, 0.0, 0.0, 0.5], [12.0, 0.0, 0.0, 0.5]]), CARS, []))
+    rear = aac.book.items[0]
+    period = next(p for p in range(10, 10 + RENEW) if p % RENEW == 0)  # the rear car (index 0) tries then
+    assert rear.stage(period) == "plan" and rear.start + rear.planned - period > 1  # on its continuation, far from its tail
+    world = WorldState(period * DT, np.array([rear.course(period, 0)[0], [14.0, 0.0, 0.0, 3.0]]), CARS, [])
+    aac.courses = None
+    records = [RobotDecision(False) for _ in CARS]
+    renewed = aac.extend_by_tracking(world, period, np.zeros(2, dtype=bool), [CARS[1].name], records, np.zeros((0, 5)))
+    new = aac.book.items[0]
+    assert renewed == 1 and new is not rear and records[0].mode == "tracking"
+    assert new.inputs[0, 0] > 0.0 and new.states[-1, 0] > rear.states[-1, 0] + 0.5
+    assert aac.book.clearance(0, new, period, np.zeros((0, 5))) >= aac.book.margin
+
+
+def test_a_continuation_at_the_time_gap_behind_a_car_at_its_speed_keeps_that_speed():
+    """Two cars at 10 m/s in one lane, the rear one exactly at the gap it keeps (2 m plus the
+    1 s time gap, bumper to bumper): the car ahead goes on at its speed in the anticipation, so
+    the rear car's continuation keeps 10 m/s (aiming a second ahead at a leader left where it is
+    now, it braked at the comfortable rate)."""
+    tasks = [PathReference([[-50.0, 0.0], [800.0, 0.0]], 10.0, stop_at_end=False) for _ in CARS]
+    config_ = MpcConfig(dt=DT, horizon=10, comfort_accel=2.0, comfort_lat=2.0, pedestrian_margin=1.0)
+    aac = AacCoordinator(MpcPlanner(config_), tasks, params=AacParams(commit=True, safety_stop=False, make_room=False, cruise=4.0,
+                                                                      lookahead=10.0))
+    aac.anticipation = rules = Anticipation(pedestrian_margin=1.0)
+    spacing = CARS[0].length + rules.gap + rules.time_gap * 10.0
+    aac.decide(WorldState(0.0, np.array([[0.0, 0.0, 0.0, 10.0], [spacing, 0.0, 0.0, 10.0]]), CARS, []))
+    rear = aac.book.items[0]
+    assert np.all(rear.states[: rear.planned + 1, 3] > 10.0 - 0.05)
