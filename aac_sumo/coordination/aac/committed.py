@@ -29,10 +29,6 @@ from aac_sumo.world import WorldState
 
 #: Periods a robot whose tracking extension failed the check waits before it tries again.
 EXTENSION_RETRY = 3
-#: A robot past its MPC plan tries to renew its commitment's continuation every RENEW periods, and
-#: takes the new one when it ends at least RENEW_GAIN [m] further along its path.
-RENEW = 5
-RENEW_GAIN = 0.5
 #: Grid cell [m] of the detour planner, and how often [s] a robot checks its reference for standing footprints.
 DETOUR_CELL = 0.1
 DETOUR_CHECK = 1.0
@@ -74,10 +70,10 @@ class CommittedAac(AacCoordinator):
         if self.book is None:
             self.book = CommitmentBook(fleet, [self.commitment(world, i, period, np.zeros((0, 2))) for i in range(n)],
                                        self.params.commit_margin)
-            waiting = list(range(n))  # with cruise, every car drives on from the start where the exact check lets it (not a tail),
-            while waiting:            # again after the others have: a car behind one that still had its tail is refused at first
-                started = [i for i in waiting if self.start_on(world, i, period, statics)]
-                waiting = [i for i in waiting if i not in started] if started else []
+            for i in range(n):  # with cruise, every car drives on from the start where the exact check lets it (not a tail)
+                start = self.continued_commitment(world, i, period, np.zeros((0, 2)), statics)
+                if start is not None:
+                    self.book.replace(i, start, period)
         done = self.finished(world)
         parked = self.parked(world, done)
         records = [RobotDecision(False, mode=c.stage(period)) for c in self.book.items]
@@ -118,14 +114,6 @@ class CommittedAac(AacCoordinator):
                      safety_stops=stopped, authorities=len(holders), commit_cuts=cuts, commit_kept=kept, extensions=extended)
         return Decision(inputs, records, notes=notes)
 
-    def start_on(self, world: WorldState, i: int, period: int, statics: np.ndarray) -> bool:
-        """Robot ``i`` commits to going on from where it is (:meth:`continued_commitment`) when
-        that passes the exact check; returns whether it did."""
-        start = self.continued_commitment(world, i, period, np.zeros((0, 2)), statics)
-        if start is not None:
-            self.book.replace(i, start, period)
-        return start is not None
-
     def path(self, i: int) -> PathReference:
         """Robot ``i``'s reference path: its detour (``detour``), else its task."""
         return self.tasks[i] if self.detours is None else self.detours.path(i)
@@ -165,10 +153,10 @@ class CommittedAac(AacCoordinator):
         calm = cfg.comfort_accel if cfg.comfort_accel > 0.0 else float(self.fleet.comfort[i])
         more = np.zeros((periods, 2))
         for k in range(periods):
-            t = (len(head) + k) * cfg.dt + 1.0 / self.params.speed_gain  # a second on (gain 1/s)
+            t = (len(head) + k) * cfg.dt
             moved = stops + np.column_stack([stops[:, 1] * t, np.zeros((len(stops), 2))])  # what moves goes on at its speed
             s_here = task.project(state[:2])[0]
-            ahead = s_here + max(float(state[3]), 0.0) / self.params.speed_gain  # where it is then
+            ahead = s_here + max(float(state[3]), 0.0) / self.params.speed_gain  # where it is a second on (gain 1/s)
             target = min(float(speed_cap(moved, [ahead], rules.decel)[0]), float(task.speed_at(ahead)))
             more[k] = track(robot, state, task, self.params.lookahead, self.params.speed_gain, steer, cfg.dt, shift,
                             target_speed=target, a_lat=self.tracking_lat())
@@ -302,9 +290,8 @@ class CommittedAac(AacCoordinator):
         tail) passes the same exact check as a plan; a robot whose try failed waits ``EXTENSION_RETRY`` periods before the next one. The
         law ignores obstacles, and uncontrolled moving agents are not in the check, so a robot
         that such an agent (growing as the planner grows walkers) may reach meanwhile is not
-        extended. On a road (``cruise``), a robot on its continuation also renews it every
-        ``RENEW`` periods where the new one passes the check and ends further along its path
-        (:meth:`renewable`). Returns how many robots extended or renewed their commitment."""
+        extended.
+        Returns how many robots extended their commitment."""
         cfg, book = self.planner.config, self.book
         extended = 0
         movers = [o for o in world.obstacles if o.kind not in ("static", "cone")]
@@ -321,13 +308,6 @@ class CommittedAac(AacCoordinator):
             if self.room is not None and j in self.room.targets:
                 continue  # making room: it moves aside on its turns, not back onto its path
             if c.stage(period) == "plan" and c.start + c.planned - period > 1:
-                if not self.renewable(j, c, period):
-                    continue
-                renewed = self.continued_commitment(world, j, period, np.zeros((0, 2)), statics)
-                if renewed is not None and self.further(j, renewed, c):
-                    book.replace(j, renewed, period)
-                    records[j].mode = "tracking"
-                    extended += 1
                 continue
             longer = self.continued_commitment(world, j, period, np.zeros((0, 2)), statics)  # with cruise: on as anticipated
             if longer is not None:
@@ -354,21 +334,6 @@ class CommittedAac(AacCoordinator):
                 self.next_extension[j] = period + EXTENSION_RETRY
                 book.refuse(j, world.states[j], key, blocker, period, statics)
         return extended
-
-    def renewable(self, j: int, c, period: int) -> bool:
-        """Whether robot ``j``'s commitment ``c`` is past its MPC plan (on its continuation along
-        the path, made ``RENEW`` periods ago or more) and robot ``j`` tries to renew it this
-        period (every ``RENEW`` periods, in turn): a continuation made while a queue stood kept
-        the car standing until it ran out, though the car ahead had long set off."""
-        horizon = self.planner.config.horizon
-        return (self.params.cruise > 0.0 and self.anticipation is not None and period - c.start >= max(horizon, RENEW)
-                and (period + j) % RENEW == 0)
-
-    def further(self, j: int, renewed, current) -> bool:
-        """Whether the commitment ``renewed`` ends at least ``RENEW_GAIN`` further along robot
-        ``j``'s path than ``current``."""
-        path = self.path(j)
-        return path.project(renewed.states[-1, :2])[0] > path.project(current.states[-1, :2])[0] + RENEW_GAIN
 
     def tracking_inputs(self, world: WorldState, j: int, steps: int) -> np.ndarray:
         """Inputs (steps, 2) of robot ``j`` following the tracking law from where it is, on its
