@@ -61,6 +61,24 @@ def test_a_config_without_a_network_or_beside_sumo_net_is_one_line(tmp_path, cap
     assert "SUMO configuration" in capsys.readouterr().err
 
 
+def test_a_config_whose_network_is_not_built_yet_says_how_to_build_it(tmp_path, capsys):
+    """A config naming a net-file that is missing beside its plain-XML sources (the OSM example
+    before `aac-sumo net build`): one line naming sumo.config, the missing file and the command
+    that builds it. A missing net-file with no sources beside it gets no such hint."""
+    shutil.copy(BUNDLED_NET_DIR / "lane_change.edg.xml", tmp_path / "road.edg.xml")
+    cfg = write_config(tmp_path / "road.sumocfg", net=str(tmp_path / "road.net.xml"))
+    assert main(["run", "lane_change", "--set", f"sumo.config={cfg}", "--out", str(tmp_path / "a")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "sumo.config" in err and "road.net.xml" in err
+    assert f"aac-sumo net build {tmp_path}" in err
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    cfg = write_config(tmp_path / "other.sumocfg", net=str(elsewhere / "road.net.xml"))
+    assert main(["run", "lane_change", "--set", f"sumo.config={cfg}", "--out", str(tmp_path / "b")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "net build" not in err
+
+
 def test_extra_arguments_go_through_and_ours_come_after_them():
     cmd = SumoOptions(Path("road.net.xml"), config=Path("my.sumocfg"), extra_args=("--lateral-resolution", "0.8")).command(0.1)
     assert cmd[1:3] == ["-c", "my.sumocfg"]

@@ -105,7 +105,9 @@ def network_files(scenario: Scenario) -> tuple[Path, list[Path]]:
             raise ScenarioError(scenario.source, "sumo.config", f"a net-file in {cfg.path} (or sumo.net)", su["config"])
         missing = [p for p in [cfg.net, *cfg.routes] if p is not None and not p.is_file()]
         if missing:
-            raise ScenarioError(scenario.source, "sumo.config", f"the files {cfg.path} names to exist", str(missing[0]))
+            sources = missing[0] == cfg.net and (any(missing[0].parent.glob("*.netccfg")) or any(missing[0].parent.glob("*.edg.xml")))
+            build = f" (build the network first: aac-sumo net build {missing[0].parent})" if sources else ""
+            raise ScenarioError(scenario.source, "sumo.config", f"the files {cfg.path} names to exist{build}", str(missing[0]))
         for path in cfg.routes:
             route_file(scenario, path, "sumo.config")
         return (cfg.net or scenario_file(scenario, su["net"], "sumo.net")), cfg.routes + routes
