@@ -123,7 +123,7 @@ def scene(result, ellipses: bool, dpi: int):
                        Patch(facecolor="mistyrose", edgecolor=SAFETY_STOP, label="safety stop")]
               + [Patch(color=KIND_COLOURS[k], label=KIND_LABELS[k]) for k in kinds],
               fontsize="small", loc="upper right", ncol=2 + len(kinds) // 2)
-    title = f"{m['scenario']}: {str(m['coordinator']).upper()}, {m['barrier']}, N={m['horizon']}, seed {m['seed']}"
+    title = f"{m['scenario']}: {str(m['coordinator']).upper()}, {m['barrier']}, horizon {m['horizon']}, seed {m['seed']}"
 
     def draw(t):
         rows = frames[t]

@@ -68,7 +68,7 @@ def plot_lane_change(result, path: Path) -> None:
     ax_lat.set_xlabel("t [s]")
     ax_lat.legend(fontsize="small", loc="upper right")
     m = result.metrics
-    ax.set_title(f"{m['scenario']}: {m['coordinator']}, N={m['horizon']}; task {_fmt(m['task_duration_s'])} s, "
+    ax.set_title(f"{m['scenario']}: {m['coordinator']}, horizon {m['horizon']}; task {_fmt(m['task_duration_s'])} s, "
                  f"collisions {m['collisions']} (SUMO {m['sim_collisions']}), min clearance {_fmt(m['min_clearance_m'])} m, "
                  f"tracking error {_fmt(m['tracking_error_m'])} m", fontsize=9)
     fig.tight_layout()
