@@ -48,6 +48,10 @@ def _cell(value) -> str:
     return str(value).replace("|", "\\|")
 
 
+#: The paths panel keeps equal axes unless the paths span this many times more one way than the other.
+STRETCH = 4.0
+
+
 def plot(runs: dict[str, object], path: Path) -> None:
     """Overlaid, one colour per run: mean speed, smallest clearance and robots arrived over
     time, and every controlled robot's path."""
@@ -72,10 +76,14 @@ def plot(runs: dict[str, object], path: Path) -> None:
     for ax in (speed, clearance, arrived):
         ax.grid(alpha=0.3)
     speed.legend(fontsize="small")
-    paths.set_aspect("equal", adjustable="datalim")
+    x0, x1 = paths.dataLim.intervalx
+    y0, y1 = paths.dataLim.intervaly
+    stretched = max(x1 - x0, y1 - y0) > STRETCH * max(min(x1 - x0, y1 - y0), 1e-9)
+    if not stretched:  # a road hundreds of metres long and a few lanes wide stays readable: its axes are not to scale
+        paths.set_aspect("equal", adjustable="datalim")
     paths.set_xlabel("x [m]")
     paths.set_ylabel("y [m]")
-    paths.set_title("paths (footprint centres)", fontsize="medium")
+    paths.set_title("paths (footprint centres)" + ("; axes not to scale" if stretched else ""), fontsize="medium")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)

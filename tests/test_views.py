@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
 import pytest
 from PIL import Image
@@ -126,3 +127,24 @@ def test_compare_bad_input_is_one_line(capsys, argv, expected):
     assert main(argv) == 2
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 1 and expected in err[0], err
+
+
+@pytest.mark.parametrize("length, equal", [(420.0, False), (12.0, True)])
+def test_compare_draws_paths_to_scale_unless_they_are_a_long_road(tmp_path, monkeypatch, length, equal):
+    """The paths panel keeps equal axes for paths about as long as wide (a 12 m x 9.6 m area),
+    and lets a 420 m road three lanes wide fill the panel, saying its axes are not to scale (with
+    equal axes it was a flat line)."""
+    from types import SimpleNamespace
+
+    from aac_sumo import compare
+
+    t = np.arange(3) * 0.1
+    steps = pd.DataFrame(dict(t=np.repeat(t, 2), v=1.0, clearance_m=1.0, arrived=False))
+    traj = pd.DataFrame(dict(name=["a"] * 3 + ["b"] * 3, kind="controlled", x=[0.0, length / 2, length] * 2,
+                             y=[-8.0, -8.0, -8.0, -1.6, -1.6, 1.6]))
+    figures = []
+    monkeypatch.setattr(compare.plt, "close", figures.append)
+    compare.plot({"one": SimpleNamespace(steps=steps, trajectories=traj)}, tmp_path / "c.png")
+    paths = figures[0].axes[-1]
+    assert (paths.get_aspect() == 1.0) == equal
+    assert ("not to scale" in paths.get_title()) == (not equal)
