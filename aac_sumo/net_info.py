@@ -47,17 +47,26 @@ def _roads(net, need: int) -> list[str]:
     lines = [f"roads (chains of edges; lanes open to {network.VEHICLE_CLASS} that run through every edge; "
              f"lane_change takes the longest with at least {need} lanes unless --set sumo.edges=\"ID ID ...\" names one):",
              "  lanes  length  edges  [classes every lane allows]"]
-    for chain in chains[:SHOWN]:
-        allowed = set.intersection(*(set(lane.getPermissions()) for j in range(chain.n_lanes) for lane in chain.lanes(j)))
-        mark = "  <- lane_change" if chosen is not None and chain.ids == chosen.ids else ""
-        lines.append(f"  {chain.n_lanes:5d}  {chain.length:4.0f} m  {' '.join(chain.ids)}  [{_classes(allowed)}]{mark}")
+    shown = chains[:SHOWN]
+    for chain in shown:
+        lines.append(_chain_row(chain, chosen))
     if len(chains) > SHOWN:
         lines.append(f"  ... and {len(chains) - SHOWN} shorter or narrower")
+        if chosen is not None and not any(chain.ids == chosen.ids for chain in shown):
+            lines.append(_chain_row(chosen, chosen))
     if chosen is None:
         lines.append(f"  none has {need} lanes: lane_change cannot run on this network")
     else:
         lines.append(f"  lane_change's rightmost car lane (where cones close a lane): {' '.join(lane.getID() for lane in chosen.lanes(0))}")
     return lines
+
+
+def _chain_row(chain, chosen) -> str:
+    """One row of the roads' table: lanes, length, edges, the classes every lane allows, and a
+    mark on the chain lane_change takes."""
+    allowed = set.intersection(*(set(lane.getPermissions()) for j in range(chain.n_lanes) for lane in chain.lanes(j)))
+    mark = "  <- lane_change" if chosen is not None and chain.ids == chosen.ids else ""
+    return f"  {chain.n_lanes:5d}  {chain.length:4.0f} m  {' '.join(chain.ids)}  [{_classes(allowed)}]{mark}"
 
 
 def _classes(allowed: set[str]) -> str:
@@ -77,7 +86,8 @@ def _pedestrians(net, edges) -> list[str]:
     crossed = sorted({c.getID() for e in crossings for c in e.getCrossingEdges()})
     lines = [f"pedestrians: sidewalks or footpaths on {_count(walk, 'edge')}{_some(walk)}; "
              f"on the road itself on {_count(shared, 'more edge')}{_some(shared)}",
-             f"  crossings: {len(crossings)}" + (f" (over {' '.join(crossed)})" if crossed else "")]
+             f"  crossings: {len(crossings)}" + (f" (over {' '.join(crossed)})" if 0 < len(crossed) <= 6 else
+                                                     f" (over {len(crossed)} edges: {' '.join(crossed[:6])} ...)" if crossed else "")]
     if not walk:
         lines.append("  walkers need sidewalks: netconvert --sidewalks.guess, or sidewalkWidth on the edges")
     if not crossings:

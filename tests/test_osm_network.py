@@ -177,3 +177,20 @@ def test_net_build_of_the_osm_example_writes_the_net_of_the_docs_command_that_it
     built, documented = (network.read(p, "sumo.net", "test", withInternal=True) for p in (work / "example.net.xml", example_net))
     assert {lane.getID(): lane.getShape() for e in built.getEdges() for lane in e.getLanes()} == \
         {lane.getID(): lane.getShape() for e in documented.getEdges() for lane in e.getLanes()}
+
+
+def test_net_info_of_a_city_marks_the_road_it_takes_and_keeps_the_crossings_short(capsys):
+    """The eclipse-sumo wheel's DRT city network (OSM): lane_change takes a long 2-lane road that
+    the table of the widest chains does not reach; it is listed after them with its mark. Its 503
+    crossings over 673 edges are counted, with the first six edge ids only."""
+    import sumo
+
+    net = Path(sumo.SUMO_HOME) / "tools" / "game" / "DRT" / "osm.net.xml"
+    assert main(["net", "info", str(net)]) == 0
+    out = capsys.readouterr().out
+    chosen = network.road(network.read(net, "sumo.net", "test"), "", 2, "test")
+    marked = [ln.split() for ln in out.splitlines() if ln.strip().endswith("<- lane_change")]
+    assert len(marked) == 1 and marked[0][0] == "2" and marked[0][3:3 + len(chosen.edges)] == list(chosen.edges)
+    crossings = next(ln for ln in out.splitlines() if ln.strip().startswith("crossings:"))
+    assert crossings.strip().startswith("crossings: 503 (over 673 edges: ") and crossings.endswith(" ...)")
+    assert len(crossings) < 200
