@@ -84,3 +84,15 @@ def test_delay_without_gui_is_a_one_line_error(capsys):
     assert main(["run", "lane_change", "--delay", "40"]) == 2
     err = capsys.readouterr().err.splitlines()
     assert len(err) == 1 and "--delay 40: expected a number of milliseconds >= 0, with --gui" in err[0]
+
+
+def test_the_gui_without_a_display_is_one_line_at_once(tmp_path, monkeypatch, capsys):
+    """On Linux with neither DISPLAY nor WAYLAND_DISPLAY set, `run --gui` stops before SUMO
+    starts with exit status 2 and one line naming sumo.gui and what to do (sumo-gui retried for
+    a minute and printed 240 lines first)."""
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    monkeypatch.setattr("sys.platform", "linux")
+    assert main(["run", "lane_change", "--gui", "--out", str(tmp_path / "g")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "sumo.gui" in err and "display" in err and "without --gui" in err

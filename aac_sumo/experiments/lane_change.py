@@ -24,6 +24,7 @@ that cuts in instead of swerving back into the lane it left (where cones may sta
 from __future__ import annotations
 
 import copy
+import os
 import shlex
 import sys
 from collections import Counter
@@ -163,6 +164,9 @@ def sumo_options(scenario: Scenario, net_path: Path, routes: list[Path]) -> Sumo
         out = Path(su["output_dir"]) if su["output_dir"].strip() else Path("out") / scenario["scenario.name"]
         out.mkdir(parents=True, exist_ok=True)
     config = sumo_config(scenario) if su["config"].strip() else None
+    if su["gui"] and not has_display():
+        raise ScenarioError(scenario.source, "sumo.gui", "a display for sumo-gui (DISPLAY or WAYLAND_DISPLAY set); without one, "
+                            "run without --gui, or under xvfb-run", "no display")
     options = SumoOptions(net_path, routes, tuple(t.strip() for t in su["cone_types"].split(",") if t.strip()),
                           su["gui"], scenario["scenario.seed"], su["delay"], out, outputs, config.path if config else None,
                           tuple(shlex.split(su["extra_args"])), su["lateral_resolution"], simulator_drives(scenario))
@@ -258,3 +262,11 @@ def _cone_lane(rd: network.Road, centre_lines: list[PathReference], cones) -> in
         if gaps[lane] <= 0.5 * rd.widths[lane]:
             votes[lane] += 1
     return votes.most_common(1)[0][0] if votes else 0
+
+
+def has_display() -> bool:
+    """Whether a window can be opened: not on Linux and the BSDs without ``DISPLAY`` or
+    ``WAYLAND_DISPLAY`` (sumo-gui then retried for a minute before it failed)."""
+    if not sys.platform.startswith(("linux", "freebsd", "openbsd", "netbsd")):
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
