@@ -99,6 +99,22 @@ def test_sim_collisions_equal_sumo_collision_output(tmp_path):
     assert (tmp_path / "tripinfo.xml").exists() and (tmp_path / "sumo.log").read_text().strip()
 
 
+def test_sumos_own_output_shows_each_car_at_its_start_speed_from_the_first_step(tmp_path):
+    """fcd.xml's first timestep (t = 0) has every controlled car at the speed it starts with, as
+    our state has it (it showed 0.00 for cars starting at 10 m/s), and a standing one at 0."""
+    robots = cars("car0", "car1")
+    states = np.array([[20.0, LANE_Y[1], 0.0, 10.0], [60.0, LANE_Y[0], 0.0, 0.0]])
+    sim = SumoSimulator(robots, states, 0.1, ["E0", "E1"], SumoOptions(BUNDLED_NET, output_dir=tmp_path, outputs=("fcd",)))
+    try:
+        sim.step(np.zeros((2, 2)))
+    finally:
+        sim.close()
+    first = ET.parse(tmp_path / "fcd.xml").getroot().find("timestep")
+    assert float(first.get("time")) == 0.0
+    speeds = {v.get("id"): float(v.get("speed")) for v in first.findall("vehicle")}
+    assert speeds == {"car0": pytest.approx(10.0), "car1": pytest.approx(0.0)}
+
+
 def test_outputs_key_takes_only_sumos_outputs(tmp_path, capsys):
     assert main(["run", "lane_change", "--set", "sumo.outputs=fcd,emissions", "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip()

@@ -227,7 +227,7 @@ class SumoSimulator(Simulator):
             if self.drives:
                 self._insert_driven(robot, self.states[i], edges, vtype)
                 continue
-            v.add(robot.name, ROUTE_ID, vtype, depart="now", departSpeed="0")
+            v.add(robot.name, ROUTE_ID, vtype, depart="now", departSpeed=repr(max(float(self.states[i, 3]), 0.0)))
             v.setSpeedMode(robot.name, 0)
             v.setLaneChangeMode(robot.name, 0)
             x, y, angle = sumo_from_state(self.states[i], robot.length, robot.model.wheelbase)
