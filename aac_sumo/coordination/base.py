@@ -190,12 +190,18 @@ class Coordinator(ABC):
             return np.zeros(0)
         return self.strips[i][np.isfinite(self.strips[i])]
 
+    def yielding(self, world: WorldState, i: int) -> bool:
+        """Whether robot ``i`` is within the anticipation's ``yield_distance`` of a walker (with
+        ``anticipation`` set), where it keeps to its lane: it yields, it does not swerve."""
+        rules = self.anticipation
+        return rules is not None and near_pedestrian(world, i, rules.yield_distance)
+
     def corridor(self, world: WorldState, i: int):
-        """Robot ``i``'s corridor this period: its lateral band hugs its reference near a
-        pedestrian when ``anticipation`` is set (it yields, it does not swerve)."""
-        band, rules = self.corridors[i], self.anticipation
-        if isinstance(band, LateralBand) and rules is not None and near_pedestrian(world, i, rules.yield_distance):
-            return band.hugging(rules.yield_band)
+        """Robot ``i``'s corridor this period: its lateral band hugs its reference while it is
+        :meth:`yielding`."""
+        band = self.corridors[i]
+        if isinstance(band, LateralBand) and self.yielding(world, i):
+            return band.hugging(self.anticipation.yield_band)
         return band
 
     def solve(self, world: WorldState, i: int, obstacles: list[Obstacle | ObstaclePrediction | RegionTrack], reason: str) -> RobotDecision:

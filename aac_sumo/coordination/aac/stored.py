@@ -43,7 +43,6 @@ import time
 import numpy as np
 
 from aac_sumo.coordination.aac.authority import AacCoordinator
-from aac_sumo.coordination.anticipation import near_pedestrian
 from aac_sumo.coordination.base import Decision, RobotDecision, straight_behind
 from aac_sumo.coordination.tracking import track
 from aac_sumo.world import WorldState
@@ -154,13 +153,6 @@ class StoredPlanAac(AacCoordinator):
                 stopped += 1
         return stopped
 
-    def yielding(self, world: WorldState, j: int) -> bool:
-        """Whether robot ``j`` is within the anticipation's ``yield_distance`` of a walker, where
-        it keeps to its lane (a stored plan's steering, made a period or more ago, drove a car
-        open-loop 0.54 m off its lane beside a walker at 9 m/s, seed 0)."""
-        rules = self.anticipation
-        return rules is not None and near_pedestrian(world, j, rules.yield_distance)
-
     def intended_inputs(self, world: WorldState, j: int, parked: bool, steps: int) -> tuple[np.ndarray, str]:
         """Robot ``j``'s inputs (steps, 2) as far as they are known: the rest of its stored
         plan, then zero (constant velocity); the tracking law now when the plan is used up;
@@ -182,7 +174,8 @@ class StoredPlanAac(AacCoordinator):
             if speed is not None:
                 lawful = self.params.speed_gain * (speed - world.states[j, 3])
                 out[0, 0] = min(out[0, 0], max(lawful, -world.robots[j].model.limits.comfort_decel))
-            if self.yielding(world, j):  # it keeps its lane on the tracking law's steering
+            if self.yielding(world, j):  # it keeps its lane on the tracking law's steering (a plan made a period or
+                # more ago, driven open-loop at 9 m/s, took a car 0.54 m off its lane beside a walker)
                 out[0, 1] = track(world.robots[j], world.states[j], task, self.params.lookahead, self.params.speed_gain,
                                   self.last_inputs[j, 1], self.planner.config.dt, a_lat=self.tracking_lat())[1]
             return out, "plan"
