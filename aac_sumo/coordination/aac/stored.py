@@ -42,10 +42,15 @@ import time
 
 import numpy as np
 
-from aac_sumo.coordination.aac.authority import AacCoordinator
+from aac_sumo.coordination.aac.authority import SLOW_SHARE, AacCoordinator
 from aac_sumo.coordination.base import Decision, RobotDecision, straight_behind
 from aac_sumo.coordination.tracking import track
 from aac_sumo.world import WorldState
+
+
+#: How much more [m/s^2] the tracking law must accelerate than a slow car's stored plan before
+#: the plan counts as outrun (see :meth:`StoredPlanAac.intended_inputs`).
+HOLD_TOLERANCE = 1e-3
 
 
 class StoredPlanAac(AacCoordinator):
@@ -159,9 +164,11 @@ class StoredPlanAac(AacCoordinator):
         braking when it is ``parked`` (:meth:`~aac_sumo.coordination.base.Coordinator.parked`).
         With ``anticipation``, a stored plan's next acceleration is at most the tracking law's
         (:meth:`~aac_sumo.coordination.base.Coordinator.tracking_speed`, braking at most at the
-        comfort deceleration): the plan was made up to a horizon ago, and a car driving it closed
-        up on a car that had stopped since (seed 0, N = 5: 2.4 m behind a standing car at 1.7
-        m/s, braking at 1 m/s^2), and its next solve braked at 2.8 m/s^2."""
+        comfort deceleration): the plan was made up to a horizon ago, and the traffic ahead may
+        have stopped since. A car slower than ``SLOW_SHARE`` of its cruise speed whose law
+        accelerates more than its plan (the queue ahead has set off since the plan was made)
+        drops the plan and drives on the law until its next turn, so that a stopped queue sets
+        off together rather than one car per authority turn."""
         out = np.zeros((steps, 2))
         task = self.tasks[j]
         if parked:
@@ -173,6 +180,9 @@ class StoredPlanAac(AacCoordinator):
             speed = self.tracking_speed(world, j, self.params.speed_gain)
             if speed is not None:
                 lawful = self.params.speed_gain * (speed - world.states[j, 3])
+                if world.states[j, 3] < SLOW_SHARE * task.speed and lawful > out[0, 0] + HOLD_TOLERANCE:
+                    self.used[j] = len(plan.inputs)  # held up by a plan the traffic has outrun: the law drives it off
+                    return self.intended_inputs(world, j, parked, steps)
                 out[0, 0] = min(out[0, 0], max(lawful, -world.robots[j].model.limits.comfort_decel))
             if self.yielding(world, j):  # it keeps its lane on the tracking law's steering (a plan made a period or
                 # more ago, driven open-loop at 9 m/s, took a car 0.54 m off its lane beside a walker)
