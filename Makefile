@@ -28,9 +28,9 @@ test-fast: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/aac-sumo bench mpc --out out/bench
 
-# Every published table into docs/results/ (hours on 2 cores; `python -m aac_sumo.results --list` shows the jobs).
+# Every published table into docs/results/ (hours on 2 cores; `python -m aac_sumo.tables.results --list` shows the jobs).
 results: $(STAMP)
-	$(BIN)/python -m aac_sumo.results
+	$(BIN)/python -m aac_sumo.tables.results
 
 clean:
 	rm -rf $(VENV) out .pytest_cache .hypothesis

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aac_sumo.kernels import swept_hull_ellipses
+from aac_sumo.kernels.geometry import swept_hull_ellipses
 
 BARRIERS = ("fcbf", "cbf")
 #: Per-stage, per-slot parameter layout fed to the MPC.
@@ -222,7 +222,7 @@ def hull_safety_ellipses(rows, velocities, headings, barrier: str, fcbf: FcbfPar
     ``rows`` (m, K+1, 5) ``[cx, cy, length, width, heading]`` at stages k and k+1.
 
     Each stage's base ellipse contains the eight corners (:func:`~aac_sumo.geometry.containing_ellipse`,
-    compiled as :func:`~aac_sumo.kernels.swept_hull_ellipses`, oriented like the F-CBF
+    compiled as :func:`~aac_sumo.kernels.geometry.swept_hull_ellipses`, oriented like the F-CBF
     ellipse); F-CBF then grows its axes with the stage ``velocities`` (m, K, 2) as in
     :func:`fcbf_stretch`, which only enlarges it, so containment is kept. Plain CBF uses the
     base ellipse along ``headings`` (m, K).

@@ -11,7 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aac_sumo.kernels import pairwise_clearance, polyline_offsets
+from aac_sumo.kernels.geometry import pairwise_clearance
+from aac_sumo.kernels.paths import polyline_offsets
 
 # Bisection cap: enough halvings to shrink any positive double interval to adjacent floats
 # (Eberly's digits - min_exponent); the loop stops as soon as every interval has collapsed.
@@ -248,7 +249,7 @@ def rect_clearance_rows(rects_a, rects_b) -> np.ndarray:
 def pairwise_rect_clearance(rects_a, rects_b) -> np.ndarray:
     """Clearance matrix (n, m) [m] between rows (n, 5) and (m, 5) of
     ``[cx, cy, length, width, heading]``; entry (i, j) equals ``rect_clearance(a_i, b_j)``
-    (compiled: :func:`~aac_sumo.kernels.pairwise_clearance`)."""
+    (compiled: :func:`~aac_sumo.kernels.geometry.pairwise_clearance`)."""
     return pairwise_clearance(np.asarray(rects_a, dtype=float).reshape(-1, 5), np.asarray(rects_b, dtype=float).reshape(-1, 5))
 
 
@@ -313,5 +314,5 @@ def polyline_offset(points, polyline) -> np.ndarray:
     """Signed distance [m] from each of ``points`` (K, 2) to the polyline (M, 2), M >= 2, whose
     first and last segments go on straight beyond its ends: positive to the left of its
     direction of travel, negative to the right (side of the nearest segment). Compiled
-    (:func:`~aac_sumo.kernels.polyline_offsets`)."""
+    (:func:`~aac_sumo.kernels.paths.polyline_offsets`)."""
     return polyline_offsets(np.asarray(points, dtype=float).reshape(-1, 2), np.asarray(polyline, dtype=float))

@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 
 from aac_sumo.geometry import pairwise_rect_clearance, rect_corners
-from aac_sumo.kernels import times_to_collision
+from aac_sumo.kernels.metrics import times_to_collision
 from aac_sumo.world import WorldState
 
 #: metrics.json keys, in the order they are written.
@@ -31,7 +31,7 @@ def time_to_collision(world: WorldState) -> np.ndarray:
     ahead of the ego (a positive component along its heading: the ego drives into it, not the
     other way round) and the ego's footprint, translated along ``w``, touches the other's
     footprint. TTC = that true footprint gap along ``w`` / the closing speed ``|w|``, exact for
-    any orientation of either footprint (:func:`aac_sumo.kernels.times_to_collision`); 0 when
+    any orientation of either footprint (:func:`aac_sumo.kernels.metrics.times_to_collision`); 0 when
     the footprints already touch.
     """
     heading, speed = world.states[:, 2], world.states[:, 3]

@@ -8,9 +8,9 @@ from __future__ import annotations
 import numpy as np
 
 from aac_sumo.geometry import polyline_offset, wrap_angle
-from aac_sumo.kernels import closest_on_polyline, path_headings, path_poses, polyline_chunks, project_points
+from aac_sumo.kernels.paths import closest_on_polyline, path_headings, path_poses, polyline_chunks, project_points
 
-#: Segments per bounding circle of a path's projection (:func:`~aac_sumo.kernels.closest_on_polyline`).
+#: Segments per bounding circle of a path's projection (:func:`~aac_sumo.kernels.paths.closest_on_polyline`).
 PROJECTION_CHUNK = 16
 
 

@@ -8,8 +8,8 @@ import csv
 import pytest
 
 from aac_sumo import config
-from aac_sumo.cli import main
-from aac_sumo.table_ablation import AAC_PLAIN, VARIANTS, gains, variants_for
+from aac_sumo.cli.main import main
+from aac_sumo.tables.ablation import AAC_PLAIN, VARIANTS, gains, variants_for
 
 
 def test_every_variant_is_a_valid_set_of_keys_on_every_case_and_the_paper_rows_have_no_extension():

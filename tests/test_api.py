@@ -27,7 +27,7 @@ def test_the_documented_example_runs_as_written(tmp_path):
 
 
 def test_the_package_exports_the_api_lazily():
-    code = ("import sys, aac_sumo; assert 'aac_sumo.runner' not in sys.modules; "
+    code = ("import sys, aac_sumo; assert 'aac_sumo.runs.runner' not in sys.modules; "
             "from aac_sumo import load_scenario, run, Scenario, register_experiment, register_coordinator; "
             "print(aac_sumo.__version__)")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)

@@ -6,7 +6,8 @@ PAPER switch it off to specify the paper's formulation."""
 import numpy as np
 import pytest
 
-from aac_sumo import config, runner
+from aac_sumo import config
+from aac_sumo.runs import runner
 from aac_sumo.config import ScenarioError
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.experiments import build

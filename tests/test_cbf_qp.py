@@ -8,9 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from aac_sumo import config, runner
+from aac_sumo import config
+from aac_sumo.runs import runner
 from aac_sumo.barriers import stage_parameters
-from aac_sumo.cli import main
+from aac_sumo.cli.main import main
 from aac_sumo.coordination.cbf_qp import barrier_rows, filter_input, input_bounds
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.experiments import build
@@ -150,7 +151,7 @@ def test_the_results_table_counts_runs_as_the_docs_say():
     and episodes; the task time is the mean over completed runs only."""
     import pandas as pd
 
-    from aac_sumo.results_cbf_qp import summarise
+    from aac_sumo.tables.cbf_qp import summarise
 
     runs = pd.DataFrame({
         "case": ["c"] * 3, "controller.barrier": ["fcbf"] * 3, "status": ["ok"] * 3,

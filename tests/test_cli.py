@@ -15,7 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aac_sumo import config
-from aac_sumo.cli import main
+from aac_sumo.cli.main import main
 from aac_sumo.metrics import METRIC_KEYS
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -200,7 +200,7 @@ def test_table_resumes_from_its_results(capsys, tmp_path):
 def test_bench_aac_pools_repeated_runs(tmp_path):
     """Each coordinator runs ``repeats`` times: the periods of all runs are pooled, the failures
     are one run's, and the real-time factor is the runs' median within their range."""
-    from aac_sumo import bench
+    from aac_sumo.runs import bench
 
     report = bench.bench_aac((5,), ("braking",), repeats=2)
     aac, lfc = report.records
@@ -245,7 +245,8 @@ def test_an_interrupted_run_keeps_what_it_recorded_and_exits_non_zero(tmp_path, 
 def test_a_run_stopped_before_its_first_period_still_writes_its_files(tmp_path):
     """A stop that comes during start-up (a loaded machine) leaves metrics, empty tables and
     no pictures, rather than a traceback from drawing nothing."""
-    from aac_sumo import runner
+    from aac_sumo.runs import runner
+    from aac_sumo.views.outputs import write_outputs
 
     runner.STOP.set()
     try:
@@ -253,7 +254,7 @@ def test_a_run_stopped_before_its_first_period_still_writes_its_files(tmp_path):
             runner.run(config.load("circle_swap", ["circle_swap.n_robots=2"]))
     finally:
         runner.STOP.clear()
-    runner.write_outputs(stop.value.result, tmp_path)
+    write_outputs(stop.value.result, tmp_path)
     metrics = json.loads((tmp_path / "metrics.json").read_text())
     assert metrics["error"] == "interrupted at t=0.00 s" and metrics["completed"] is False
     assert (tmp_path / "steps.csv").exists() and not list(tmp_path.glob("*.png"))

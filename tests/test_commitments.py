@@ -15,7 +15,8 @@ from aac_sumo.coordination.commitments import CommitmentBook, clusters, reach_ra
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.geometry import pairwise_rect_clearance
-from aac_sumo.kernels import course_boxes, course_clearance, footprint_rows, ragged_nearest
+from aac_sumo.kernels.commitments import course_boxes, course_clearance, ragged_nearest
+from aac_sumo.kernels.motion import footprint_rows
 from aac_sumo.world import RobotSpec
 
 #: Every emergency layer off: safety comes from the commitments alone.

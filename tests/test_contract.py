@@ -9,7 +9,8 @@ import importlib
 
 import pytest
 
-from aac_sumo import config, runner
+from aac_sumo import config
+from aac_sumo.runs import runner
 from aac_sumo.registry import COORDINATORS
 from aac_sumo.metrics import METRIC_KEYS
 

@@ -22,7 +22,8 @@ from aac_sumo.coordination.proximity import ProximityParams, close_pairs, proxim
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.coordination.safety import BRAKING_TIE, STRIP_OVERSHOOT, SafetyCheck, WalkerSpeeds
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
-from aac_sumo.kernels import STANDING_GAP, swept_hull_ellipses
+from aac_sumo.kernels.safety import STANDING_GAP
+from aac_sumo.kernels.geometry import swept_hull_ellipses
 from aac_sumo.geometry import containing_ellipse, convex_hull, ellipse_signed_distance, rect_corners
 from aac_sumo.metrics import authority_jain
 from aac_sumo.mpc.planner import MpcConfig, MpcPlanner, Plan
@@ -155,7 +156,7 @@ def test_compiled_trees_grow_as_the_nearest_node_rule_says(seed, step):
     ties) towards the sample, and its path cost is its parent's plus ``(1 - d / r)^2`` summed
     over the blockers foreign to its tree that are within their radius: the rule written out
     with numpy, one iteration at a time."""
-    from aac_sumo.kernels import grow_trees
+    from aac_sumo.kernels.proximity import grow_trees
 
     rng = np.random.default_rng(seed)
     r_count, k, m = 3, 25, 7

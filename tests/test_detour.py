@@ -9,11 +9,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from aac_sumo import config, runner
-from aac_sumo.cli import main
+from aac_sumo import config
+from aac_sumo.runs import runner
+from aac_sumo.cli.main import main
 from aac_sumo.coordination.detour import SAMPLES, Detours, plan_detour
 from aac_sumo.geometry import rect_distances
-from aac_sumo.kernels import band_costs, distance_field, rects_within, shortcut
+from aac_sumo.kernels.detours import band_costs, distance_field, rects_within, shortcut
 from aac_sumo.references import PathReference
 
 HARD, CLEARANCE, CELL = 0.25, 0.5, 0.1

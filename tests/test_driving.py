@@ -11,7 +11,8 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from aac_sumo import config, runner
+from aac_sumo import config
+from aac_sumo.runs import runner
 from aac_sumo.coordination.anticipation import Anticipation, anticipated_reference, intended_courses, speed_cap, stop_points
 from aac_sumo.coordination.lfc import LfcCoordinator
 from aac_sumo.coordination.tracking import track

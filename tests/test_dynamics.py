@@ -318,7 +318,7 @@ def test_compiled_braking_courses_step_the_bicycle_model_under_the_braking_law(s
     steering from :func:`heading_hold_steer` within :meth:`BicycleModel.limit_steer` (rate from
     the steering before, lateral acceleration); it reaches standstill and stays there."""
     from aac_sumo.dynamics import heading_hold_steer
-    from aac_sumo.kernels import braking_courses
+    from aac_sumo.kernels.safety import braking_courses
 
     rng = np.random.default_rng(seed)
     m = 6
@@ -357,7 +357,7 @@ def test_compiled_braking_courses_step_the_bicycle_model_under_the_braking_law(s
 def test_compiled_rollouts_step_the_bicycle_model(seed, steps, dt):
     """The compiled rollout is :func:`bicycle_step` under the given inputs, step by step, with
     the speed clipped into each robot's bounds."""
-    from aac_sumo.kernels import rollouts
+    from aac_sumo.kernels.motion import rollouts
 
     rng = np.random.default_rng(seed)
     m = 5

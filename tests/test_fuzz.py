@@ -21,12 +21,14 @@ import tomli_w
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from aac_sumo import config, experiments, runner, sweep
-from aac_sumo.cli import main
+from aac_sumo import config, experiments
+from aac_sumo.runs.files import write_run
+from aac_sumo.runs import runner, sweep
+from aac_sumo.cli.main import main
 from aac_sumo.config import ScenarioError
 from aac_sumo.experiments.lane_change import BUNDLED_NET, BUNDLED_ROUTES
 from aac_sumo.sim.sumo import SumoError
-from aac_sumo.sweep import SweepError
+from aac_sumo.runs.sweep import SweepError
 
 #: Examples per fuzz test; AAC_FUZZ_SCALE=20 fuzzes twenty times longer.
 SCALE = int(os.environ.get("AAC_FUZZ_SCALE", "1"))
@@ -302,5 +304,5 @@ def test_a_nan_state_ends_the_run_with_a_clear_error_and_keeps_the_records(tmp_p
     assert "non-finite state of robot1 at t=0.50 s" in error
     assert result.metrics["completed"] is False
     assert len(result.periods) == 5 and np.isfinite(result.steps[["x", "y", "heading", "v"]].to_numpy()).all()
-    runner.write_outputs(result, tmp_path, plot=False)
+    write_run(result, tmp_path)
     assert "non-finite state of robot1" in json.loads((tmp_path / "metrics.json").read_text())["error"]

@@ -411,7 +411,7 @@ def test_wrap_angle_lands_in_one_turn_and_keeps_the_direction(angle):
        b=st.tuples(st.floats(-5, 5), st.floats(-5, 5), st.floats(0.1, 5), st.floats(0.1, 3), st.floats(-7, 7)))
 def test_compiled_rect_clearance_equals_the_numpy_one(a, b):
     """The safety stop's compiled clearance is the geometry module's, apart or overlapping."""
-    from aac_sumo import kernels
+    from aac_sumo.kernels.geometry import rect_clearance as compiled_clearance
 
     a, b = np.array(a), np.array(b)
-    assert kernels.rect_clearance(a, b) == pytest.approx(float(rect_clearance_rows(a, b)), abs=1e-12)
+    assert compiled_clearance(a, b) == pytest.approx(float(rect_clearance_rows(a, b)), abs=1e-12)

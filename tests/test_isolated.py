@@ -21,8 +21,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from aac_sumo import config, experiments, runner
-from aac_sumo.cli import main
+from aac_sumo import config, experiments
+from aac_sumo.runs import runner
+from aac_sumo.cli.main import main
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.sim import sumo
 from aac_sumo.sim.internal import InternalSimulator

@@ -11,10 +11,12 @@ import pytest
 from hypothesis import assume, event, given, settings
 from hypothesis import strategies as st
 
-from aac_sumo import config, runner
+from aac_sumo import config
+from aac_sumo.runs.files import write_run
+from aac_sumo.runs import runner
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.geometry import pairwise_rect_clearance
-from aac_sumo.kernels import times_to_collision
+from aac_sumo.kernels.metrics import times_to_collision
 from aac_sumo.metrics import METRIC_KEYS, compute_metrics, time_to_collision
 from aac_sumo.world import Obstacle, RobotSpec, WorldState
 
@@ -242,7 +244,7 @@ def test_metrics_json_writes_the_documented_keys_in_the_documented_order(tmp_pat
     assert len(documented) == len(set(documented)) > len(METRIC_KEYS)
     assert [k for k in documented if k in METRIC_KEYS] == list(METRIC_KEYS)
     result = runner.run(config.load("swarm_rescue", ["scenario.duration=0.3", "controller.horizon=5"]))
-    runner.write_outputs(result, tmp_path, plot=False)
+    write_run(result, tmp_path)
     written = list(json.loads((tmp_path / "metrics.json").read_text()))
     assert written[: len(METRIC_KEYS)] == list(METRIC_KEYS)
     assert set(written[len(METRIC_KEYS):]) <= set(documented) | {"incomplete_reason", "error"}

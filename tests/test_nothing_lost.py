@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from aac_sumo import sweep
+from aac_sumo.runs import sweep
 
 AAC_SUMO = str(Path(sys.executable).parent / "aac-sumo")
 SHORT = ["--set", "controller.horizon=5", "--set", "controller.codegen=false", "--set", "scenario.duration=3", "--no-progress"]

@@ -1,4 +1,4 @@
-"""A user's install: the bundled scenarios and networks are package data (aac_sumo.package_data),
+"""A user's install: the bundled scenarios and networks are package data (aac_sumo.config.package_data),
 `python -m build` gives a wheel and an sdist without warnings, and the wheel installed into a
 fresh venv runs from another folder (issue 36)."""
 
@@ -16,8 +16,9 @@ from pathlib import Path
 
 import pytest
 
-from aac_sumo import config, package_data
-from aac_sumo.cli import main
+from aac_sumo import config
+from aac_sumo.config import package_data
+from aac_sumo.cli.main import main
 
 ROOT = Path(__file__).resolve().parents[1]
 PYPROJECT = tomllib.loads((ROOT / "pyproject.toml").read_text())
@@ -104,7 +105,7 @@ def test_the_wheel_installed_in_a_fresh_venv_runs_from_another_folder(tmp_path):
         # The installed package, not the checkout; the bundled highway's ../sumo_networks/ config
         # and the lane change's default network resolve inside it.
         where = _run([python, "-c", (
-            "import aac_sumo, aac_sumo.package_data as d; from aac_sumo import load_scenario\n"
+            "import aac_sumo, aac_sumo.config.package_data as d; from aac_sumo import load_scenario\n"
             "from aac_sumo.experiments.lane_change import network_files\n"
             "print(aac_sumo.__file__); print(d.root())\n"
             "for name in ('highway_work_zone', 'lane_change'):\n"

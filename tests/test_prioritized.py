@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import pytest
 
-from aac_sumo import config, runner
+from aac_sumo import config
+from aac_sumo.runs import runner
 from aac_sumo.coordination.prioritized import PrioritizedLfc
 from aac_sumo.experiments import build
 

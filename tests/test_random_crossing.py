@@ -12,8 +12,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from aac_sumo import config, runner
-from aac_sumo.cli import main
+from aac_sumo import config
+from aac_sumo.runs import runner
+from aac_sumo.cli.main import main
 from aac_sumo.config import ScenarioError
 from aac_sumo.experiments import build
 from aac_sumo.experiments.random_crossing import area_side, draw

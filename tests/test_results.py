@@ -3,8 +3,8 @@ the commit; unknown jobs are refused with exit status 2."""
 
 from __future__ import annotations
 
-from aac_sumo import results
-from aac_sumo.provenance import git_commit
+from aac_sumo.tables import results
+from aac_sumo.runs.provenance import git_commit
 
 
 def test_every_published_table_has_a_job_and_the_list_shows_their_commands(capsys):
@@ -16,7 +16,7 @@ def test_every_published_table_has_a_job_and_the_list_shows_their_commands(capsy
 
 
 def test_every_job_is_a_command_line_the_tool_accepts():
-    from aac_sumo.cli import build_parser
+    from aac_sumo.cli.main import build_parser
 
     for job in results.JOBS:
         if job.module != "aac_sumo.cli":  # another generator: its own parser

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from aac_sumo import config, runner
+from aac_sumo import config
+from aac_sumo.runs import runner
 from aac_sumo.coordination.aac import AacCoordinator, AacParams
 from aac_sumo.coordination.anticipation import Anticipation
 from aac_sumo.dynamics import BicycleModel, VehicleLimits

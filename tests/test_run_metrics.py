@@ -12,7 +12,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from aac_sumo import config, experiments, runner
+from aac_sumo import config, experiments
+from aac_sumo.runs import runner
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
 from aac_sumo.mpc.problem import get_problem
@@ -100,10 +101,12 @@ def test_the_warm_up_changes_nothing_the_run_decides(coordinator, monkeypatch):
 LOOP_COMPILES = """
 import json, sys
 import numba
-from aac_sumo import config, kernels, runner
+from aac_sumo import config
+from aac_sumo.runs import runner
 
 def loaded():
-    return {name: sorted(map(str, f.signatures)) for name, f in vars(kernels).items()
+    return {f"{module}.{name}": sorted(map(str, f.signatures)) for module in list(sys.modules)
+            if module.startswith("aac_sumo.kernels.") for name, f in vars(sys.modules[module]).items()
             if isinstance(f, numba.core.registry.CPUDispatcher)}
 
 after_warm_up = {}
@@ -114,7 +117,7 @@ def recording(setup, world):
 runner.warm_up = recording
 runner.run(config.load(sys.argv[1], sys.argv[2:]))
 end = loaded()
-print(json.dumps({name: sorted(set(end[name]) - set(after_warm_up[name])) for name in end if end[name] != after_warm_up[name]}))
+print(json.dumps({name: sorted(set(end[name]) - set(after_warm_up.get(name, []))) for name in end if end[name] != after_warm_up.get(name, [])}))
 """
 
 

@@ -7,9 +7,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from aac_sumo import config, runner
+from aac_sumo import config
+from aac_sumo.runs import runner
 from aac_sumo.metrics import METRIC_KEYS, crossing_ahead, crossing_lane_part, pedestrian_waits, smoothness
-from aac_sumo.runner import with_vehicle_columns
+from aac_sumo.runs.runner import with_vehicle_columns
 from aac_sumo.sim.base import Crossing
 
 NEW_KEYS = ("accel_p95", "lat_accel_p95", "jerk_p95", "pedestrian_wait_s")
@@ -145,8 +146,8 @@ def test_polylines_cross():
 def test_table_two_has_the_smoothness_and_waiting_columns_for_both_coordinators(monkeypatch, tmp_path, capsys):
     """No simulation: each planned run returns made-up metrics; table.csv and table.md of Table II
     carry the four new metrics, per coordinator and horizon."""
-    from aac_sumo import sweep
-    from aac_sumo.cli import main
+    from aac_sumo.runs import sweep
+    from aac_sumo.cli.main import main
 
     def run_tasks(tasks, grid_keys, out, *args, **kw):
         out.mkdir(parents=True, exist_ok=True)

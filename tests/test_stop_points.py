@@ -1,4 +1,4 @@
-"""The compiled stop rows (:func:`aac_sumo.kernels.stop_rows`) give what the numpy definition of
+"""The compiled stop rows (:func:`aac_sumo.kernels.anticipation.stop_rows`) give what the numpy definition of
 :func:`aac_sumo.coordination.anticipation.stop_points` gave, on random roads and traffic: the
 same rows and the same walkers held."""
 
@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from aac_sumo.coordination.anticipation import Anticipation, agents, stop_points
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
-from aac_sumo.kernels import TIME_GAP_SPEED, WALK_AWAY
+from aac_sumo.kernels.anticipation import TIME_GAP_SPEED, WALK_AWAY
 from aac_sumo.references import PathReference
 from aac_sumo.world import Obstacle, RobotSpec, WorldState
 

@@ -13,11 +13,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from aac_sumo import config, stress
-from aac_sumo.cli import main
+from aac_sumo import config
+from aac_sumo.stress import campaign as stress
+from aac_sumo.cli.main import main
 from aac_sumo.experiments import build
 from aac_sumo.metrics import METRIC_KEYS
-from aac_sumo.provenance import PROVENANCE_KEYS
+from aac_sumo.runs.provenance import PROVENANCE_KEYS
 
 ALL = [k for k, v in stress.KINDS.items() if v.baseline is None]  # ours; the baselines' kinds draw the same
 
@@ -148,7 +149,7 @@ def test_ci_subset_has_no_collision_and_no_error(capsys, tmp_path):
 def test_baselines_are_kinds_of_their_own_whose_collisions_are_not_failures_of_ours():
     """``orca-circle`` draws as ``circle`` does and runs ORCA; a collision there is reported in its
     row but does not count against our coordinators; the default kinds are ours alone."""
-    from aac_sumo.cli import build_parser
+    from aac_sumo.cli.main import build_parser
 
     drawn = stress.draw(stress.Campaign(7, Path("/tmp/unused")), 0, ["orca-circle"])
     assert drawn.values["controller.coordinator"] == "orca" and "circle_swap.n_robots" in drawn.values

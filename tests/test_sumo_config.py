@@ -8,8 +8,10 @@ import subprocess
 import tomllib
 from pathlib import Path
 
-from aac_sumo import config, network, runner
-from aac_sumo.cli import main
+from aac_sumo import config, network
+from aac_sumo.runs.files import write_run
+from aac_sumo.runs import runner
+from aac_sumo.cli.main import main
 from aac_sumo.experiments.lane_change import BUNDLED_NET_DIR
 from aac_sumo.sim.sumo import SumoOptions
 
@@ -95,7 +97,7 @@ def test_the_saved_scenario_reruns_the_same_run_from_another_folder(tmp_path, mo
     shutil.copy(BUNDLED_NET_DIR / "cones.rou.xml", work / "my_cones.rou.xml")
     monkeypatch.chdir(work)
     first = runner.run(config.load("lane_change", SHORT + ["sumo.net=my.net.xml", "sumo.routes=my_cones.rou.xml"]))
-    runner.write_outputs(first, work / "out", plot=False)
+    write_run(first, work / "out")
     monkeypatch.chdir(elsewhere)
     again = runner.run(config.load(str(work / "out" / "scenario.toml")))
     assert first.trajectories[["x", "y", "heading"]].equals(again.trajectories[["x", "y", "heading"]])

@@ -8,7 +8,9 @@ import math
 import numpy as np
 import pytest
 
-from aac_sumo import config, runner
+from aac_sumo import config
+from aac_sumo.runs.files import write_run
+from aac_sumo.runs import runner
 from aac_sumo.config import ScenarioError
 from aac_sumo.experiments.lane_change import BUNDLED_NET, BUNDLED_NET_DIR
 from aac_sumo.network import sumo_binary
@@ -108,7 +110,7 @@ def test_small_lane_change_with_sumo_driving_completes_with_the_usual_metrics(tm
     # the recorded inputs are SUMO's motion: speed changes match the accel column
     for _, car in steps.groupby("robot"):
         assert np.allclose(np.diff(car["v"].to_numpy()), car["accel"].to_numpy()[:-1] * 0.1, atol=1e-9)
-    runner.write_outputs(result, tmp_path, plot=False)
+    write_run(result, tmp_path)
     assert {"metrics.json", "steps.csv", "trajectories.csv"} <= {p.name for p in tmp_path.iterdir()}
 
 

@@ -9,8 +9,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from aac_sumo import config, runner
-from aac_sumo.cli import main
+from aac_sumo import config
+from aac_sumo.runs import runner
+from aac_sumo.cli.main import main
 from aac_sumo.config import ScenarioError
 
 
@@ -117,7 +118,7 @@ def test_every_coordinator_runs_with_every_barrier(coordinator, barrier):
 
 
 def test_table_rows_average_over_seeds_and_stand_beside_the_paper():
-    from aac_sumo import tables
+    from aac_sumo.tables import build as tables
 
     runs = [dict(status="ok", **{"controller.horizon": 10, "controller.coordinator": "aac"}, task_duration_s=t, completed=c,
                  compute_ms_mean=m, min_distance_m=1.0, collisions=0)

@@ -10,10 +10,12 @@ from pathlib import Path
 
 import pytest
 
-from aac_sumo import config, executor, sweep, table_braking
-from aac_sumo.cli import main
+from aac_sumo import config
+from aac_sumo.runs import executor, sweep
+from aac_sumo.tables import braking as table_braking
+from aac_sumo.cli.main import main
 from aac_sumo.metrics import METRIC_KEYS
-from aac_sumo.provenance import PROVENANCE_KEYS
+from aac_sumo.runs.provenance import PROVENANCE_KEYS
 from aac_sumo.prediction import PREDICTIONS
 
 SHORT = ["--set", "controller.horizon=5", "--set", "scenario.duration=3", "--no-progress"]

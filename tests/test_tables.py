@@ -10,8 +10,10 @@ from pathlib import Path
 
 import pytest
 
-from aac_sumo import config, sweep, table_common, tables
-from aac_sumo.cli import main
+from aac_sumo import config
+from aac_sumo.runs import sweep
+from aac_sumo.tables import common as table_common, build as tables
+from aac_sumo.cli.main import main
 
 
 def read_rows(path: Path) -> tuple[list[str], list[dict]]:

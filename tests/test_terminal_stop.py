@@ -11,7 +11,8 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from aac_sumo import config, runner
+from aac_sumo import config
+from aac_sumo.runs import runner
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.mpc.planner import INTRUSION_EPS, MpcConfig, MpcPlanner, ego_discs
 from aac_sumo.world import Obstacle, RobotSpec

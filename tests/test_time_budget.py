@@ -1,4 +1,4 @@
-"""The road time budget (aac_sumo.time_budget): each step's loss against the cruise speed goes to
+"""The road time budget (aac_sumo.views.time_budget): each step's loss against the cruise speed goes to
 the first cause that holds there."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from aac_sumo.time_budget import CAUSES, time_budget
+from aac_sumo.views.time_budget import CAUSES, time_budget
 
 DT = 0.1
 

@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 from PIL import Image
 
-from aac_sumo.cli import main
+from aac_sumo.cli.main import main
 
 SWARM = ["run", "swarm_rescue", "--set", "scenario.duration=1.0", "--set", "controller.horizon=5"]
 
@@ -68,7 +68,7 @@ def test_the_fairness_picture_shows_only_the_robots_that_were_recorded(tmp_path)
     import matplotlib.pyplot as plt
     import numpy as np
 
-    from aac_sumo.report_timeline import fairness_figure, plot_fairness
+    from aac_sumo.views.timeline import fairness_figure, plot_fairness
 
     steps = pd.DataFrame({"t": [0.0, 0.0, 0.1, 0.1, 0.2, 0.2], "robot": ["a", "b"] * 3,
                           "authority": [True, False, False, True, True, False], "arrived": [False] * 6})
@@ -136,7 +136,7 @@ def test_compare_draws_paths_to_scale_unless_they_are_a_long_road(tmp_path, monk
     equal axes it was a flat line)."""
     from types import SimpleNamespace
 
-    from aac_sumo import compare
+    from aac_sumo.views import compare
 
     t = np.arange(3) * 0.1
     steps = pd.DataFrame(dict(t=np.repeat(t, 2), v=1.0, clearance_m=1.0, arrived=False))

@@ -48,7 +48,7 @@ from functools import cached_property
 import numpy as np
 
 from aac_sumo.geometry import wrap_angle
-from aac_sumo.kernels import ramped_speeds, stop_rows
+from aac_sumo.kernels.anticipation import ramped_speeds, stop_rows
 from aac_sumo.references import PathReference
 from aac_sumo.world import WorldState
 

@@ -25,7 +25,8 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from aac_sumo.coordination.regions import Fleet
-from aac_sumo.kernels import course_boxes, course_clearance, footprint_rows, pair_components, ragged_nearest, stopping_course
+from aac_sumo.kernels.commitments import course_boxes, course_clearance, pair_components, ragged_nearest, stopping_course
+from aac_sumo.kernels.motion import footprint_rows
 from aac_sumo.references import PathReference
 
 #: Time constant [s] with which a stopping tail turns the heading towards the reference's.

@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from aac_sumo.geometry import rect_distances
-from aac_sumo.kernels import band_costs, distance_field, grid_path, rects_within, shortcut
+from aac_sumo.kernels.detours import band_costs, distance_field, grid_path, rects_within, shortcut
 from aac_sumo.references import PathReference
 
 #: Extra cost of a cell at distance ``hard`` from a standing footprint (none at ``clearance``).

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from aac_sumo.kernels import grow_trees
+from aac_sumo.kernels.proximity import grow_trees
 
 
 def close_pairs(centres: np.ndarray, distance: float) -> np.ndarray:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from aac_sumo.barriers import FcbfParams, RegionTrack, hull_safety_ellipses
-from aac_sumo.kernels import footprint_rows, limited_steer, rollouts
+from aac_sumo.kernels.motion import footprint_rows, limited_steer, rollouts
 from aac_sumo.world import RobotSpec
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from aac_sumo.kernels import tracking_course
+from aac_sumo.kernels.motion import tracking_course
 from aac_sumo.references import PathReference
 from aac_sumo.world import RobotSpec
 

@@ -32,7 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from aac_sumo import network, package_data
+from aac_sumo import network
+from aac_sumo.config import package_data
 from aac_sumo.config import Scenario, ScenarioError
 from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_spec, simulator_drives
 from aac_sumo.experiments.sumo_driver import lane_indices

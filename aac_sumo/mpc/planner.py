@@ -17,7 +17,7 @@ from aac_sumo.barriers import (N_STAGE_FIELDS, N_TERMINAL_FIELDS, FcbfParams, Ob
                                inactive_slot, safety_ellipses, stack_predictions, stage_parameters, stopping_barrier, support)
 from aac_sumo.dynamics import heading_hold_steer
 from aac_sumo.geometry import wrap_angle
-from aac_sumo.kernels import rollouts
+from aac_sumo.kernels.motion import rollouts
 from aac_sumo.mpc.problem import NO_LIMIT, OPEN_BAND, ProblemShape, get_problem
 from aac_sumo.prediction import predict_obstacle, stage_zero
 from aac_sumo.references import LateralBand

@@ -23,7 +23,7 @@ from aac_sumo.coordination.detour import Detours
 from aac_sumo.coordination.make_room import STILL_SPEED, MakeRoom
 from aac_sumo.coordination.anticipation import speed_cap, stop_points
 from aac_sumo.coordination.tracking import track, track_course
-from aac_sumo.kernels import limited_steer
+from aac_sumo.kernels.motion import limited_steer
 from aac_sumo.references import PathReference
 from aac_sumo.world import WorldState
 

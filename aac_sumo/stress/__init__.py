@@ -1,0 +1,1 @@
+"""Randomized stress campaigns: ``aac-sumo stress`` (:mod:`~aac_sumo.stress.campaign`)."""
