@@ -6,10 +6,11 @@ other. Each candidate (a value for every ``--param``) is run on K scenario seeds
 through the same :class:`~aac_sumo.runs.executor.Executor` as sweeps (local processes or a Dask cluster),
 and scored by the mean of the objective metric over the seeds.
 
-The parts: :mod:`aac_sumo.tune.search` (specifications, trials, penalties and the samplers: how a
-candidate is proposed and scored), :mod:`aac_sumo.tune.objectives` (scenario runs and analytic
+The parts: :mod:`aac_sumo.tune.specs` (the tuned parameters, objective and constraints),
+:mod:`aac_sumo.tune.search` (trials, penalties and the samplers: how a candidate is proposed and
+scored), :mod:`aac_sumo.tune.objectives` (scenario runs and analytic
 functions as objectives; the sampler benchmark) and :mod:`aac_sumo.tune.outputs` (the files).
-This module runs the command and offers the names of those parts that callers use.
+This package's own module runs the command and offers the names of those parts that callers use.
 """
 
 from __future__ import annotations
@@ -22,8 +23,9 @@ from aac_sumo import config
 from aac_sumo.runs.executor import Executor
 from aac_sumo.tune.objectives import ScenarioEvaluator, analytic_evaluator, benchmark, branin, check_params, hartmann3
 from aac_sumo.tune.outputs import best_toml, plot_tuning, read_trials, summary, write_trials
-from aac_sumo.tune.search import (Constraint, Objective, Param, Search, Trial, TuneError, best_trial, default_init, judge,
-                                  parse_constraint, parse_objective, parse_param, parse_params)
+from aac_sumo.tune.specs import (Constraint, Objective, Param, TuneError, parse_constraint, parse_objective, parse_param,
+                                 parse_params)
+from aac_sumo.tune.search import Search, Trial, best_trial, default_init, judge
 
 __all__ = ["tune", "TuneResult", "benchmark", "branin", "hartmann3", "analytic_evaluator", "read_trials", "Constraint",
            "Objective", "Param", "Search", "Trial", "TuneError", "best_trial", "default_init", "judge", "parse_constraint",

@@ -13,7 +13,8 @@ import numpy as np
 from aac_sumo import config
 from aac_sumo.runs.executor import Executor
 from aac_sumo.runs.sweep import Task, error_row, run_task
-from aac_sumo.tune.search import SAMPLERS, Evaluate, Objective, Param, Search, TuneError
+from aac_sumo.tune.search import SAMPLERS, Evaluate, Search
+from aac_sumo.tune.specs import Objective, Param, TuneError
 
 
 def check_params(source: str, sets: list[str], params: Sequence[Param]) -> config.Scenario:

@@ -8,7 +8,8 @@ from pathlib import Path
 from typing import Sequence
 
 from aac_sumo import config
-from aac_sumo.tune.search import NUMERIC_METRICS, Constraint, Objective, Param, Trial, best_trial
+from aac_sumo.tune.specs import NUMERIC_METRICS, Constraint, Objective, Param
+from aac_sumo.tune.search import Trial, best_trial
 
 
 def trial_columns(params: Sequence[Param]) -> list[str]:
