@@ -15,48 +15,50 @@ from hypothesis import strategies as st
 
 from aac_sumo import config
 from aac_sumo.stress import campaign as stress
+from aac_sumo.stress.plan import COMMON_KEYS, DESCRIPTIVE, HORIZONS, KINDS, Campaign, draw, plan, prepare
+from aac_sumo.stress.roads import ROAD_VARIANTS, road_variants
 from aac_sumo.cli.main import main
 from aac_sumo.experiments import build
 from aac_sumo.metrics import METRIC_KEYS
 from aac_sumo.runs.provenance import PROVENANCE_KEYS
 
-ALL = [k for k, v in stress.KINDS.items() if v.baseline is None]  # ours; the baselines' kinds draw the same
+ALL = [k for k, v in KINDS.items() if v.baseline is None]  # ours; the baselines' kinds draw the same
 
 
 def test_draws_are_a_pure_function_of_seed_and_index(tmp_path):
-    first = stress.plan(10, ALL, 3, tmp_path)
-    assert first == stress.plan(10, ALL, 3, tmp_path)
-    assert stress.plan(4, ALL, 3, tmp_path) == first[:4]  # a longer campaign begins with the shorter one
-    other = stress.plan(10, ALL, 4, tmp_path)
+    first = plan(10, ALL, 3, tmp_path)
+    assert first == plan(10, ALL, 3, tmp_path)
+    assert plan(4, ALL, 3, tmp_path) == first[:4]  # a longer campaign begins with the shorter one
+    other = plan(10, ALL, 4, tmp_path)
     assert all(a.sets != b.sets for a, b in zip(first, other))
     assert [d.kind for d in first] == ALL + ALL  # dealt in turn
-    assert stress.road_variants(3) == stress.road_variants(3) != stress.road_variants(4)
+    assert road_variants(3) == road_variants(3) != road_variants(4)
 
 
 @settings(max_examples=15, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1))
 def test_every_draw_loads_and_states_its_values(seed):
-    for d in stress.plan(10, ALL, seed, Path("out/stress")):  # plan() loads each through the config loader
-        spec = stress.KINDS[d.kind]
-        assert set(d.values) == {"scenario.duration", *stress.COMMON_KEYS, *spec.keys}
+    for d in plan(10, ALL, seed, Path("out/stress")):  # plan() loads each through the config loader
+        spec = KINDS[d.kind]
+        assert set(d.values) == {"scenario.duration", *COMMON_KEYS, *spec.keys}
         assert d.sets[-1] == f"scenario.seed={d.seed}"
         scenario = config.load(spec.scenario, list(d.sets))
-        assert scenario["controller.horizon"] in stress.HORIZONS
+        assert scenario["controller.horizon"] in HORIZONS
         assert scenario["controller.coordinator"] in ("aac", "lfc") and scenario["controller.barrier"] in ("cbf", "fcbf")
         assert scenario["scenario.duration"] == spec.duration
         for key, value in d.values.items():
-            if key not in stress.DESCRIPTIVE:
+            if key not in DESCRIPTIVE:
                 assert f"{key}={value}" in d.sets
 
 
 def test_drawn_worlds_build(tmp_path):
     """The geometric checks of the experiments (overlapping starts, goals in debris, cones on
     cars, a road too short) pass for draws of every kind, on every generated road."""
-    draws = stress.plan(8, ["swarm", "circle", "crossing", "braking"], 0, tmp_path)
-    one_per_road = {d.values["road"]: d for d in stress.plan(12, ["lane-change"], 0, tmp_path)}
-    assert len(one_per_road) == stress.ROAD_VARIANTS and "straight" in one_per_road
+    draws = plan(8, ["swarm", "circle", "crossing", "braking"], 0, tmp_path)
+    one_per_road = {d.values["road"]: d for d in plan(12, ["lane-change"], 0, tmp_path)}
+    assert len(one_per_road) == ROAD_VARIANTS and "straight" in one_per_road
     draws += list(one_per_road.values())
-    stress.prepare(draws, 0, tmp_path)
+    prepare(draws, 0, tmp_path)
     for d in draws:
         setup = build(config.load(d.scenario, list(d.sets)))
         if d.kind == "lane-change":
@@ -151,7 +153,7 @@ def test_baselines_are_kinds_of_their_own_whose_collisions_are_not_failures_of_o
     row but does not count against our coordinators; the default kinds are ours alone."""
     from aac_sumo.cli.main import build_parser
 
-    drawn = stress.draw(stress.Campaign(7, Path("/tmp/unused")), 0, ["orca-circle"])
+    drawn = draw(Campaign(7, Path("/tmp/unused")), 0, ["orca-circle"])
     assert drawn.values["controller.coordinator"] == "orca" and "circle_swap.n_robots" in drawn.values
     assert stress.is_baseline({"kind": "orca-circle"}) and not stress.is_baseline({"kind": "circle"})
     default = build_parser().parse_args(["stress"]).kinds.split(",")

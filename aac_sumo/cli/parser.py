@@ -111,7 +111,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scenarios", default=None, metavar="S1,S2,...",
                    help="aac: the scenarios to time (default swarm_rescue,lane_change,random_crossing,highway_work_zone)")
 
-    from aac_sumo.stress.campaign import KINDS
+    from aac_sumo.stress.plan import KINDS
 
     p = sub.add_parser("stress", help="randomized scenario variants; stress.csv and stress.md list every failure with the "
                        "command that reproduces it", description="Run N scenario variants drawn from the distributions of "

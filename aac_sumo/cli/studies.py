@@ -55,9 +55,10 @@ def _report_failures(rows: list[dict]) -> int:
 
 def cmd_stress(args) -> int:
     from aac_sumo.stress import campaign as stress
+    from aac_sumo.stress.plan import parse_kinds
 
     check_out(args.out)
-    rows, text = stress.stress(args.runs, stress.parse_kinds(args.kinds), args.seed, args.out, args.workers, args.scheduler,
+    rows, text = stress.stress(args.runs, parse_kinds(args.kinds), args.seed, args.out, args.workers, args.scheduler,
                                args.resume, progress=not args.no_progress, duration=args.duration)
     print(text, end="")
     print(f"outputs: {args.out / 'stress.csv'}, {args.out / 'stress.md'}")

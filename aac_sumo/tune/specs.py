@@ -19,16 +19,10 @@ from aac_sumo.runs.sweep import SweepError
 
 #: Metrics an objective or a constraint may name (the numeric metrics.json keys).
 NUMERIC_METRICS = tuple(k for k in METRIC_KEYS if k not in ("scenario", "coordinator", "barrier", "seed"))
-
-
 SCALES = ("linear", "log", "int")
-
-
 OPS: dict[str, Callable[[float, float], bool]] = {
     "==": operator.eq, "<=": operator.le, ">=": operator.ge, "<": operator.lt, ">": operator.gt,
 }
-
-
 #: Significant digits of proposed float values (what trials.csv and best.toml show).
 DIGITS = 6
 
