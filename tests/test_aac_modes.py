@@ -7,7 +7,8 @@ import copy
 import pytest
 
 from aac_sumo.coordination.aac import AacCoordinator, AacParams, Authorities, CommittedAac, StoredPlanAac
-from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
+from aac_sumo.mpc.settings import MpcConfig
+from aac_sumo.mpc.planner import MpcPlanner
 from aac_sumo.references import PathReference
 
 

@@ -26,7 +26,9 @@ from aac_sumo.kernels.safety import STANDING_GAP
 from aac_sumo.kernels.geometry import swept_hull_ellipses
 from aac_sumo.geometry import containing_ellipse, convex_hull, ellipse_signed_distance, rect_corners
 from aac_sumo.metrics import authority_jain
-from aac_sumo.mpc.planner import MpcConfig, MpcPlanner, Plan
+from aac_sumo.mpc.settings import MpcConfig
+from aac_sumo.mpc.planner import MpcPlanner
+from aac_sumo.mpc.plan import Plan
 from aac_sumo.references import PathReference
 from aac_sumo.sim.sumo_frames import body_from_sumo, collision_cover, lane_change_sweep, velocity_from_sumo
 from aac_sumo.world import Obstacle, RobotSpec, WorldState

@@ -18,7 +18,8 @@ from aac_sumo.coordination.lfc import LfcCoordinator
 from aac_sumo.coordination.tracking import track
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.experiments.lane_geometry import blend, smooth_reference
-from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
+from aac_sumo.mpc.settings import MpcConfig
+from aac_sumo.mpc.planner import MpcPlanner
 from aac_sumo.references import PathReference, curve_speeds, smooth_path
 from aac_sumo.world import Obstacle, RobotSpec, WorldState
 from test_sumo import write_curved_net

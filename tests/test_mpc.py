@@ -21,7 +21,9 @@ from hypothesis import strategies as st
 from aac_sumo.barriers import barrier_value, inactive_slot, safety_ellipses
 from aac_sumo.dynamics import BicycleModel, VehicleLimits, bicycle_step
 from aac_sumo.geometry import ellipse_signed_distance
-from aac_sumo.mpc.planner import STATUSES, MpcConfig, MpcPlanner, Plan, ego_discs
+from aac_sumo.mpc.plan import STATUSES, Plan
+from aac_sumo.mpc.settings import MpcConfig
+from aac_sumo.mpc.planner import MpcPlanner, ego_discs
 from aac_sumo.prediction import predict_obstacle
 from aac_sumo.world import Obstacle, RobotSpec
 

@@ -11,7 +11,8 @@ from aac_sumo.runs import runner
 from aac_sumo.coordination.aac import AacCoordinator, AacParams
 from aac_sumo.coordination.anticipation import Anticipation
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
-from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
+from aac_sumo.mpc.settings import MpcConfig
+from aac_sumo.mpc.planner import MpcPlanner
 from aac_sumo.references import PathReference
 from aac_sumo.world import Obstacle, RobotSpec, WorldState
 

@@ -15,7 +15,8 @@ import pytest
 from aac_sumo import config, experiments
 from aac_sumo.runs import runner
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
-from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
+from aac_sumo.mpc.settings import MpcConfig
+from aac_sumo.mpc.planner import MpcPlanner
 from aac_sumo.mpc.problem import get_problem
 from aac_sumo.world import RobotSpec
 

@@ -17,7 +17,8 @@ from aac_sumo.cli.main import main
 from aac_sumo.experiments import build
 from aac_sumo.experiments.common import robot_spec
 from aac_sumo.experiments.lane_change import BAND_SETTLE, BUNDLED_NET, BUNDLED_NET_DIR, lane_change_band, target_lane
-from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
+from aac_sumo.mpc.settings import MpcConfig
+from aac_sumo.mpc.planner import MpcPlanner
 from aac_sumo.geometry import rect_clearance_rows
 from aac_sumo.sim.sumo import SumoOptions, SumoSimulator
 

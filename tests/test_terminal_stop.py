@@ -14,7 +14,8 @@ from hypothesis import strategies as st
 from aac_sumo import config
 from aac_sumo.runs import runner
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
-from aac_sumo.mpc.planner import INTRUSION_EPS, MpcConfig, MpcPlanner, ego_discs
+from aac_sumo.mpc.planner import INTRUSION_EPS, MpcPlanner, ego_discs
+from aac_sumo.mpc.settings import MpcConfig
 from aac_sumo.world import Obstacle, RobotSpec
 
 DT, HORIZON, DECEL = 0.1, 5, 6.0

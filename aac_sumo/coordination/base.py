@@ -14,7 +14,8 @@ from aac_sumo.barriers import ObstaclePrediction, RegionTrack
 from aac_sumo.coordination.anticipation import Anticipation, anticipated_reference, anticipated_speeds, intended_courses, near_pedestrian
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.coordination.safety import SafetyCheck, WalkerSpeeds
-from aac_sumo.mpc.planner import FALLBACK_TURN_TIME, MpcPlanner, Plan
+from aac_sumo.mpc.planner import FALLBACK_TURN_TIME, MpcPlanner
+from aac_sumo.mpc.plan import Plan
 from aac_sumo.prediction import SpeedHistory
 from aac_sumo.references import LateralBand, PathReference
 from aac_sumo.world import Obstacle, WorldState

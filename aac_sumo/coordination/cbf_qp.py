@@ -62,7 +62,8 @@ import scipy.sparse as sp
 from aac_sumo.barriers import stage_parameters
 from aac_sumo.coordination.base import Coordinator, Decision, Finished, RobotDecision
 from aac_sumo.coordination.tracking import track
-from aac_sumo.mpc.planner import MpcConfig, MpcPlanner, ego_discs
+from aac_sumo.mpc.settings import MpcConfig
+from aac_sumo.mpc.planner import MpcPlanner, ego_discs
 from aac_sumo.references import PathReference
 from aac_sumo.world import Obstacle, RobotSpec, WorldState
 

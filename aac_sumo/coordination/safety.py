@@ -45,7 +45,8 @@ from aac_sumo.dynamics import heading_hold_steer
 from aac_sumo.geometry import rect_corners
 from aac_sumo.kernels.safety import braking_courses, gentlest_stops, stop_flags
 from aac_sumo.kernels.motion import heading_along
-from aac_sumo.mpc.planner import FALLBACK_TURN_TIME, MpcConfig
+from aac_sumo.mpc.planner import FALLBACK_TURN_TIME
+from aac_sumo.mpc.settings import MpcConfig
 from aac_sumo.world import WorldState
 
 

@@ -22,7 +22,8 @@ from aac_sumo.coordination.proximity import ProximityParams
 from aac_sumo.coordination.sumo_driver import SumoDriver
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.geometry import pairwise_rect_clearance
-from aac_sumo.mpc.planner import MpcConfig, MpcPlanner
+from aac_sumo.mpc.settings import MpcConfig
+from aac_sumo.mpc.planner import MpcPlanner
 from aac_sumo.references import LateralBand, PathReference
 from aac_sumo.registry import COORDINATORS, register_coordinator
 from aac_sumo.sim.base import Simulator

@@ -25,7 +25,9 @@ from pathlib import Path
 import numpy as np
 
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
-from aac_sumo.mpc.planner import MpcConfig, MpcPlanner, Plan
+from aac_sumo.mpc.settings import MpcConfig
+from aac_sumo.mpc.planner import MpcPlanner
+from aac_sumo.mpc.plan import Plan
 from aac_sumo.references import PathReference
 from aac_sumo.world import Obstacle, RobotSpec
 

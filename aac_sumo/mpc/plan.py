@@ -1,0 +1,36 @@
+"""A robot's plan as the MPC planner returns it: states, inputs, status and solve statistics."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+STATUSES = ("solved", "infeasible", "failed")
+
+
+@dataclass
+class Plan:
+    """A robot's plan: states (N+1, 4), inputs (N, 2), status, solve wall time [ms] (every
+    attempt), solver used; the iterations of the solve whose result it reports and whether that
+    solve stopped at its iteration cap (``capped``, see :class:`~aac_sumo.mpc.problem.SolveOutcome`).
+    The MPC brakes as hard as its constraints call for, up to ``a_min``: comfort comes from the
+    references (anticipation) and the other input sources; braking beyond ``a_comfort`` is an
+    emergency, counted in ``emergency_brakes``."""
+
+    states: np.ndarray
+    inputs: np.ndarray
+    status: str
+    solve_ms: float
+    solver: str
+    iterations: int = -1
+    detail: str = ""
+    capped: bool = False
+
+    def shifted(self, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Warm start for the next period: drop the first stage, repeat the last, pin ``state``."""
+        states = np.vstack([self.states[1:], self.states[-1:]])
+        inputs = np.vstack([self.inputs[1:], self.inputs[-1:]])
+        states[0] = state
+        return states, inputs
