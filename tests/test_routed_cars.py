@@ -10,7 +10,7 @@ import pytest
 
 from aac_sumo import cli, network
 from aac_sumo.experiments.lane_change import BUNDLED_NET_DIR
-from aac_sumo.experiments.routed_cars import closures, lane_plan, planned_path
+from aac_sumo.experiments.lane_plans import closures, lane_plan, planned_path
 from aac_sumo.sim.sumo_routes import RoutesError, controlled, read_routes
 
 NET = BUNDLED_NET_DIR / "lane_change.net.xml"
