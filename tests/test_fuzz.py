@@ -27,7 +27,7 @@ from aac_sumo.runs import runner, sweep
 from aac_sumo.cli.main import main
 from aac_sumo.config import ScenarioError
 from aac_sumo.experiments.lane_change import BUNDLED_NET, BUNDLED_ROUTES
-from aac_sumo.sim.sumo import SumoError
+from aac_sumo.sim.sumo_options import SumoError
 from aac_sumo.runs.sweep import SweepError
 
 #: Examples per fuzz test; AAC_FUZZ_SCALE=20 fuzzes twenty times longer.

@@ -28,7 +28,8 @@ from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.sim import sumo
 from aac_sumo.sim.internal import InternalSimulator
 from aac_sumo.sim.isolated import IsolatedSimulator
-from aac_sumo.sim.sumo import SumoOptions, SumoSimulator
+from aac_sumo.sim.sumo_options import SumoOptions
+from aac_sumo.sim.sumo import SumoSimulator
 from aac_sumo.world import RobotSpec
 
 SMALL = ["controller.coordinator=independent", "controller.horizon=5", "lane_change.vehicles=3"]
@@ -263,7 +264,7 @@ def test_sumo_warnings_of_one_kind_are_aggregated_unless_the_user_says_otherwise
     """With a log in the output folder, SUMO prints at most AGGREGATE_WARNINGS warnings of one
     kind and then their count (a highway run warned 4,600 times that one car braked too hard);
     a user's own ``--aggregate-warnings`` in ``sumo.extra_args`` is the only one passed."""
-    from aac_sumo.sim.sumo import AGGREGATE_WARNINGS
+    from aac_sumo.sim.sumo_options import AGGREGATE_WARNINGS
 
     cmd = SumoOptions(Path("road.net.xml"), output_dir=tmp_path).command(0.1)
     assert cmd[cmd.index("--aggregate-warnings") + 1] == str(AGGREGATE_WARNINGS) and cmd[cmd.index("--log") + 1].endswith("sumo.log")

@@ -135,7 +135,7 @@ def test_the_work_zone_highway_finds_its_crossing_over_its_four_car_lanes():
 
 
 def test_polylines_cross():
-    from aac_sumo.sim.sumo import polylines_cross
+    from aac_sumo.sim.sumo_reading import polylines_cross
 
     zebra = np.array([[239.0, 0.0], [239.0, -9.6]])
     assert polylines_cross(zebra, np.array([[236.5, -4.8], [241.5, -4.8]]))  # the junction's lane through it

@@ -20,7 +20,8 @@ from aac_sumo.experiments.lane_change import BAND_SETTLE, BUNDLED_NET, BUNDLED_N
 from aac_sumo.mpc.settings import MpcConfig
 from aac_sumo.mpc.planner import MpcPlanner
 from aac_sumo.geometry import rect_clearance_rows
-from aac_sumo.sim.sumo import SumoOptions, SumoSimulator
+from aac_sumo.sim.sumo_options import SumoOptions
+from aac_sumo.sim.sumo import SumoSimulator
 
 CONES = BUNDLED_NET_DIR / "cones.rou.xml"
 PEDESTRIANS = BUNDLED_NET_DIR / "pedestrians.rou.xml"

@@ -13,7 +13,7 @@ from aac_sumo.runs.files import write_run
 from aac_sumo.runs import runner
 from aac_sumo.cli.main import main
 from aac_sumo.experiments.lane_change import BUNDLED_NET_DIR
-from aac_sumo.sim.sumo import SumoOptions
+from aac_sumo.sim.sumo_options import SumoOptions
 
 BUNDLED_CFG = BUNDLED_NET_DIR / "lane_change.sumocfg"
 SHORT = ["controller.coordinator=independent", "controller.horizon=5", "lane_change.vehicles=3", "scenario.duration=1.0"]

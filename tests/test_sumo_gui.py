@@ -13,7 +13,8 @@ from aac_sumo import config
 from aac_sumo.cli.main import _gui_overrides, main
 from aac_sumo.experiments.common import robot_spec
 from aac_sumo.experiments.lane_change import BUNDLED_NET
-from aac_sumo.sim.sumo import AUTHORITY, PLAIN, SAFETY_STOP, SumoOptions, SumoSimulator
+from aac_sumo.sim.sumo import AUTHORITY, PLAIN, SAFETY_STOP, SumoSimulator
+from aac_sumo.sim.sumo_options import SumoOptions
 
 
 def test_the_gui_starts_at_once_with_its_delay_and_stays_open_at_the_end():

@@ -43,7 +43,8 @@ from aac_sumo.experiments.lane_geometry import (
 )
 from aac_sumo.references import LateralBand, PathReference
 from aac_sumo.registry import register_experiment
-from aac_sumo.sim.sumo import LaneOrder, SumoOptions, sumo_simulator
+from aac_sumo.sim.sumo_options import LaneOrder, SumoOptions
+from aac_sumo.sim.sumo import sumo_simulator
 from aac_sumo.sim.sumo_config import SumoConfig, read_config, xml_problem
 from aac_sumo.world import WorldState
 

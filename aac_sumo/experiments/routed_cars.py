@@ -63,7 +63,8 @@ from aac_sumo.experiments.lane_gaps import GapRule, GapVerdict, judge_gap
 from aac_sumo.experiments.lane_plans import END_MARGIN, Change, LanePlan, closures, crossed_lanes, lane_plan, planned_band, planned_path
 from aac_sumo.experiments.lane_geometry import CURVE_DECEL, MIN_LANES, ROAD_MARGIN, lane_reference, smooth_road
 from aac_sumo.references import PathReference
-from aac_sumo.sim.sumo import LaneOrder, SumoOptions, sumo_simulator
+from aac_sumo.sim.sumo_options import LaneOrder, SumoOptions
+from aac_sumo.sim.sumo import sumo_simulator
 from aac_sumo.sim.base import Simulator
 from aac_sumo.sim.sumo_routes import RoutedVehicle, RoutesError, controlled, read_routes
 from aac_sumo.world import WorldState, parking_spot

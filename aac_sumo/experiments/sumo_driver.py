@@ -1,5 +1,5 @@
 """What the ``sumo`` coordinator's runs need from the road: a road lane as SUMO numbers it on
-each edge, for the lane orders SUMO's driver gets (:class:`~aac_sumo.sim.sumo.LaneOrder`)."""
+each edge, for the lane orders SUMO's driver gets (:class:`~aac_sumo.sim.sumo_options.LaneOrder`)."""
 
 from __future__ import annotations
 
