@@ -1,0 +1,373 @@
+"""The declared scenario keys: :class:`Key` (type, default, check, doc) and the tables of every
+section, ``COMMON`` (every kind's sections), ``KIND_SECTIONS`` (a kind's own section) and
+``KIND_EXTRA_SECTIONS`` (further sections a kind reads, as lane_change reads ``[sumo]``).
+:mod:`aac_sumo.registry` adds the sections of registered experiments and coordinators."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable
+
+
+@dataclass(frozen=True)
+class Key:
+    """A declared key: its type (``float``, ``int``, ``bool``, ``str``, or a tuple of allowed
+    strings), default, optional extra check and a description of the expected value."""
+
+    type: type | tuple[str, ...]
+    default: Any
+    doc: str
+    check: Callable[[Any], bool] | None = None
+    expect: str = ""
+
+    def expected(self) -> str:
+        if isinstance(self.type, tuple):
+            return "one of " + ", ".join(self.type)
+        if self.type is object:
+            return self.expect
+        base = {float: "a number", int: "an integer", bool: "true or false", str: "a string", list: "a list"}[self.type]
+        return f"{base} {self.expect}".strip()
+
+    def validate(self, value: Any) -> Any:
+        """The value converted to the key's type, or ``ValueError``."""
+        if isinstance(self.type, tuple):
+            ok = isinstance(value, str) and value in self.type
+        elif self.type is object:  # any value its check accepts
+            ok = True
+        elif self.type is float:
+            ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+            value = float(value) if ok else value
+        elif self.type is int:
+            ok = isinstance(value, int) and not isinstance(value, bool)
+        else:
+            ok = isinstance(value, self.type)
+        if not ok or (self.check is not None and not self.check(value)):
+            raise ValueError(self.expected())
+        return value
+
+
+def _positive(x):
+    return x > 0
+
+
+def _non_negative(x):
+    return x >= 0
+
+
+def rows(*fields: str) -> dict:
+    """Key options for a list of number rows, one per item, each ``[field, ...]``."""
+
+    def check(value) -> bool:
+        return all(isinstance(r, list) and len(r) == len(fields)
+                   and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in r)
+                   for r in value)
+
+    return dict(check=check, expect=f"of [{', '.join(fields)}] rows")
+
+
+P = dict(check=_positive, expect="> 0")
+#: Upper bounds that keep a typo (``n_robots=1000000000``) from hanging a run or exhausting memory.
+MAX_ROBOTS = 200
+MAX_SEED = 2**31 - 1
+NN = dict(check=_non_negative, expect=">= 0")
+
+COMMON: dict[str, dict[str, Key]] = {
+    "scenario": {
+        "name": Key(str, "unnamed", "label written into metrics.json"),
+        "kind": Key(("braking", "swarm_rescue", "circle_swap", "lane_change", "random_crossing"), "braking", "which experiment builds the world"),
+        "seed": Key(int, 0, "seed of every random choice in the run (SUMO's seed is a 32-bit integer)",
+                    check=lambda s: 0 <= s <= MAX_SEED, expect=f"in 0..{MAX_SEED}"),
+        "dt": Key(float, 0.1, "control period and simulation step [s]", check=lambda dt: 0.001 <= dt <= 1.0, expect="in [0.001, 1]"),
+        "duration": Key(float, 20.0, "time limit, at most a day [s]", check=lambda d: 0 < d <= 86400.0, expect="in (0, 86400]"),
+    },
+    "controller": {
+        "coordinator": Key(("aac", "lfc", "independent", "sumo"), "aac",
+                           "who plans when: aac (one authority robot per period), lfc (every robot in index-priority order), "
+                           "independent (every robot for itself)"
+                           ", sumo (SUMO's own driver moves the cars, kind lane_change: docs/baselines_sumo.md)"),
+        "barrier": Key(("fcbf", "cbf"), "fcbf", "F-CBF (velocity-stretched ellipse) or plain CBF (footprint ellipse)"),
+        "horizon": Key(int, 10, "MPC horizon N [steps]", check=lambda n: 1 <= n <= 100, expect="in 1..100"),
+        "solver": Key(("fatrop", "sqp", "ipopt"), "fatrop", "NLP solver of the fast path"),
+        "retry_with_ipopt": Key(bool, True, "retry a failed fast-path solve once with ipopt"),
+        "anticipate": Key(bool, False, "reference speeds that slow a robot in its lane, early and gently, for what lies ahead on its path "
+                          "(cars, walkers near it), and lanes kept near walkers (docs/lane_change.md)"),
+        "anticipate_decel": Key(float, 1.5, "comfortable deceleration of the anticipated reference speed [m/s^2]", **P),
+        "anticipate_brake": Key(float, 0.0, "towards a stop it sees too late for anticipate_decel (a walker stepping towards its "
+                                "path), the anticipated reference brakes as hard as it needs up to this, at most robot.a_comfort "
+                                "(0: never harder than anticipate_decel) [m/s^2]", **NN),
+        "anticipate_accel": Key(float, 1.5, "comfortable acceleration of the anticipated reference speed [m/s^2]", **P),
+        "anticipate_gap": Key(float, 2.0, "standstill gap kept behind what lies ahead [m]", **NN),
+        "anticipate_time_gap": Key(float, 1.0, "time gap kept behind a moving leader [s]", **NN),
+        "yield_distance": Key(float, 20.0, "within this of a walker a robot on a lateral band keeps within yield_band of its reference [m]", **NN),
+        "yield_band": Key(float, 0.25, "how far a robot near a walker may leave its reference sideways [m]", **P),
+        "warm_start": Key(bool, True, "start each solve from the previous plan shifted by one period (else from the "
+                          "zero-input rollout); a failed warm start is retried cold"),
+        "codegen": Key(bool, False, "compile the fast path to C with gcc (cached on disk; ~2x faster solves)"),
+        "gamma": Key(float, 0.3, "discrete barrier decay rate", check=lambda g: 0 < g <= 1, expect="in (0, 1]"),
+        "d_safe": Key(float, 0.2, "margin added to the ego's covering-disc radius [m]", **NN),
+        "mu1": Key(float, 0.2, "F-CBF gain along the velocity [s]", **NN),
+        "mu2": Key(float, 0.2, "F-CBF gain across the velocity [s]", **NN),
+        "sigmoid_k": Key(float, 2.0, "F-CBF sigmoid steepness k [s/m]", **P),
+        "v0": Key(float, 1.0, "F-CBF sigmoid threshold v0 [m/s]", **NN),
+        "pedestrian_reach": Key(float, 0.0, "pedestrians may start, stop or turn at any moment: their regions grow by this speed times the look-ahead time in every direction [m/s]", **NN),
+        "pedestrian_margin": Key(float, 0.0, "extra clearance every robot keeps from pedestrians, on top of d_safe [m]", **NN),
+        "walkway_time": Key(float, 0.0, "a pedestrian on a walkway of her own (a sidewalk or footpath, not a crossing) who cannot reach either of its ends within this time at her speed plus pedestrian_reach stays on it: her region does not grow by pedestrian_reach; 0 = never [s]", **NN),
+        "prediction": Key(("constant_velocity", "constant_acceleration"), "constant_velocity",
+                          "how obstacles move over the horizon, the same for every barrier: constant_velocity, or "
+                          "constant_acceleration (each keeps its direction and changes its speed at the acceleration "
+                          "estimated from its last prediction_window observed speeds, stopping at zero, never reversing)"),
+        "prediction_window": Key(int, 2, "observed speeds (one per control period) whose least-squares slope is an "
+                                 "obstacle's estimated acceleration; 2 = the backward difference",
+                                 check=lambda n: 2 <= n <= 50, expect="in 2..50"),
+        "terminal_stop": Key(bool, False, "terminal stopping condition: braking at its strongest after the horizon, the robot stops short of "
+                             "where each obstacle ahead of it could stop at the earliest (the car-following stopping-distance rule; "
+                             "docs/braking.md)"),
+        "obstacle_decel": Key(float, 0.0, "strongest braking assumed of obstacles for terminal_stop [m/s^2]; 0 = as hard as the robot itself can", **NN),
+        "comfort_accel": Key(float, 0.0, "comfort envelope the MPC plans within first: |acceleration| at most this; only when no "
+                             "plan fits does it use the vehicle's full limits (0: off) [m/s^2]", **NN),
+        "comfort_lat": Key(float, 0.0, "the comfort envelope's lateral acceleration v^2 |tan(steer)| / wheelbase (0: off) [m/s^2]", **NN),
+        "obstacle_slots": Key(int, 8, "obstacles the MPC considers (nearest first)", check=lambda n: 1 <= n <= 64, expect="in 1..64"),
+        "ego_discs": Key(int, 1, "discs covering the ego footprint", check=lambda n: 1 <= n <= 5, expect="in 1..5"),
+        "q_pos": Key(float, 1.0, "Q weight on position error [1/m^2]", **NN),
+        "q_heading": Key(float, 1.0, "Q weight on heading error [1/rad^2]", **NN),
+        "q_speed": Key(float, 1.0, "Q weight on speed error [s^2/m^2]", **NN),
+        "r_accel": Key(float, 0.1, "R weight on acceleration", **NN),
+        "r_steer": Key(float, 0.1, "R weight on steering angle", **NN),
+        "s_accel": Key(float, 0.1, "S weight on acceleration change", **NN),
+        "s_steer": Key(float, 1.0, "S weight on steering change", **NN),
+        "terminal_scale": Key(float, 5.0, "terminal weight P = terminal_scale * Q", **NN),
+        "max_iter": Key(int, 100, "iteration cap per solve", check=lambda n: 1 <= n <= 100_000, expect="in 1..100000"),
+        "max_cpu_time": Key(float, 60.0, "CPU-time cap per ipopt solve [s]; keep it above what max_iter allows, or results depend on machine speed", **P),
+    },
+    "robot": {
+        "length": Key(float, 1.0, "footprint length [m]", **P),
+        "width": Key(float, 0.6, "footprint width [m]", **P),
+        "wheelbase": Key(float, 0.8, "wheelbase L [m]", **P),
+        "a_min": Key(float, -6.0, "strongest braking [m/s^2]", check=lambda a: a < 0, expect="< 0"),
+        "a_max": Key(float, 3.0, "strongest acceleration [m/s^2]", **P),
+        "steer_max": Key(float, 0.6, "steering limit [rad]", check=lambda s: 0 < s < 1.5, expect="in (0, 1.5)"),
+        "v_max": Key(float, 30.0, "speed limit [m/s]", **P),
+        "allow_reverse": Key(bool, False, "allow negative speed down to -v_max"),
+        "a_lat_max": Key(float, 3.0, "friction/comfort limit on the lateral acceleration v^2 |tan(steer)| / wheelbase [m/s^2]", **P),
+        "steer_rate_max": Key(float, 0.5, "how fast the steering angle may change [rad/s]", **P),
+        "a_comfort": Key(float, 3.0, "deceleration used unless an emergency needs more (capped at |a_min|) [m/s^2]", **P),
+    },
+    "aac": {
+        "close_distance": Key(float, 2.0, "robots whose footprint centres are closer than this form a close pair [m]", **P),
+        "proximity_iterations": Key(int, 40, "sampling-tree iterations per robot in the proximity decision",
+                                    check=lambda n: 1 <= n <= 10_000, expect="in 1..10000"),
+        "alpha": Key(float, 1.0, "proximity score weight on progress toward the goal [1/m]", **NN),
+        "beta": Key(float, 2.0, "proximity score weight on the collision cost with other robots", **NN),
+        "tree_step": Key(float, 0.3, "sampling-tree step length [m]", **P),
+        "sample_radius": Key(float, 3.0, "sampling-tree samples are drawn within this radius of the robot [m]", **P),
+        "collision_radius": Key(float, 1.0, "a tree node closer than this to another robot costs (1 - d/r)^2 [m]", **P),
+        "safety_stop": Key(bool, False, "non-authority robots brake when their stored input would take them into another's region "
+                           "(off by default, as lfc.safety_stop: the paper has no such layer)"),
+        "safety_margin": Key(float, 0.1, "footprint gap below which the safety stop triggers [m]", **NN),
+        "lookahead": Key(float, 1.0, "pure-pursuit lookahead of the tracking law for robots without a plan [m]", **P),
+        "speed_gain": Key(float, 1.0, "speed-error gain of the tracking law [1/s]", **P),
+        "fallback": Key(("brake", "tracking"), "brake",
+                        "what an authority whose solve fails applies: brake (the planner's fallback, as in the paper) or tracking "
+                        "(the tracking law through the safety stop; needs safety_stop)"),
+        "ignore_followers": Key(bool, False, "the authority does not avoid robots straight behind it: they keep their distance "
+                                "through the safety stop (needs safety_stop); nor does the safety stop brake for uncontrolled vehicles "
+                                "behind a robot that drive its way (SUMO's cars keep their own distance)"),
+        "commit": Key(bool, True, "committed plans: every robot drives the plan of its last turn, ending in a stopping tail, "
+                      "and a new plan replaces it only when it keeps commit_margin from every other commitment (collision-free "
+                      "by construction); false: the paper's stored plan, then the tracking law"),
+        "authorities": Key(object, 1, "robots holding authority per period: 1 (the paper), a larger integer, or \"clusters\" "
+                           "(one per group of robots that can interact within the horizon), with committed or stored plans",
+                           check=lambda a: a == "clusters" or (isinstance(a, int) and not isinstance(a, bool) and a >= 1),
+                           expect="a positive integer or \"clusters\""),
+        "tail_brake": Key(float, 0.5, "deceleration of a commitment's stopping tail, as a share of the strongest braking |robot.a_min|",
+                          check=lambda x: 0 < x <= 1, expect="in (0, 1]"),
+        "commit_margin": Key(float, 0.05, "footprint gap every two commitments keep at every period [m]", **NN),
+        "cruise": Key(float, 0.0, "with commit, on a path that goes on (a road): a commitment continues along its path for up "
+                      "to this long (then half, a quarter) at the speeds its reference anticipates (slowing for what is ahead, "
+                      "yielding to walkers) before its stopping tail, where the exact check passes; 0: the tail follows the plan [s]",
+                      check=lambda x: 0 <= x <= 60, expect="in [0, 60]"),
+        "keep_right": Key(float, 0.0, "right-hand rule: the authority's reference shifts this far to the right while another "
+                          "robot is ahead within keep_right_range (0: off, the paper) [m]", **NN),
+        "keep_right_range": Key(float, 4.0, "distance within which a robot ahead triggers keep_right [m]", **P),
+        "keep_right_max": Key(float, 4.0, "a robot held up in a crowd (slower than 0.3 of its cruise speed) shifts further right, "
+                              "growing at 0.5 m/s up to this [m]", **NN),
+        "make_room": Key(bool, True, "deadlock resolution (with commit): a robot that has stood for stall_time leads, and the "
+                         "robots in its way drive aside while it passes"),
+        "stall_time": Key(float, 1.0, "standing time after which an unfinished robot may lead [s]", **P),
+        "lead_time": Key(float, 8.0, "longest lead [s]", **P),
+        "detour": Key(bool, False, "detours (with commit): a robot that has stood for stall_time, or whose reference runs within "
+                      "detour_clearance of debris or of a parked or long-standing robot, follows a grid A* path round them "
+                      "to its goal instead"),
+        "detour_clearance": Key(float, 0.5, "gap a detour keeps from standing footprints where there is room; it squeezes closer "
+                                "(down to half the robot width + commit_margin) where there is not [m]", **P),
+    },
+    "lfc": {
+        "safety_stop": Key(bool, False, "every robot's first planned input passes AAC's safety stop (the paper's LFC has none)"),
+        "safety_margin": Key(float, 0.1, "footprint gap below which the safety stop triggers [m]", **NN),
+        "fallback": Key(("brake", "tracking"), "brake",
+                        "what a robot whose solve fails applies: brake (the planner's fallback) or tracking "
+                        "(the tracking law below through the safety stop; needs safety_stop)"),
+        "lookahead": Key(float, 1.0, "pure-pursuit lookahead of that tracking law [m]", **P),
+        "speed_gain": Key(float, 1.0, "speed-error gain of that tracking law [1/s]", **P),
+        "ignore_followers": Key(bool, False, "a robot does not avoid robots straight behind it: they keep their distance "
+                                "through the safety stop (needs safety_stop); nor does the safety stop brake for uncontrolled vehicles "
+                                "behind a robot that drive its way (SUMO's cars keep their own distance)"),
+        "commit": Key(bool, False, "committed plans (prioritized planning): every robot plans in index order around the "
+                      "others' commitments and commits only where the exact check passes, with [aac]'s committed-plan "
+                      "settings and deadlock rules; false = the paper's LFC"),
+    },
+    "metrics": {
+        "accel_threshold": Key(float, 3.0, "|longitudinal acceleration| that counts as aggressive [m/s^2]", **P),
+        "lat_accel_threshold": Key(float, 3.0, "lateral acceleration v^2 |curvature| that counts as aggressive [m/s^2]", **P),
+        "stop_speed": Key(float, 0.05, "speed below which a robot counts as stopped [m/s]", **NN),
+        "ttc_max": Key(float, 10.0, "time-to-collision above this is no conflict and stays out of ttc_mean_s [s]", **P),
+        "deadlock_time": Key(float, 5.0, "a run ends as a deadlock when no unfinished robot got further than stop_speed * deadlock_time, at any time in the last deadlock_time, from where it was deadlock_time before (a robot that drove off and came back is not stuck) [s]", **P),
+    },
+}
+
+#: The ORCA baseline's own keys (controller.coordinator = "orca", aac_sumo/coordination/orca.py, docs/baselines.md).
+COMMON["orca"] = {
+    "neighbor_dist": Key(float, 3.0, "RVO2 neighbour distance: other discs farther than this are ignored [m]", **P),
+    "max_neighbors": Key(int, 10, "RVO2: most neighbours each robot considers", check=lambda n: 1 <= n <= 1000, expect="in 1..1000"),
+    "time_horizon": Key(float, 2.0, "RVO2 time horizon against other robots [s]", **P),
+    "time_horizon_obst": Key(float, 2.0, "RVO2 time horizon against static obstacles (debris polygons) [s]", **P),
+    "radius_margin": Key(float, 0.0, "added to each robot's covering-disc radius hypot(length, width) / 2 [m]", **NN),
+    "max_speed": Key(float, 0.0, "RVO2 most speed, at most robot.v_max (0: each robot's cruise speed, as the preferred speed) [m/s]", **NN),
+    "lookahead": Key(float, 1.0, "the preferred velocity points at the path point this far ahead of the rear axle's projection [m]", **P),
+    "pref_noise": Key(float, 0.0, "seeded random perturbation of each preferred velocity, up to this size (0: plain ORCA) [m/s]", **NN),
+    "turn_time": Key(float, 0.3, "tracking law: time constant of turning the heading towards the ORCA velocity's direction [s]", **P),
+    "reverse": Key(bool, True, "tracking law: drive backwards when the ORCA velocity points behind the robot (needs robot.allow_reverse)"),
+    "tracking": Key(("direct", "halfplanes"), "direct", "tracking law's speed: direct (the ORCA speed times the cosine of the "
+                    "heading error, within the limits) or halfplanes (the speed reachable in one period along the next heading "
+                    "nearest that which keeps ORCA's half-planes, else the one violating them least)"),
+}
+_coordinator = COMMON["controller"]["coordinator"]  # declared here, not only when registered: sweep/tune load scenarios first
+COMMON["controller"]["coordinator"] = Key(_coordinator.type + ("orca",), _coordinator.default,
+                                          _coordinator.doc + ", orca (RVO2's ORCA on covering discs, a baseline; docs/baselines.md)")
+#: The CBF-QP baseline (controller.coordinator = "cbf_qp", aac_sumo.coordination.cbf_qp; docs/baselines_cbf_qp.md).
+COMMON["cbf_qp"] = {
+    "radius": Key(float, 5.0, "another robot whose footprint centre is within this of the ego's gets a barrier row [m]", **P),
+    "lookahead": Key(float, 1.0, "pure-pursuit lookahead of the nominal tracking law [m]", **P),
+    "speed_gain": Key(float, 1.0, "speed-error gain of the nominal tracking law [1/s]", **P),
+}
+_coordinator = COMMON["controller"]["coordinator"]
+COMMON["controller"]["coordinator"] = Key(_coordinator.type + ("cbf_qp",), _coordinator.default,
+                                          _coordinator.doc + ", cbf_qp (a CBF-QP safety filter on the tracking law, a baseline; "
+                                          "docs/baselines_cbf_qp.md)")
+
+KIND_SECTIONS: dict[str, dict[str, Key]] = {
+    "braking": {
+        "speed": Key(float, 10.0, "initial speed of ego and lead [m/s]", **P),
+        "gap": Key(float, 7.0, "initial centre-to-centre distance, lead ahead of ego [m]", **P),
+        "t_brake": Key(float, 1.0, "time the lead starts braking [s]", **NN),
+        "t_brake_jitter": Key(float, 0.2, "the seed shifts t_brake uniformly within +- this [s]", **NN),
+        "lead_decel": Key(float, 6.0, "lead deceleration magnitude [m/s^2]", **P),
+        "lead_length": Key(float, 1.0, "lead footprint length [m]", **P),
+        "lead_width": Key(float, 0.6, "lead footprint width [m]", **P),
+        "lane_y": Key(float, 0.0, "y of the lane centre line [m]"),
+        "lane_width": Key(float, 1.0, "lane width; the ego's rear axle keeps (lane_width - robot.width)/2 from the centre line [m]", **P),
+    },
+}
+
+KIND_SECTIONS["swarm_rescue"] = {
+    "starts": Key(list, [[0.0, 0.0, 0.0], [0.0, 2.0, 0.0]], "start poses of the robots' rear axles [m, m, rad]", **rows("x", "y", "heading")),
+    "goals": Key(list, [[10.0, 2.0], [10.0, 0.0]], "goal of each robot's rear axle, one per start [m]", **rows("x", "y")),
+    "debris": Key(list, [], "static obstacles as footprint rectangles [m, m, m, m, rad]", **rows("cx", "cy", "length", "width", "heading")),
+    "cruise_speed": Key(float, 1.0, "reference speed along the straight path to the goal [m/s]", **P),
+    "goal_tolerance": Key(float, 0.3, "a robot has arrived when its rear axle is this close to its goal [m]", **P),
+    "start_jitter": Key(float, 0.1, "the seed shifts every start position uniformly within +- this [m]", **NN),
+}
+KIND_SECTIONS["circle_swap"] = {
+    "n_robots": Key(int, 8, "robots evenly spaced on the circle", check=lambda n: 2 <= n <= MAX_ROBOTS, expect=f"in 2..{MAX_ROBOTS}"),
+    "radius": Key(float, 4.0, "circle radius; each robot drives to the antipodal point [m]", **P),
+    "cruise_speed": Key(float, 1.0, "reference speed along the straight path to the goal [m/s]", **P),
+    "goal_tolerance": Key(float, 0.3, "a robot has arrived when its rear axle is this close to its goal [m]", **P),
+    "start_jitter": Key(float, 0.05, "the seed shifts every start position uniformly within +- this [m]", **NN),
+}
+KIND_SECTIONS["random_crossing"] = {
+    "n_robots": Key(int, 20, "robots, each with a seeded random start and a goal far across the area",
+                    check=lambda n: 2 <= n <= MAX_ROBOTS, expect=f"in 2..{MAX_ROBOTS}"),
+    "area_per_robot": Key(float, 6.0, "the square area's side is sqrt(n_robots * area_per_robot): the density stays "
+                          "constant as n grows [m^2]", **P),
+    "min_travel_fraction": Key(float, 0.6, "each goal is at least this fraction of the area side from its start, so "
+                               "paths cross the middle", check=lambda f: 0 <= f <= 1.2, expect="in [0, 1.2]"),
+    "clearance": Key(float, 0.5, "gap kept between start footprints, between goals' reach discs (the footprint at the goal "
+                     "in any heading) and from every debris footprint [m]", **NN),
+    "path_clearance": Key(float, 0.5, "distance every straight start-goal path (rear-axle line) keeps from every debris "
+                          "footprint [m]", **NN),
+    "debris_density": Key(float, 2.0, "random debris rectangles per 100 m^2 of area (rounded)", **NN),
+    "debris_min_size": Key(float, 0.4, "smallest debris length or width [m]", **P),
+    "debris_max_size": Key(float, 1.2, "largest debris length or width [m]", **P),
+    "cruise_speed": Key(float, 1.0, "reference speed along the straight path to the goal [m/s]", **P),
+    "goal_tolerance": Key(float, 0.3, "a robot has arrived when its rear axle is this close to its goal [m]", **P),
+}
+KIND_SECTIONS["lane_change"] = {
+    "vehicles": Key(int, 15, "controlled vehicles, dealt to the lanes in turn (vehicle k starts in lane k mod lanes)",
+                    check=lambda n: 1 <= n <= MAX_ROBOTS, expect=f"in 1..{MAX_ROBOTS}"),
+    "speed": Key(float, 10.0, "cruise speed of every reference [m/s]", **P),
+    "spacing": Key(float, 24.0, "distance between consecutive vehicles of one lane; lane i is shifted by i*spacing/lanes [m]", **P),
+    "start_s": Key(float, 10.0, "arc length of the rearmost start (rear axle) along its lane [m]", **NN),
+    "start_jitter": Key(float, 1.0, "the seed shifts every start along its lane uniformly within +- this [m]", **NN),
+    "change_start": Key(float, 5.0, "a vehicle's lane change begins this far beyond its start [m]", **NN),
+    "change_length": Key(float, 40.0, "arc length over which the reference moves from start lane to target lane [m]", **P),
+    "curve_lat_accel": Key(float, 2.0, "the references slow down on curves to keep their lateral acceleration within this (and within robot.a_lat_max) [m/s^2]", **P),
+    "finish_margin": Key(float, 20.0, "a vehicle has passed the cone zone when its rear axle is this far beyond the last cone [m]", **NN),
+    "lane_tolerance": Key(float, 0.5, "lateral distance to the target lane's centre line that counts as arrived in it [m]", **P),
+    "closure_lead": Key(float, 30.0, "cars from SUMO's routes (sumo.controlled_types) leave a lane that cones close ahead this far "
+                        "before its first cone [m]", **NN),
+    "exit_lanes": Key(list, [], "cars from SUMO's routes: beyond the last cones each changes to one of these road lanes (0 = rightmost "
+                      "car lane), drawn by the seed per car; empty: it keeps its lane",
+                      check=lambda v: all(isinstance(x, int) and not isinstance(x, bool) and 0 <= x < 16 for x in v),
+                      expect="a list of lane indices 0..15"),
+    "exit_spread": Key(float, 0.0, "cars from SUMO's routes begin the change to their exit lane at a point drawn by the seed "
+                       "within this far beyond finish_margin past the last cone, so that they do not all weave at once [m]", **NN),
+    "closure_window": Key(float, 100.0, "cars from SUMO's routes begin to leave a lane that cones close this far before their latest "
+                          "begin (the one that ends closure_lead before the first cone), so that a car without a gap can slow down "
+                          "and wait for one before it [m]", **NN),
+    "gap_acceptance": Key(bool, True, "cars from SUMO's routes begin (and go on with) a lane change only into a safe gap "
+                          "(gap_time, gap_decel, gap_min; docs/highway_work_zone.md); otherwise they keep their lane, slow down "
+                          "(gap_speed) and try again further on"),
+    "gap_time": Key(float, 1.0, "gap acceptance: the time gap a lane change keeps to the leader in the target lane (at its own speed) "
+                    "and leaves the follower there (at the follower's speed) [s]", **NN),
+    "gap_decel": Key(float, 3.0, "gap acceptance: the safe deceleration: the car must be able to come down to its new leader's "
+                     "speed, and its new follower to its speed, braking at most this hard [m/s^2]", **P),
+    "gap_min": Key(float, 2.0, "gap acceptance: the standstill gap, bumper to bumper, on top [m]", **NN),
+    "gap_speed": Key(float, 0.75, "gap acceptance: a car whose lane change waits for a gap slows to this share of lane_change.speed "
+                     "until it has changed, so that the traffic beside it moves on",
+                     check=lambda f: 0 < f <= 1, expect="in (0, 1]"),
+}
+SUMO_SECTION: dict[str, Key] = {
+    "config": Key(str, "", "a SUMO configuration (.sumocfg): its net-file, route-files, additional files and options are used "
+                  "(the scenario's step length, seed and collision options still apply; empty: none)"),
+    "extra_args": Key(str, "", "more SUMO command-line options, passed through (e.g. \"--default.speeddev 0\"); ours apply after them"),
+    "net": Key(str, "", "SUMO .net.xml (empty: the bundled sumo_networks/lane_change network, or sumo.config's net-file)"),
+    "routes": Key(str, "", "comma-separated SUMO route files with cones, pedestrians, other traffic (empty: the bundled ones with the bundled net, none otherwise)"),
+    "edges": Key(str, "", "edge ids of the road in driving order, separated by spaces or commas (empty: the longest chain "
+                 "with the car lanes the scenario needs; aac-sumo net info NET lists them)"),
+    "cone_types": Key(str, "cone", "comma-separated vType ids whose vehicles are cones (static obstacles)"),
+    "controlled_types": Key(list, [], "vType ids of SUMO's own vehicles (route files, sumo.config) that we control from their "
+                            "departure on, on their own routes; instead of lane_change.vehicles (empty: none)",
+                            check=lambda v: all(isinstance(x, str) and x.strip() for x in v), expect="a list of vType ids"),
+    "controlled_ids": Key(list, [], "as controlled_types, for SUMO's vehicles whose id matches one of these globs (e.g. \"aac.*\")",
+                          check=lambda v: all(isinstance(x, str) and x.strip() for x in v), expect="a list of id globs"),
+    "gui": Key(bool, False, "show the run in sumo-gui (set by aac-sumo run --gui)"),
+    "delay": Key(float, 0.0, "sumo-gui's pause per simulation step, to watch a run (set by aac-sumo run --delay) [ms]", **NN),
+    "fcd": Key(bool, False, "write SUMO's floating-car-data trajectories, fcd.xml, into sumo.output_dir (as sumo.outputs = [\"fcd\"])"),
+    "outputs": Key(list, [], "SUMO's own output files to write into sumo.output_dir, any of fcd, tripinfo, collision, summary, "
+                   "lanechange (fcd.xml, tripinfo.xml, collision.xml, summary.xml, lanechange.xml)",
+                   check=lambda v: all(x in ("fcd", "tripinfo", "collision", "summary", "lanechange") for x in v),
+                   expect="a list of fcd, tripinfo, collision, summary, lanechange"),
+    "isolate": Key(bool, True, "run SUMO in a process of its own, so that a SUMO crash (a segfault in libsumo) ends the run with "
+                   "its error and everything recorded until then, not the whole command (false: in aac-sumo's process; "
+                   "sumo-gui always runs in its own)"),
+    "driver_speed": Key(float, -1.0, "controller.coordinator = sumo on kind lane_change: the most SUMO's driver drives the cars at "
+                        "[m/s]; -1: lane_change.speed, our references' cruise speed (a like-for-like comparison); 0: SUMO's "
+                        "own desired speed (the lane's limit times the vType's speed factor, 13.9 m/s on the bundled road)"),
+    "lateral_resolution": Key(float, 0.0, "SUMO's sublane model: --lateral-resolution for SUMO's own traffic [m] (0: off, "
+                              "the lane-based model, unless sumo.config or sumo.extra_args set it)", **NN),
+    "output_dir": Key(str, "", "directory of SUMO's own output files and of its message log sumo.log (aac-sumo run sets it to --out; "
+                      "empty: out/<scenario name> when outputs are asked for, else no files and SUMO's warnings off)"),
+}
+#: Sections beyond COMMON and the kind's own that a kind uses.
+KIND_EXTRA_SECTIONS: dict[str, dict[str, dict[str, Key]]] = {"lane_change": {"sumo": SUMO_SECTION}}
