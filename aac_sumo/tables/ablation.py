@@ -98,7 +98,7 @@ def ablation_markdown(tables: list[tuple[str, str, list[dict], list[tuple]]], se
     """One table per case, then what each step brings there."""
     lines = ["# Ablation: which part brings which gain", "",
              "Every variant runs on the same seeds with the same planner, solver, weights, prediction and anticipation "
-             "(the scenario's); a variant changes only its own keys (`aac_sumo/table_ablation.py`). "
+             "(the scenario's); a variant changes only its own keys (`aac_sumo/tables/ablation.py`). "
              + (f"Mean ± sample std over {seeds} seeds" if seeds > 1 else "One seed")
              + "; task time over the completed runs; a deadlock or a time-out is an incomplete run."]
     for label, kind, rows, variants in tables:
