@@ -2,7 +2,7 @@
 
 Table I (swarm rescue) and Table II (lane change) compare AAC with LFC at MPC horizons 5, 10 and
 15; Table III (emergency braking) compares CBF with F-CBF over the initial speed, once per
-obstacle prediction (see table_braking). The circle-swap
+obstacle prediction (see :mod:`aac_sumo.tables.braking`). The circle-swap
 table (not in the paper) compares AAC with LFC over the number of robots. The runs go through the
 same process pool as ``aac-sumo sweep`` (and leave the same ``results.csv``).
 
