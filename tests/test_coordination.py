@@ -714,8 +714,8 @@ def test_a_cars_reference_stops_where_the_safety_stop_holds_it_before_a_walkers_
 def test_a_stored_plan_brakes_at_least_as_the_anticipation_says():
     """AAC with stored plans (``commit = false``): a car at 1.7 m/s whose stored plan brakes at
     1 m/s^2, 2.4 m behind a standing car (within the 2 m standstill gap plus what the comfortable
-    rate needs), brakes as its tracking law would (1.5 m/s^2, the anticipation's rate); at 5 m/s
-    (half its cruise speed) with the road ahead clear it keeps to its plan, which accelerates
+    rate needs), brakes as its tracking law would (1.5 m/s^2, the anticipation's rate); at 7 m/s
+    (70 % of its cruise speed) with the road ahead clear it keeps to its plan, which accelerates
     more gently than the law would."""
     config = MpcConfig(dt=DT, comfort_accel=2.0, comfort_lat=2.0)
     task = PathReference([[0.0, 0.0], [500.0, 0.0]], 10.0, stop_at_end=False)
@@ -724,7 +724,7 @@ def test_a_stored_plan_brakes_at_least_as_the_anticipation_says():
     aac.anticipation, aac.fleet = Anticipation(), Fleet([HIGHWAY_CAR])
     front = HIGHWAY_CAR.centre_offset + 0.5 * HIGHWAY_CAR.length
     ahead = Obstacle("veh7", "scripted", np.array([front + 2.4 + 2.0, 0.0]), np.zeros(2), 0.0, 4.0, 1.8)
-    for obstacles, speed, plan_accel, wanted in [([ahead], 1.7, -1.0, -1.5), ([], 5.0, 0.5, 0.5)]:
+    for obstacles, speed, plan_accel, wanted in [([ahead], 1.7, -1.0, -1.5), ([], 7.0, 0.5, 0.5)]:
         aac.plans[0] = Plan(np.zeros((6, 4)), np.tile([plan_accel, 0.0], (5, 1)), "solved", 0.0, "fatrop")
         aac.used[0] = 1
         state = np.array([[0.0, 0.0, 0.0, speed]])
@@ -735,10 +735,10 @@ def test_a_stored_plan_brakes_at_least_as_the_anticipation_says():
 @pytest.mark.parametrize("leader_speed, sets_off", [(0.0, False), (3.0, True)])
 def test_a_car_in_a_stopped_queue_sets_off_with_its_leader_without_waiting_for_its_turn(leader_speed, sets_off):
     """AAC with stored plans: a car standing at its standstill gap (2 m) behind its leader holds a
-    plan made while the leader stood (stand still). When the leader has set off at 3 m/s, the car (below 30 % of its
-    cruise speed) drops that plan and its tracking law drives it off at once, at no more than the
-    planner's comfort acceleration, as a queue of SUMO's drivers sets off together; while the
-    leader still stands, it keeps standing on its plan."""
+    plan made while the leader stood (stand still). When the leader has set off at 3 m/s, the
+    car (below 60 % of its cruise speed) drops that plan and its tracking law drives it off at
+    once, at no more than the planner's comfort acceleration, as a queue of SUMO's drivers sets
+    off together; while the leader still stands, it keeps standing on its plan."""
     config = MpcConfig(dt=DT, comfort_accel=2.0, comfort_lat=2.0)
     task = PathReference([[0.0, 0.0], [500.0, 0.0]], 10.0, stop_at_end=False)
     aac = AacCoordinator(MpcPlanner(config), [task], params=AacParams(commit=False, safety_stop=True, fallback="tracking",

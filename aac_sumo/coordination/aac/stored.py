@@ -42,14 +42,16 @@ import time
 
 import numpy as np
 
-from aac_sumo.coordination.aac.authority import SLOW_SHARE, AacCoordinator
+from aac_sumo.coordination.aac.authority import AacCoordinator
 from aac_sumo.coordination.base import Decision, RobotDecision, straight_behind
 from aac_sumo.coordination.tracking import track
 from aac_sumo.world import WorldState
 
 
-#: How much more [m/s^2] the tracking law must accelerate than a slow car's stored plan before
-#: the plan counts as outrun (see :meth:`StoredPlanAac.intended_inputs`).
+#: A car slower than this share of its cruise speed whose tracking law accelerates more than its
+#: stored plan, by over HOLD_TOLERANCE [m/s^2], has been outrun by the traffic ahead: it drops the
+#: plan (see :meth:`StoredPlanAac.intended_inputs`; chosen on S2 seeds 10-14, docs/lane_change.md).
+OUTRUN_SHARE = 0.6
 HOLD_TOLERANCE = 1e-3
 
 
@@ -165,10 +167,11 @@ class StoredPlanAac(AacCoordinator):
         With ``anticipation``, a stored plan's next acceleration is at most the tracking law's
         (:meth:`~aac_sumo.coordination.base.Coordinator.tracking_speed`, braking at most at the
         comfort deceleration): the plan was made up to a horizon ago, and the traffic ahead may
-        have stopped since. A car slower than ``SLOW_SHARE`` of its cruise speed whose law
+        have stopped since. A car slower than ``OUTRUN_SHARE`` of its cruise speed whose law
         accelerates more than its plan (the queue ahead has set off since the plan was made)
-        drops the plan and drives on the law until its next turn, so that a stopped queue sets
-        off together rather than one car per authority turn."""
+        drops the plan and drives on the law, steering and speed together, until its next turn,
+        so that a stopped or slowed queue sets off together rather than one car per authority
+        turn."""
         out = np.zeros((steps, 2))
         task = self.tasks[j]
         if parked:
@@ -180,7 +183,7 @@ class StoredPlanAac(AacCoordinator):
             speed = self.tracking_speed(world, j, self.params.speed_gain)
             if speed is not None:
                 lawful = self.params.speed_gain * (speed - world.states[j, 3])
-                if world.states[j, 3] < SLOW_SHARE * task.speed and lawful > out[0, 0] + HOLD_TOLERANCE:
+                if world.states[j, 3] < OUTRUN_SHARE * task.speed and lawful > out[0, 0] + HOLD_TOLERANCE:
                     self.used[j] = len(plan.inputs)  # held up by a plan the traffic has outrun: the law drives it off
                     return self.intended_inputs(world, j, parked, steps)
                 out[0, 0] = min(out[0, 0], max(lawful, -world.robots[j].model.limits.comfort_decel))
