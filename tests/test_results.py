@@ -41,3 +41,29 @@ def test_a_job_writes_its_tables_under_the_command_and_commit(tmp_path):
                          "--no-progress --workers 2 --out DIR`) at commit " + str(git_commit()))
     assert "# Table III" in md
     assert (tmp_path / "docs" / "tiny.csv").read_text() == (tmp_path / "out" / "tiny" / "table.csv").read_text()
+
+
+def test_generated_figures_under_docs_do_not_make_a_checkout_dirty(tmp_path):
+    """``make results`` writes docs/results/ job after job: a later job's runs still name the
+    clean commit; a change to the package makes it ``-dirty``."""
+    import subprocess
+
+    from aac_sumo.runs.provenance import commit_of
+
+    def git(*args):
+        subprocess.run(["git", *args], cwd=tmp_path, check=True, capture_output=True)
+
+    (tmp_path / "docs").mkdir()
+    (tmp_path / "pkg").mkdir()
+    (tmp_path / "docs" / "table.md").write_text("old\n")
+    (tmp_path / "pkg" / "code.py").write_text("x = 1\n")
+    git("init", "-q")
+    git("add", "-A")
+    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-q", "-m", "c")
+    head = commit_of(tmp_path / "pkg")
+    assert len(head) == 40
+    (tmp_path / "docs" / "table.md").write_text("new\n")
+    assert commit_of(tmp_path / "pkg") == head
+    (tmp_path / "pkg" / "code.py").write_text("x = 2\n")
+    assert commit_of(tmp_path / "pkg") == head + "-dirty"
+    assert commit_of(tmp_path.parent / "nowhere-at-all") is None

@@ -25,15 +25,20 @@ def _version(dist: str) -> str | None:
 
 @lru_cache(maxsize=None)
 def git_commit() -> str | None:
-    """The commit of the git checkout the package is imported from, with ``-dirty`` when it has
-    uncommitted changes to tracked files; None outside a checkout (an installed wheel)."""
-    here = Path(__file__).resolve().parent
+    """The commit of the git checkout the package is imported from (:func:`commit_of`)."""
+    return commit_of(Path(__file__).resolve().parent)
+
+
+def commit_of(folder: Path) -> str | None:
+    """The commit of the git checkout holding ``folder``, with ``-dirty`` when it has uncommitted
+    changes to tracked files outside its ``docs/`` (where ``make results`` writes the figures it
+    generates, which make no run differ); None outside a checkout (an installed wheel)."""
     try:
-        head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True, timeout=10)
+        head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=folder, capture_output=True, text=True, timeout=10)
         if head.returncode != 0:
             return None
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=here, capture_output=True,
-                               text=True, timeout=10).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no", "--", ":(top)", ":(top,exclude)docs"],
+                               cwd=folder, capture_output=True, text=True, timeout=10).stdout.strip()
     except (OSError, subprocess.SubprocessError):
         return None
     return head.stdout.strip() + ("-dirty" if dirty else "")
