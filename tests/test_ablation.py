@@ -8,7 +8,7 @@ import csv
 import pytest
 
 from aac_sumo import config
-from aac_sumo.cli.main import main
+from aac_sumo.cli.app import main
 from aac_sumo.tables.ablation import AAC_PLAIN, VARIANTS, gains, variants_for
 
 

@@ -121,7 +121,7 @@ def test_the_reader_sees_the_imports_it_should():
     edges = graph()
     assert "aac_sumo.kernels.motion" in edges["aac_sumo.coordination.tracking"]
     assert "aac_sumo.cli.common" in edges["aac_sumo.cli.views"]
-    assert "aac_sumo.runs.runner" in edges["aac_sumo.cli.main"]  # an import inside a function counts
+    assert "aac_sumo.runs.runner" in edges["aac_sumo.cli.app"]  # an import inside a function counts
     assert edges["aac_sumo.kernels.paths"] == set()
 
 

@@ -11,7 +11,7 @@ import pytest
 from aac_sumo import config
 from aac_sumo.runs import runner
 from aac_sumo.barriers import stage_parameters
-from aac_sumo.cli.main import main
+from aac_sumo.cli.app import main
 from aac_sumo.coordination.cbf_qp import barrier_rows, filter_input, input_bounds
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.experiments import build

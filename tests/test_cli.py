@@ -15,7 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aac_sumo import config
-from aac_sumo.cli.main import main
+from aac_sumo.cli.app import main
 from aac_sumo.metrics import METRIC_KEYS
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from aac_sumo import __version__
-from aac_sumo.cli.main import main
+from aac_sumo.cli.app import main
 
 
 def one_error_line(capsys) -> str:

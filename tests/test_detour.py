@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 
 from aac_sumo import config
 from aac_sumo.runs import runner
-from aac_sumo.cli.main import main
+from aac_sumo.cli.app import main
 from aac_sumo.coordination.detour import SAMPLES, Detours, plan_detour
 from aac_sumo.geometry import rect_distances
 from aac_sumo.kernels.detours import band_costs, distance_field, rects_within, shortcut

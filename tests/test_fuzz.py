@@ -24,7 +24,7 @@ from hypothesis import strategies as st
 from aac_sumo import config, experiments
 from aac_sumo.runs.files import write_run
 from aac_sumo.runs import runner, sweep
-from aac_sumo.cli.main import main
+from aac_sumo.cli.app import main
 from aac_sumo.config import ScenarioError
 from aac_sumo.experiments.lane_change import BUNDLED_NET, BUNDLED_ROUTES
 from aac_sumo.sim.sumo_options import SumoError

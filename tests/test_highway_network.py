@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from aac_sumo import config, network
-from aac_sumo.cli.main import main
+from aac_sumo.cli.app import main
 
 NETWORKS = Path(__file__).resolve().parents[1] / "sumo_networks"
 HERE = NETWORKS / "highway_work_zone"

@@ -23,7 +23,7 @@ import pytest
 
 from aac_sumo import config, experiments
 from aac_sumo.runs import runner
-from aac_sumo.cli.main import main
+from aac_sumo.cli.app import main
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.sim import sumo
 from aac_sumo.sim.internal import InternalSimulator
@@ -270,3 +270,40 @@ def test_sumo_warnings_of_one_kind_are_aggregated_unless_the_user_says_otherwise
     assert cmd[cmd.index("--aggregate-warnings") + 1] == str(AGGREGATE_WARNINGS) and cmd[cmd.index("--log") + 1].endswith("sumo.log")
     cmd = SumoOptions(Path("road.net.xml"), output_dir=tmp_path, extra_args=("--aggregate-warnings", "-1")).command(0.1)
     assert cmd.count("--aggregate-warnings") == 1 and cmd[cmd.index("--aggregate-warnings") + 1] == "-1"
+
+
+def test_a_child_started_for_the_simulator_ignores_ctrl_c_from_its_first_instruction():
+    """A terminal's Ctrl-C reaches the whole process group: the simulator's child, still loading
+    its modules, must not die of it (it printed a 27-line traceback and the run ended with exit
+    status 2 instead of 130). A process started within ``_sigint_ignored`` survives a SIGINT it
+    raises at once; one started outside dies of it; the parent's handler is back afterwards."""
+    from aac_sumo.sim.isolated import _sigint_ignored
+
+    context = multiprocessing.get_context("spawn")
+    before = signal.getsignal(signal.SIGINT)
+    with _sigint_ignored():
+        shielded = context.Process(target=signal.raise_signal, args=(signal.SIGINT,))
+        shielded.start()
+    assert signal.getsignal(signal.SIGINT) is before
+    exposed = context.Process(target=signal.raise_signal, args=(signal.SIGINT,))
+    exposed.start()
+    shielded.join(60)
+    exposed.join(60)
+    assert shielded.exitcode == 0
+    assert exposed.exitcode != 0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("delay", [0.3, 1.2, 1.6])
+def test_ctrl_c_while_a_run_starts_ends_it_with_130_and_one_line(tmp_path, delay):
+    """Ctrl-C (SIGINT to the whole process group, as a terminal sends it) at a moment of the
+    start-up of ``aac-sumo run lane_change``: the modules loading, SUMO's child starting or
+    loading the road. Exit status 130 and one line on stderr, never a traceback."""
+    process = subprocess.Popen([sys.executable, "-m", "aac_sumo.cli", "run", "lane_change", "--out", str(tmp_path / "out")],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    time.sleep(delay)
+    os.killpg(process.pid, signal.SIGINT)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == 130, err
+    assert len(err.strip().splitlines()) == 1 and "interrupted" in err

@@ -10,7 +10,7 @@ import pytest
 
 from aac_sumo import config
 from aac_sumo.runs import runner
-from aac_sumo.cli.main import main
+from aac_sumo.cli.app import main
 from aac_sumo.coordination.orca import rectangle_polygon
 from aac_sumo.experiments import build
 from aac_sumo.metrics import METRIC_KEYS

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from aac_sumo import config, network
-from aac_sumo.cli.main import main
+from aac_sumo.cli.app import main
 from aac_sumo.experiments.lane_change import MIN_LANES
 
 MAIN = ["264306385#0", "264306385#1", "264306385#2"]  # one OSM way, split at the ramp and the side road

@@ -18,7 +18,7 @@ import pytest
 
 from aac_sumo import config
 from aac_sumo.config import package_data
-from aac_sumo.cli.main import main
+from aac_sumo.cli.app import main
 
 ROOT = Path(__file__).resolve().parents[1]
 PYPROJECT = tomllib.loads((ROOT / "pyproject.toml").read_text())

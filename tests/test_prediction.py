@@ -8,7 +8,7 @@ from hypothesis import strategies as st
 
 from aac_sumo import config
 from aac_sumo.barriers import predict_constant_velocity
-from aac_sumo.cli.main import main
+from aac_sumo.cli.app import main
 from aac_sumo.experiments import build
 from aac_sumo.prediction import PREDICTIONS, SpeedHistory, predict_constant_acceleration, predict_obstacle, speed_slope
 from aac_sumo.sim.internal import ScriptedAgent

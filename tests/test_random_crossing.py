@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 
 from aac_sumo import config
 from aac_sumo.runs import runner
-from aac_sumo.cli.main import main
+from aac_sumo.cli.app import main
 from aac_sumo.config import ScenarioError
 from aac_sumo.experiments import build
 from aac_sumo.experiments.random_crossing import area_side, draw

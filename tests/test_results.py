@@ -16,7 +16,7 @@ def test_every_published_table_has_a_job_and_the_list_shows_their_commands(capsy
 
 
 def test_every_job_is_a_command_line_the_tool_accepts():
-    from aac_sumo.cli.main import build_parser
+    from aac_sumo.cli.app import build_parser
 
     for job in results.JOBS:
         if job.module != "aac_sumo.cli":  # another generator: its own parser

@@ -147,7 +147,7 @@ def test_table_two_has_the_smoothness_and_waiting_columns_for_both_coordinators(
     """No simulation: each planned run returns made-up metrics; table.csv and table.md of Table II
     carry the four new metrics, per coordinator and horizon."""
     from aac_sumo.runs import sweep
-    from aac_sumo.cli.main import main
+    from aac_sumo.cli.app import main
 
     def run_tasks(tasks, grid_keys, out, *args, **kw):
         out.mkdir(parents=True, exist_ok=True)

@@ -17,7 +17,7 @@ from aac_sumo import config
 from aac_sumo.stress import campaign as stress
 from aac_sumo.stress.plan import COMMON_KEYS, DESCRIPTIVE, HORIZONS, KINDS, Campaign, draw, plan, prepare
 from aac_sumo.stress.roads import ROAD_VARIANTS, road_variants
-from aac_sumo.cli.main import main
+from aac_sumo.cli.app import main
 from aac_sumo.experiments import build
 from aac_sumo.metrics import METRIC_KEYS
 from aac_sumo.runs.provenance import PROVENANCE_KEYS
@@ -151,7 +151,7 @@ def test_ci_subset_has_no_collision_and_no_error(capsys, tmp_path):
 def test_baselines_are_kinds_of_their_own_whose_collisions_are_not_failures_of_ours():
     """``orca-circle`` draws as ``circle`` does and runs ORCA; a collision there is reported in its
     row but does not count against our coordinators; the default kinds are ours alone."""
-    from aac_sumo.cli.main import build_parser
+    from aac_sumo.cli.app import build_parser
 
     drawn = draw(Campaign(7, Path("/tmp/unused")), 0, ["orca-circle"])
     assert drawn.values["controller.coordinator"] == "orca" and "circle_swap.n_robots" in drawn.values

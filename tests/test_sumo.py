@@ -13,7 +13,7 @@ import sumolib
 
 from aac_sumo import config, network
 from aac_sumo.runs import runner
-from aac_sumo.cli.main import main
+from aac_sumo.cli.app import main
 from aac_sumo.experiments import build
 from aac_sumo.experiments.common import robot_spec
 from aac_sumo.experiments.lane_change import BAND_SETTLE, BUNDLED_NET, BUNDLED_NET_DIR, lane_change_band, target_lane

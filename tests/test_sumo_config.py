@@ -11,7 +11,7 @@ from pathlib import Path
 from aac_sumo import config, network
 from aac_sumo.runs.files import write_run
 from aac_sumo.runs import runner
-from aac_sumo.cli.main import main
+from aac_sumo.cli.app import main
 from aac_sumo.experiments.lane_change import BUNDLED_NET_DIR
 from aac_sumo.sim.sumo_options import SumoOptions
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from aac_sumo import config
-from aac_sumo.cli.main import _gui_overrides, main
+from aac_sumo.cli.app import _gui_overrides, main
 from aac_sumo.experiments.common import robot_spec
 from aac_sumo.experiments.lane_change import BUNDLED_NET
 from aac_sumo.sim.sumo import AUTHORITY, PLAIN, SAFETY_STOP, SumoSimulator

@@ -11,7 +11,7 @@ import pytest
 
 from aac_sumo import config
 from aac_sumo.runs import runner
-from aac_sumo.cli.main import main
+from aac_sumo.cli.app import main
 from aac_sumo.config import ScenarioError
 
 

@@ -13,7 +13,7 @@ import pytest
 from aac_sumo import config
 from aac_sumo.runs import executor, sweep
 from aac_sumo.tables import braking as table_braking
-from aac_sumo.cli.main import main
+from aac_sumo.cli.app import main
 from aac_sumo.metrics import METRIC_KEYS
 from aac_sumo.runs.provenance import PROVENANCE_KEYS
 from aac_sumo.prediction import PREDICTIONS

@@ -13,7 +13,7 @@ import pytest
 from aac_sumo import config
 from aac_sumo.runs import sweep
 from aac_sumo.tables import common as table_common, build as tables
-from aac_sumo.cli.main import main
+from aac_sumo.cli.app import main
 
 
 def read_rows(path: Path) -> tuple[list[str], list[dict]]:

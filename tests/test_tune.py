@@ -10,7 +10,7 @@ import pytest
 
 from aac_sumo import config, tune
 from aac_sumo.runs import runner
-from aac_sumo.cli.main import main
+from aac_sumo.cli.app import main
 
 BRANIN = [tune.Param("x.a", -5, 10), tune.Param("x.b", 0, 15)]
 QUICK = ["--set", "controller.horizon=5", "--set", "scenario.duration=2", "--set", "braking.speed=5", "--no-progress"]

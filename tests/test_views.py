@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 from PIL import Image
 
-from aac_sumo.cli.main import main
+from aac_sumo.cli.app import main
 
 SWARM = ["run", "swarm_rescue", "--set", "scenario.duration=1.0", "--set", "controller.horizon=5"]
 

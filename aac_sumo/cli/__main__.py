@@ -1,5 +1,5 @@
 """``python -m aac_sumo.cli ARGS`` is ``aac-sumo ARGS``."""
 
-from aac_sumo.cli.main import main
+from aac_sumo.cli import main
 
 raise SystemExit(main())

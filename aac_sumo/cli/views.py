@@ -102,7 +102,7 @@ def cmd_scenarios(args) -> int:
     from aac_sumo.cli.catalog import bundled
 
     rows = bundled()
-    if not rows:  # one line from cli.main, exit 2
+    if not rows:  # one line from cli.app, exit 2
         raise FileNotFoundError(f"no bundled scenarios in {config.BUNDLED_DIR} (an incomplete installation: reinstall aac-sumo)")
     width = max(len(name) for name, _ in rows)
     for name, purpose in rows:

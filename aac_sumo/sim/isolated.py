@@ -21,6 +21,7 @@ or plain attribute access). It knows nothing of the simulator it hosts.
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing
 import pickle
 import signal
@@ -64,7 +65,8 @@ class IsolatedSimulator(Simulator):
         self._conn, child_end = context.Pipe()
         self._process = context.Process(target=_serve, args=(child_end, factory, args, kwargs or {}, tuple(mirror)),
                                         name=f"{name} simulator", daemon=True)
-        self._process.start()
+        with _sigint_ignored():  # the child inherits it from its start: a Ctrl-C while it loads is the parent's alone
+            self._process.start()
         child_end.close()  # the child holds the other end: its death reads as EOF here
         try:
             self._reply()
@@ -176,6 +178,21 @@ class IsolatedSimulator(Simulator):
             process.kill()
             process.join()
         self._conn.close()
+
+
+@contextlib.contextmanager
+def _sigint_ignored():
+    """SIGINT ignored within the block, where the process can set signal handlers (its main
+    thread); a new process started within it ignores SIGINT from its first instruction."""
+    try:
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except ValueError:  # not the main thread: nothing to change
+        yield
+        return
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _signal_name(number: int) -> str:

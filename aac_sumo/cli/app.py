@@ -20,11 +20,15 @@ from aac_sumo.cli.studies import cmd_bench, cmd_stress, cmd_sweep, cmd_table, cm
 
 
 def main(argv: list[str] | None = None) -> int:
-    from aac_sumo.config import ScenarioError
-    from aac_sumo.sim.sumo_options import SumoError
-    from aac_sumo.cli.views import COMMANDS as VIEW_COMMANDS
-    from aac_sumo.runs.files import RunDirError
-    from aac_sumo.runs.sweep import SweepError
+    try:
+        from aac_sumo.config import ScenarioError
+        from aac_sumo.sim.sumo_options import SumoError
+        from aac_sumo.cli.views import COMMANDS as VIEW_COMMANDS
+        from aac_sumo.runs.files import RunDirError
+        from aac_sumo.runs.sweep import SweepError
+    except KeyboardInterrupt:  # Ctrl-C while the modules load
+        print(f"{PROG}: interrupted while starting", file=sys.stderr)
+        return 130
 
     args = None
     try:
