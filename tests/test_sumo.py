@@ -16,9 +16,11 @@ from aac_sumo.runs import runner
 from aac_sumo.cli.app import main
 from aac_sumo.experiments import build
 from aac_sumo.experiments.common import robot_spec
-from aac_sumo.experiments.lane_change import BAND_SETTLE, BUNDLED_NET, BUNDLED_NET_DIR, lane_change_band, target_lane
+from aac_sumo.experiments.lane_change import (BAND_SETTLE, BUNDLED_NET, BUNDLED_NET_DIR, lane_change_band, road_end_arrivals,
+                                              scenario_road, target_lane)
 from aac_sumo.mpc.settings import MpcConfig
 from aac_sumo.mpc.planner import MpcPlanner
+from aac_sumo.references import PathReference
 from aac_sumo.geometry import rect_clearance_rows
 from aac_sumo.sim.sumo_options import SumoOptions
 from aac_sumo.sim.sumo import SumoSimulator
@@ -116,6 +118,35 @@ def test_sumos_own_output_shows_each_car_at_its_start_speed_from_the_first_step(
     assert float(first.get("time")) == 0.0
     speeds = {v.get("id"): float(v.get("speed")) for v in first.findall("vehicle")}
     assert speeds == {"car0": pytest.approx(10.0), "car1": pytest.approx(0.0)}
+
+
+def test_a_finished_car_arrives_at_the_road_end_as_sumos_cars_do(tmp_path):
+    """A finished car at 10 m/s in the middle lane, 30 m before the road's end, leaves SUMO as
+    arrived before its front gets there (within its stopping distance at 4.5 m/s^2 of the end):
+    SUMO's tripinfo lists its trip, fcd.xml never shows it beyond the lane, and SUMO reports no
+    emergency stop at the lane's end (it did, and placed finished cars up to 60 m past it). A car
+    of the same lane that has not finished drives on."""
+    road = scenario_road(config.load("lane_change"), BUNDLED_NET)
+    end = road.length(1)
+    robots = cars("car0", "car1")
+    states = np.array([[end - 30.0, LANE_Y[1], 0.0, 10.0], [end - 60.0, LANE_Y[1], 0.0, 10.0]])
+    sim = SumoSimulator(robots, states, 0.1, ["E0", "E1"], SumoOptions(BUNDLED_NET, output_dir=tmp_path, outputs=("fcd", "tripinfo")))
+    line = PathReference(road.lanes[1], 10.0, stop_at_end=False)
+    prepare = road_end_arrivals(sim, robots, [line, line], [end, end], np.array([True, False]), 0.1)
+    front = robots[0].centre_offset + 0.5 * robots[0].length
+    try:
+        for _ in range(30):
+            world = prepare(sim.observe())
+            sim.step(np.zeros((2, 2)))
+        assert not world.on_road[0] and world.on_road[1] and "car0" in sim.removed
+        assert world.states[1, 0] > end - 35.0
+    finally:
+        sim.close()
+    trips = {t.get("id"): t for t in ET.parse(tmp_path / "tripinfo.xml").getroot().findall("tripinfo")}
+    assert set(trips) == {"car0"} and float(trips["car0"].get("arrival")) > 0.0
+    xs = [float(v.get("x")) for step in ET.parse(tmp_path / "fcd.xml").getroot() for v in step.findall("vehicle") if v.get("id") == "car0"]
+    assert max(xs) <= road.lanes[1][-1, 0] + 1e-6 and max(xs) >= end - 30.0 + front
+    assert "emergency" not in (tmp_path / "sumo.log").read_text().lower()
 
 
 def test_outputs_key_takes_only_sumos_outputs(tmp_path, capsys):

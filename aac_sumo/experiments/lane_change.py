@@ -29,6 +29,7 @@ import shlex
 import sys
 from collections import Counter
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -46,11 +47,14 @@ from aac_sumo.registry import register_experiment
 from aac_sumo.sim.sumo_options import LaneOrder, SumoOptions
 from aac_sumo.sim.sumo import sumo_simulator
 from aac_sumo.sim.sumo_config import SumoConfig, read_config, xml_problem
-from aac_sumo.world import WorldState
+from aac_sumo.world import RobotSpec, WorldState
 
 BUNDLED_NET_DIR = package_data.networks_dir() / "lane_change"  # the checkout's sumo_networks/, or a wheel's package data
 BUNDLED_NET = BUNDLED_NET_DIR / "lane_change.net.xml"
 BUNDLED_ROUTES = [BUNDLED_NET_DIR / "cones.rou.xml", BUNDLED_NET_DIR / "pedestrians.rou.xml"]
+#: A finished car arrives (leaves SUMO) where it would have to brake harder than this [m/s^2]
+#: to stop at its lane's end: SUMO's default vType deceleration (:func:`road_end_arrivals`).
+ARRIVAL_DECEL = 4.5
 
 
 def target_lane(lane: int, cone_lane: int, lanes: int) -> int:
@@ -249,10 +253,34 @@ def build_lane_change(scenario: Scenario) -> Setup:
         free_flow = np.array([task.project(p)[0] for task, p in zip(tasks, finish_points)]) / lc["speed"]
         bands = [lane_change_band(rd, int(a), b, change_end[k], 0.5 * robots[0].width + ROAD_MARGIN)
                  for k, (a, b) in enumerate(zip(start_lane, targets))]
-        return Setup(scenario, sim, coordinator(scenario, tasks, bands, finished), tasks, finished, free_flow)
+        prepare = None if simulator_drives(scenario) else road_end_arrivals(sim, robots, [centre_lines[b] for b in targets],
+                                                                           [rd.length(b) for b in targets], done, scenario["scenario.dt"])
+        return Setup(scenario, sim, coordinator(scenario, tasks, bands, finished), tasks, finished, free_flow, prepare)
     except BaseException:
         sim.close()
         raise
+
+
+def road_end_arrivals(sim, robots: list[RobotSpec], lines: list[PathReference], ends: list[float], done: np.ndarray,
+                      dt: float) -> Callable[[WorldState], WorldState]:
+    """The run's ``prepare``: a finished car (``done``) arrives where the road ends, as SUMO's own
+    cars do: once its front is within the distance it needs to stop at ``ARRIVAL_DECEL`` (plus one
+    period) of the end of its lane (``lines``, ``ends`` [m] along them), SUMO removes it as
+    arrived (its trip goes into SUMO's tripinfo) and it leaves the road. Before, finished cars
+    drove on beyond the network's end, where SUMO reported emergency stops at the lane's end and
+    placed them past it."""
+    def prepare(world: WorldState) -> WorldState:
+        leaving = []
+        for k in np.flatnonzero(done & world.on_road):
+            v = max(float(world.states[k, 3]), 0.0)
+            front = lines[k].project(world.states[k, :2])[0] + robots[k].centre_offset + 0.5 * robots[k].length
+            if front + v * dt + v * v / (2.0 * ARRIVAL_DECEL) >= ends[k]:
+                leaving.append(int(k))
+        for k in leaving:
+            sim.retire(k, arrived=True)
+        return sim.observe() if leaving else world
+
+    return prepare
 
 
 def _cone_lane(rd: network.Road, centre_lines: list[PathReference], cones) -> int:

@@ -50,6 +50,8 @@ from aac_sumo.sim.sumo_reading import SumoReading
 from aac_sumo.world import RobotSpec, WorldState, parking_spot
 
 ROUTE_ID = "aac_road"
+#: TraCI's reasons for ``vehicle.remove`` (traci.constants): arrived at its destination, vaporized.
+REMOVE_ARRIVED, REMOVE_VAPORIZED = 2, 3
 #: How long [s] a lane SUMO's driver is asked to take (``vehicle.changeLane``) is held: the whole run.
 LANE_HOLD = 1e6
 
@@ -191,13 +193,15 @@ class SumoSimulator(SumoReading, Simulator):
                 v.changeLane(name, lane, LANE_HOLD)
                 self._asked[i] = lane
 
-    def retire(self, i: int) -> None:
-        """Take routed robot ``i`` off the road: SUMO removes it, and it stands parked."""
+    def retire(self, i: int, arrived: bool = False) -> None:
+        """Take robot ``i`` off the road: SUMO removes it (as arrived at its destination when
+        ``arrived``, so that SUMO's tripinfo lists its trip; else as vaporized), and it stands
+        parked."""
         name = self.robots[i].name
         if name in self.removed or not self.present[i]:
             return
         with self._sumo_errors(f"removing {name}"):
-            self.api.vehicle.remove(name)
+            self.api.vehicle.remove(name, REMOVE_ARRIVED if arrived else REMOVE_VAPORIZED)
         self.removed.add(name)
         self._park(i)
 
