@@ -24,6 +24,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aac_sumo.config.keys import NN, P
+from aac_sumo.config.schema import param
 from aac_sumo.kernels.geometry import swept_hull_ellipses
 
 BARRIERS = ("fcbf", "cbf")
@@ -36,10 +38,10 @@ N_STAGE_FIELDS = len(STAGE_FIELDS)
 class FcbfParams:
     """Shape parameters of the F-CBF ellipse: gains [s], sigmoid steepness [s/m], threshold [m/s]."""
 
-    mu1: float = 0.2
-    mu2: float = 0.2
-    k: float = 2.0
-    v0: float = 1.0
+    mu1: float = param(0.2, "F-CBF gain along the velocity [s]", **NN)
+    mu2: float = param(0.2, "F-CBF gain across the velocity [s]", **NN)
+    k: float = param(2.0, "F-CBF sigmoid steepness k [s/m]", key="sigmoid_k", **P)
+    v0: float = param(1.0, "F-CBF sigmoid threshold v0 [m/s]", **NN)
 
 
 def sigmoid(x, k: float):

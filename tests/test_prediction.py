@@ -109,7 +109,7 @@ def test_predict_obstacle_models():
     cv = predict_obstacle(ob, 10, 0.1)
     ca = predict_obstacle(ob, 10, 0.1, "constant_acceleration")
     assert cv.centres[-1, 0] == pytest.approx(17.0) and ca.centres[-1, 0] == pytest.approx(14.0)
-    assert set(PREDICTIONS) == set(config.COMMON["controller"]["prediction"].type)
+    assert set(PREDICTIONS) == set(config.common()["controller"]["prediction"].type)
     with pytest.raises(ValueError, match="prediction"):
         predict_obstacle(ob, 10, 0.1, "constant_jerk")
 

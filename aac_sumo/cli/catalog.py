@@ -7,7 +7,7 @@ import re
 from pathlib import Path
 
 from aac_sumo import config
-from aac_sumo.config import COMMON, KIND_EXTRA_SECTIONS, KIND_SECTIONS, Key, Scenario, toml_value
+from aac_sumo.config import common, KIND_EXTRA_SECTIONS, KIND_SECTIONS, Key, Scenario, toml_value
 
 _UNIT = re.compile(r"\s*\[([^\[\]]+)\]$")
 #: Longer defaults (lists of rows) are cut to this many characters in the listing.
@@ -42,7 +42,7 @@ def key_rows(scenario: Scenario | None = None) -> list[tuple[str, str, str, str]
     if scenario is not None:
         sections, values = scenario.schema(), scenario.data
     else:
-        sections = dict(COMMON) | KIND_SECTIONS
+        sections = dict(common()) | KIND_SECTIONS
         for extra in KIND_EXTRA_SECTIONS.values():
             sections |= extra
         values = {s: {k: key.default for k, key in keys.items()} for s, keys in sections.items()}

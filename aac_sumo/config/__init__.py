@@ -11,26 +11,34 @@ from __future__ import annotations
 
 import copy
 import difflib
+import importlib
 import tomllib
 from pathlib import Path
 from typing import Any
 
 import tomli_w
 
-from aac_sumo.config import package_data
-from aac_sumo.config.keys import COMMON, KIND_EXTRA_SECTIONS, KIND_SECTIONS, Key
+from aac_sumo.config import package_data, schema
+from aac_sumo.config.keys import COMMON, KIND_EXTRA_SECTIONS, KIND_SECTIONS, PROVIDERS, Key, ScenarioError
 
 #: The bundled scenarios (:mod:`aac_sumo.config.package_data`: an installed wheel's package data, or the checkout's ``scenarios/``).
 BUNDLED_DIR = package_data.scenarios_dir()
 
 
-class ScenarioError(Exception):
-    """A scenario problem the user must fix; ``str()`` is one line: file, key, expectation."""
+_completed = False
 
-    def __init__(self, file: str | Path, key: str, expected: str, got: Any = None):
-        self.file, self.key, self.expected = str(file), key, expected
-        tail = "" if got is None else f", got {got!r}"
-        super().__init__(f"{self.file}: {key}: expected {expected}{tail}")
+
+def common() -> dict[str, dict[str, Key]]:
+    """``COMMON`` with the sections that parameter dataclasses declare filled in: the modules of
+    ``PROVIDERS`` are imported (by name: they sit above this layer) the first time."""
+    global _completed
+    if not _completed:
+        for module in PROVIDERS:
+            importlib.import_module(module)
+        _completed = True
+        for name in schema.SECTIONS:
+            COMMON[name] = {k: v for k, v in COMMON.get(name, {}).items()} | schema.section_keys(name)
+    return COMMON
 
 
 class Scenario:
@@ -94,7 +102,7 @@ class Scenario:
 
 def schema_for(kind: str) -> dict[str, dict[str, Key]]:
     """All sections a scenario of ``kind`` may hold."""
-    return COMMON | {kind: KIND_SECTIONS[kind]} | KIND_EXTRA_SECTIONS.get(kind, {})
+    return common() | {kind: KIND_SECTIONS[kind]} | KIND_EXTRA_SECTIONS.get(kind, {})
 
 
 def _defaults(keys: dict[str, Key]) -> dict[str, Any]:

@@ -1,13 +1,26 @@
 """The declared scenario keys: :class:`Key` (type, default, check, doc) and the tables of every
 section, ``COMMON`` (every kind's sections), ``KIND_SECTIONS`` (a kind's own section) and
 ``KIND_EXTRA_SECTIONS`` (further sections a kind reads, as lane_change reads ``[sumo]``).
-:mod:`aac_sumo.registry` adds the sections of registered experiments and coordinators."""
+:mod:`aac_sumo.registry` adds the sections of registered experiments and coordinators.
+
+The sections of the planner and the coordinators (``[controller]`` but its ``coordinator``,
+``[aac]``, ``[lfc]``, ``[orca]``, ``[cbf_qp]``) are not written here: their parameter dataclasses
+declare them (:mod:`aac_sumo.config.schema`), in the modules named in :data:`PROVIDERS`."""
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 from typing import Any, Callable
+
+
+class ScenarioError(Exception):
+    """A scenario problem the user must fix; ``str()`` is one line: file, key, expectation."""
+
+    def __init__(self, file, key: str, expected: str, got: Any = None):
+        self.file, self.key, self.expected = str(file), key, expected
+        tail = "" if got is None else f", got {got!r}"
+        super().__init__(f"{self.file}: {key}: expected {expected}{tail}")
 
 
 @dataclass(frozen=True)
@@ -86,59 +99,6 @@ COMMON: dict[str, dict[str, Key]] = {
                            "who plans when: aac (one authority robot per period), lfc (every robot in index-priority order), "
                            "independent (every robot for itself)"
                            ", sumo (SUMO's own driver moves the cars, kind lane_change: docs/baselines_sumo.md)"),
-        "barrier": Key(("fcbf", "cbf"), "fcbf", "F-CBF (velocity-stretched ellipse) or plain CBF (footprint ellipse)"),
-        "horizon": Key(int, 10, "MPC horizon N [steps]", check=lambda n: 1 <= n <= 100, expect="in 1..100"),
-        "solver": Key(("fatrop", "sqp", "ipopt"), "fatrop", "NLP solver of the fast path"),
-        "retry_with_ipopt": Key(bool, True, "retry a failed fast-path solve once with ipopt"),
-        "anticipate": Key(bool, False, "reference speeds that slow a robot in its lane, early and gently, for what lies ahead on its path "
-                          "(cars, walkers near it), and lanes kept near walkers (docs/lane_change.md)"),
-        "anticipate_decel": Key(float, 1.5, "comfortable deceleration of the anticipated reference speed [m/s^2]", **P),
-        "anticipate_brake": Key(float, 0.0, "towards a stop it sees too late for anticipate_decel (a walker stepping towards its "
-                                "path), the anticipated reference brakes as hard as it needs up to this, at most robot.a_comfort "
-                                "(0: never harder than anticipate_decel) [m/s^2]", **NN),
-        "anticipate_accel": Key(float, 1.5, "comfortable acceleration of the anticipated reference speed [m/s^2]", **P),
-        "anticipate_gap": Key(float, 2.0, "standstill gap kept behind what lies ahead [m]", **NN),
-        "anticipate_time_gap": Key(float, 1.0, "time gap kept behind a moving leader [s]", **NN),
-        "yield_distance": Key(float, 20.0, "within this of a walker a robot on a lateral band keeps within yield_band of its reference [m]", **NN),
-        "yield_band": Key(float, 0.25, "how far a robot near a walker may leave its reference sideways [m]", **P),
-        "warm_start": Key(bool, True, "start each solve from the previous plan shifted by one period (else from the "
-                          "zero-input rollout); a failed warm start is retried cold"),
-        "codegen": Key(bool, False, "compile the fast path to C with gcc (cached on disk; ~2x faster solves)"),
-        "gamma": Key(float, 0.3, "discrete barrier decay rate", check=lambda g: 0 < g <= 1, expect="in (0, 1]"),
-        "d_safe": Key(float, 0.2, "margin added to the ego's covering-disc radius [m]", **NN),
-        "mu1": Key(float, 0.2, "F-CBF gain along the velocity [s]", **NN),
-        "mu2": Key(float, 0.2, "F-CBF gain across the velocity [s]", **NN),
-        "sigmoid_k": Key(float, 2.0, "F-CBF sigmoid steepness k [s/m]", **P),
-        "v0": Key(float, 1.0, "F-CBF sigmoid threshold v0 [m/s]", **NN),
-        "pedestrian_reach": Key(float, 0.0, "pedestrians may start, stop or turn at any moment: their regions grow by this speed times the look-ahead time in every direction [m/s]", **NN),
-        "pedestrian_margin": Key(float, 0.0, "extra clearance every robot keeps from pedestrians, on top of d_safe [m]", **NN),
-        "walkway_time": Key(float, 0.0, "a pedestrian on a walkway of her own (a sidewalk or footpath, not a crossing) who cannot reach either of its ends within this time at her speed plus pedestrian_reach stays on it: her region does not grow by pedestrian_reach; 0 = never [s]", **NN),
-        "prediction": Key(("constant_velocity", "constant_acceleration"), "constant_velocity",
-                          "how obstacles move over the horizon, the same for every barrier: constant_velocity, or "
-                          "constant_acceleration (each keeps its direction and changes its speed at the acceleration "
-                          "estimated from its last prediction_window observed speeds, stopping at zero, never reversing)"),
-        "prediction_window": Key(int, 2, "observed speeds (one per control period) whose least-squares slope is an "
-                                 "obstacle's estimated acceleration; 2 = the backward difference",
-                                 check=lambda n: 2 <= n <= 50, expect="in 2..50"),
-        "terminal_stop": Key(bool, False, "terminal stopping condition: braking at its strongest after the horizon, the robot stops short of "
-                             "where each obstacle ahead of it could stop at the earliest (the car-following stopping-distance rule; "
-                             "docs/braking.md)"),
-        "obstacle_decel": Key(float, 0.0, "strongest braking assumed of obstacles for terminal_stop [m/s^2]; 0 = as hard as the robot itself can", **NN),
-        "comfort_accel": Key(float, 0.0, "comfort envelope the MPC plans within first: |acceleration| at most this; only when no "
-                             "plan fits does it use the vehicle's full limits (0: off) [m/s^2]", **NN),
-        "comfort_lat": Key(float, 0.0, "the comfort envelope's lateral acceleration v^2 |tan(steer)| / wheelbase (0: off) [m/s^2]", **NN),
-        "obstacle_slots": Key(int, 8, "obstacles the MPC considers (nearest first)", check=lambda n: 1 <= n <= 64, expect="in 1..64"),
-        "ego_discs": Key(int, 1, "discs covering the ego footprint", check=lambda n: 1 <= n <= 5, expect="in 1..5"),
-        "q_pos": Key(float, 1.0, "Q weight on position error [1/m^2]", **NN),
-        "q_heading": Key(float, 1.0, "Q weight on heading error [1/rad^2]", **NN),
-        "q_speed": Key(float, 1.0, "Q weight on speed error [s^2/m^2]", **NN),
-        "r_accel": Key(float, 0.1, "R weight on acceleration", **NN),
-        "r_steer": Key(float, 0.1, "R weight on steering angle", **NN),
-        "s_accel": Key(float, 0.1, "S weight on acceleration change", **NN),
-        "s_steer": Key(float, 1.0, "S weight on steering change", **NN),
-        "terminal_scale": Key(float, 5.0, "terminal weight P = terminal_scale * Q", **NN),
-        "max_iter": Key(int, 100, "iteration cap per solve", check=lambda n: 1 <= n <= 100_000, expect="in 1..100000"),
-        "max_cpu_time": Key(float, 60.0, "CPU-time cap per ipopt solve [s]; keep it above what max_iter allows, or results depend on machine speed", **P),
     },
     "robot": {
         "length": Key(float, 1.0, "footprint length [m]", **P),
@@ -153,70 +113,8 @@ COMMON: dict[str, dict[str, Key]] = {
         "steer_rate_max": Key(float, 0.5, "how fast the steering angle may change [rad/s]", **P),
         "a_comfort": Key(float, 3.0, "deceleration used unless an emergency needs more (capped at |a_min|) [m/s^2]", **P),
     },
-    "aac": {
-        "close_distance": Key(float, 2.0, "robots whose footprint centres are closer than this form a close pair [m]", **P),
-        "proximity_iterations": Key(int, 40, "sampling-tree iterations per robot in the proximity decision",
-                                    check=lambda n: 1 <= n <= 10_000, expect="in 1..10000"),
-        "alpha": Key(float, 1.0, "proximity score weight on progress toward the goal [1/m]", **NN),
-        "beta": Key(float, 2.0, "proximity score weight on the collision cost with other robots", **NN),
-        "tree_step": Key(float, 0.3, "sampling-tree step length [m]", **P),
-        "sample_radius": Key(float, 3.0, "sampling-tree samples are drawn within this radius of the robot [m]", **P),
-        "collision_radius": Key(float, 1.0, "a tree node closer than this to another robot costs (1 - d/r)^2 [m]", **P),
-        "safety_stop": Key(bool, False, "non-authority robots brake when their stored input would take them into another's region "
-                           "(off by default, as lfc.safety_stop: the paper has no such layer)"),
-        "safety_margin": Key(float, 0.1, "footprint gap below which the safety stop triggers [m]", **NN),
-        "lookahead": Key(float, 1.0, "pure-pursuit lookahead of the tracking law for robots without a plan [m]", **P),
-        "speed_gain": Key(float, 1.0, "speed-error gain of the tracking law [1/s]", **P),
-        "fallback": Key(("brake", "tracking"), "brake",
-                        "what an authority whose solve fails applies: brake (the planner's fallback, as in the paper) or tracking "
-                        "(the tracking law through the safety stop; needs safety_stop)"),
-        "ignore_followers": Key(bool, False, "the authority does not avoid robots straight behind it: they keep their distance "
-                                "through the safety stop (needs safety_stop); nor does the safety stop brake for uncontrolled vehicles "
-                                "behind a robot that drive its way (SUMO's cars keep their own distance)"),
-        "commit": Key(bool, True, "committed plans: every robot drives the plan of its last turn, ending in a stopping tail, "
-                      "and a new plan replaces it only when it keeps commit_margin from every other commitment (collision-free "
-                      "by construction); false: the paper's stored plan, then the tracking law"),
-        "authorities": Key(object, 1, "robots holding authority per period: 1 (the paper), a larger integer, or \"clusters\" "
-                           "(one per group of robots that can interact within the horizon), with committed or stored plans",
-                           check=lambda a: a == "clusters" or (isinstance(a, int) and not isinstance(a, bool) and a >= 1),
-                           expect="a positive integer or \"clusters\""),
-        "tail_brake": Key(float, 0.5, "deceleration of a commitment's stopping tail, as a share of the strongest braking |robot.a_min|",
-                          check=lambda x: 0 < x <= 1, expect="in (0, 1]"),
-        "commit_margin": Key(float, 0.05, "footprint gap every two commitments keep at every period [m]", **NN),
-        "cruise": Key(float, 0.0, "with commit, on a path that goes on (a road): a commitment continues along its path for up "
-                      "to this long (then half, a quarter) at the speeds its reference anticipates (slowing for what is ahead, "
-                      "yielding to walkers) before its stopping tail, where the exact check passes; 0: the tail follows the plan [s]",
-                      check=lambda x: 0 <= x <= 60, expect="in [0, 60]"),
-        "keep_right": Key(float, 0.0, "right-hand rule: the authority's reference shifts this far to the right while another "
-                          "robot is ahead within keep_right_range (0: off, the paper) [m]", **NN),
-        "keep_right_range": Key(float, 4.0, "distance within which a robot ahead triggers keep_right [m]", **P),
-        "keep_right_max": Key(float, 4.0, "a robot held up in a crowd (slower than 0.3 of its cruise speed) shifts further right, "
-                              "growing at 0.5 m/s up to this [m]", **NN),
-        "make_room": Key(bool, True, "deadlock resolution (with commit): a robot that has stood for stall_time leads, and the "
-                         "robots in its way drive aside while it passes"),
-        "stall_time": Key(float, 1.0, "standing time after which an unfinished robot may lead [s]", **P),
-        "lead_time": Key(float, 8.0, "longest lead [s]", **P),
-        "detour": Key(bool, False, "detours (with commit): a robot that has stood for stall_time, or whose reference runs within "
-                      "detour_clearance of debris or of a parked or long-standing robot, follows a grid A* path round them "
-                      "to its goal instead"),
-        "detour_clearance": Key(float, 0.5, "gap a detour keeps from standing footprints where there is room; it squeezes closer "
-                                "(down to half the robot width + commit_margin) where there is not [m]", **P),
-    },
-    "lfc": {
-        "safety_stop": Key(bool, False, "every robot's first planned input passes AAC's safety stop (the paper's LFC has none)"),
-        "safety_margin": Key(float, 0.1, "footprint gap below which the safety stop triggers [m]", **NN),
-        "fallback": Key(("brake", "tracking"), "brake",
-                        "what a robot whose solve fails applies: brake (the planner's fallback) or tracking "
-                        "(the tracking law below through the safety stop; needs safety_stop)"),
-        "lookahead": Key(float, 1.0, "pure-pursuit lookahead of that tracking law [m]", **P),
-        "speed_gain": Key(float, 1.0, "speed-error gain of that tracking law [1/s]", **P),
-        "ignore_followers": Key(bool, False, "a robot does not avoid robots straight behind it: they keep their distance "
-                                "through the safety stop (needs safety_stop); nor does the safety stop brake for uncontrolled vehicles "
-                                "behind a robot that drive its way (SUMO's cars keep their own distance)"),
-        "commit": Key(bool, False, "committed plans (prioritized planning): every robot plans in index order around the "
-                      "others' commitments and commits only where the exact check passes, with [aac]'s committed-plan "
-                      "settings and deadlock rules; false = the paper's LFC"),
-    },
+    "aac": {},  # sections declared by parameter dataclasses (schema.py, PROVIDERS) are filled on first use
+    "lfc": {},
     "metrics": {
         "accel_threshold": Key(float, 3.0, "|longitudinal acceleration| that counts as aggressive [m/s^2]", **P),
         "lat_accel_threshold": Key(float, 3.0, "lateral acceleration v^2 |curvature| that counts as aggressive [m/s^2]", **P),
@@ -226,35 +124,22 @@ COMMON: dict[str, dict[str, Key]] = {
     },
 }
 
-#: The ORCA baseline's own keys (controller.coordinator = "orca", aac_sumo/coordination/orca.py, docs/baselines.md).
-COMMON["orca"] = {
-    "neighbor_dist": Key(float, 3.0, "RVO2 neighbour distance: other discs farther than this are ignored [m]", **P),
-    "max_neighbors": Key(int, 10, "RVO2: most neighbours each robot considers", check=lambda n: 1 <= n <= 1000, expect="in 1..1000"),
-    "time_horizon": Key(float, 2.0, "RVO2 time horizon against other robots [s]", **P),
-    "time_horizon_obst": Key(float, 2.0, "RVO2 time horizon against static obstacles (debris polygons) [s]", **P),
-    "radius_margin": Key(float, 0.0, "added to each robot's covering-disc radius hypot(length, width) / 2 [m]", **NN),
-    "max_speed": Key(float, 0.0, "RVO2 most speed, at most robot.v_max (0: each robot's cruise speed, as the preferred speed) [m/s]", **NN),
-    "lookahead": Key(float, 1.0, "the preferred velocity points at the path point this far ahead of the rear axle's projection [m]", **P),
-    "pref_noise": Key(float, 0.0, "seeded random perturbation of each preferred velocity, up to this size (0: plain ORCA) [m/s]", **NN),
-    "turn_time": Key(float, 0.3, "tracking law: time constant of turning the heading towards the ORCA velocity's direction [s]", **P),
-    "reverse": Key(bool, True, "tracking law: drive backwards when the ORCA velocity points behind the robot (needs robot.allow_reverse)"),
-    "tracking": Key(("direct", "halfplanes"), "direct", "tracking law's speed: direct (the ORCA speed times the cosine of the "
-                    "heading error, within the limits) or halfplanes (the speed reachable in one period along the next heading "
-                    "nearest that which keeps ORCA's half-planes, else the one violating them least)"),
-}
+#: The baselines' sections: ORCA (controller.coordinator = "orca", aac_sumo/coordination/orca.py, docs/baselines.md) and
+#: CBF-QP (aac_sumo/coordination/cbf_qp.py, docs/baselines_cbf_qp.md), declared by their parameter dataclasses.
+COMMON["orca"] = {}
+COMMON["cbf_qp"] = {}
 _coordinator = COMMON["controller"]["coordinator"]  # declared here, not only when registered: sweep/tune load scenarios first
 COMMON["controller"]["coordinator"] = Key(_coordinator.type + ("orca",), _coordinator.default,
                                           _coordinator.doc + ", orca (RVO2's ORCA on covering discs, a baseline; docs/baselines.md)")
-#: The CBF-QP baseline (controller.coordinator = "cbf_qp", aac_sumo.coordination.cbf_qp; docs/baselines_cbf_qp.md).
-COMMON["cbf_qp"] = {
-    "radius": Key(float, 5.0, "another robot whose footprint centre is within this of the ego's gets a barrier row [m]", **P),
-    "lookahead": Key(float, 1.0, "pure-pursuit lookahead of the nominal tracking law [m]", **P),
-    "speed_gain": Key(float, 1.0, "speed-error gain of the nominal tracking law [1/s]", **P),
-}
 _coordinator = COMMON["controller"]["coordinator"]
 COMMON["controller"]["coordinator"] = Key(_coordinator.type + ("cbf_qp",), _coordinator.default,
                                           _coordinator.doc + ", cbf_qp (a CBF-QP safety filter on the tracking law, a baseline; "
                                           "docs/baselines_cbf_qp.md)")
+
+#: The modules whose parameter dataclasses declare sections (``@schema.section``); the config
+#: imports them by name on first use of the schema (:func:`aac_sumo.config.common`).
+PROVIDERS = ("aac_sumo.mpc.settings", "aac_sumo.coordination.anticipation", "aac_sumo.coordination.aac.params",
+             "aac_sumo.coordination.lfc", "aac_sumo.coordination.orca", "aac_sumo.coordination.cbf_qp")
 
 KIND_SECTIONS: dict[str, dict[str, Key]] = {
     "braking": {

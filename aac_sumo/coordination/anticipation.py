@@ -47,12 +47,15 @@ from functools import cached_property
 
 import numpy as np
 
+from aac_sumo.config.keys import NN, P
+from aac_sumo.config.schema import param, section
 from aac_sumo.geometry import wrap_angle
 from aac_sumo.kernels.anticipation import ramped_speeds, stop_rows
 from aac_sumo.references import PathReference
 from aac_sumo.world import WorldState
 
 
+@section("controller")
 @dataclass(frozen=True)
 class Anticipation:
     """Comfortable rates [m/s^2] (and ``brake``, towards a stop seen late: see
@@ -61,20 +64,25 @@ class Anticipation:
     long a walker who counted goes on counting, see :func:`stop_points`; ``walkway_time``, see
     :meth:`~aac_sumo.world.Obstacle.step_out_speed`)."""
 
-    decel: float = 1.5
-    accel: float = 1.5
-    brake: float = 0.0
-    gap: float = 2.0
-    time_gap: float = 1.0
-    look: float = 80.0
-    lateral_margin: float = 0.3
-    cut_in: float = 2.0
-    pedestrian_margin: float = 1.0
-    pedestrian_reach: float = 0.0
-    walkway_time: float = 0.0
-    yield_distance: float = 20.0
-    yield_band: float = 0.25
-    hold: float = 2.0
+    enabled: bool = param(False, "reference speeds that slow a robot in its lane, early and gently, for what lies ahead on its path "
+                          "(cars, walkers near it), and lanes kept near walkers (docs/lane_change.md)",
+                          key="anticipate", after="retry_with_ipopt")
+    decel: float = param(1.5, "comfortable deceleration of the anticipated reference speed [m/s^2]", key="anticipate_decel", **P)
+    brake: float = param(0.0, "towards a stop it sees too late for anticipate_decel (a walker stepping towards its "
+                         "path), the anticipated reference brakes as hard as it needs up to this, at most robot.a_comfort "
+                         "(0: never harder than anticipate_decel) [m/s^2]", key="anticipate_brake", **NN)
+    accel: float = param(1.5, "comfortable acceleration of the anticipated reference speed [m/s^2]", key="anticipate_accel", **P)
+    gap: float = param(2.0, "standstill gap kept behind what lies ahead [m]", key="anticipate_gap", **NN)
+    time_gap: float = param(1.0, "time gap kept behind a moving leader [s]", key="anticipate_time_gap", **NN)
+    yield_distance: float = param(20.0, "within this of a walker a robot on a lateral band keeps within yield_band of its reference [m]", **NN)
+    yield_band: float = param(0.25, "how far a robot near a walker may leave its reference sideways [m]", **P)
+    pedestrian_margin: float = param(0.0, "declared by MpcConfig (the same key)", shared=True)
+    pedestrian_reach: float = param(0.0, "declared by MpcConfig (the same key)", shared=True)
+    walkway_time: float = param(0.0, "declared by MpcConfig (the same key)", shared=True)
+    look: float = param(80.0, "how far ahead along the path it looks [m]", internal=True)
+    lateral_margin: float = param(0.3, "a footprint within this of the path ahead is on it [m]", internal=True)
+    cut_in: float = param(2.0, "a footprint that reaches the path within this time at its speed towards it is on it [s]", internal=True)
+    hold: float = param(2.0, "how long a walker who counted goes on counting (see stop_points) [s]", internal=True)
 
     @cached_property
     def rules(self) -> np.ndarray:

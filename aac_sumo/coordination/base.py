@@ -10,6 +10,7 @@ from typing import Callable
 
 import numpy as np
 
+from aac_sumo.config.schema import ParamError
 from aac_sumo.barriers import ObstaclePrediction, RegionTrack
 from aac_sumo.coordination.anticipation import Anticipation, anticipated_reference, anticipated_speeds, intended_courses, near_pedestrian
 from aac_sumo.coordination.regions import Fleet
@@ -28,13 +29,22 @@ HEADING_SPACING = 1.0
 FALLBACKS = ("brake", "tracking")
 
 
-def check_safety_options(safety_stop: bool, fallback: str, ignore_followers: bool) -> None:
-    """ValueError unless ``fallback`` is one of FALLBACKS and the options that rely on the
-    safety stop (the tracking fallback, ignoring followers) have it."""
-    if fallback not in FALLBACKS or (fallback == "tracking" and not safety_stop):
-        raise ValueError(f"fallback must be one of {FALLBACKS}, and 'tracking' needs the safety stop")
-    if ignore_followers and not safety_stop:
-        raise ValueError("ignore_followers needs the safety stop")
+def check_safety_options(safety_stop: bool, fallback: str, ignore_followers: bool, commit: bool = True, detour: bool = False) -> None:
+    """The rules of a coordinator's safety options, the one place they are written: a
+    :class:`~aac_sumo.config.schema.ParamError` (a ValueError; a ScenarioError naming the key
+    when the params come from a scenario) unless ``fallback`` is one of FALLBACKS, detours
+    have committed plans, and the options that rely on the safety stop (the tracking
+    fallback, ignoring followers) have it."""
+    if fallback not in FALLBACKS:
+        raise ParamError("fallback", "one of " + ", ".join(FALLBACKS), fallback)
+    if detour and not commit:
+        raise ParamError("detour", "false unless {section}.commit is true", True)
+    if safety_stop:
+        return
+    if fallback == "tracking":
+        raise ParamError("fallback", "brake unless {section}.safety_stop is true", "tracking")
+    if ignore_followers:
+        raise ParamError("ignore_followers", "false unless {section}.safety_stop is true", True)
 
 
 def straight_behind(world: WorldState, fleet: Fleet, i: int, others: np.ndarray) -> np.ndarray:

@@ -60,6 +60,8 @@ import osqp
 import scipy.sparse as sp
 
 from aac_sumo.barriers import stage_parameters
+from aac_sumo.config.keys import P
+from aac_sumo.config.schema import param, section
 from aac_sumo.coordination.base import Coordinator, Decision, Finished, RobotDecision
 from aac_sumo.coordination.tracking import track
 from aac_sumo.mpc.settings import MpcConfig
@@ -71,14 +73,15 @@ from aac_sumo.world import Obstacle, RobotSpec, WorldState
 ROW_TOLERANCE = 1e-9
 
 
+@section("cbf_qp")
 @dataclass(frozen=True)
 class CbfQpParams:
     """CBF-QP settings: the neighbour radius [m] (centre to centre) within which another robot
     gets a barrier row, and the nominal tracking law's lookahead [m] and speed gain [1/s]."""
 
-    radius: float = 5.0
-    lookahead: float = 1.0
-    speed_gain: float = 1.0
+    radius: float = param(5.0, "another robot whose footprint centre is within this of the ego's gets a barrier row [m]", **P)
+    lookahead: float = param(1.0, "pure-pursuit lookahead of the nominal tracking law [m]", **P)
+    speed_gain: float = param(1.0, "speed-error gain of the nominal tracking law [1/s]", **P)
 
 
 @dataclass

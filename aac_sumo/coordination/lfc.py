@@ -22,13 +22,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aac_sumo.coordination.base import Coordinator, Decision, Finished, RobotDecision, check_safety_options, straight_behind
+from aac_sumo.config.keys import NN, P
+from aac_sumo.config.schema import param, section
+from aac_sumo.coordination.base import FALLBACKS, Coordinator, Decision, Finished, RobotDecision, check_safety_options, straight_behind
 from aac_sumo.coordination.tracking import track
 from aac_sumo.mpc.planner import MpcPlanner
 from aac_sumo.references import PathReference
 from aac_sumo.world import WorldState
 
 
+@section("lfc")
 @dataclass(frozen=True)
 class LfcParams:
     """LFC settings: the optional safety stop and its footprint margin [m], what a robot whose
@@ -36,12 +39,18 @@ class LfcParams:
     speed gain [1/s], and whether a robot ignores the robots straight behind it (needs the
     safety stop)."""
 
-    safety_stop: bool = False
-    safety_margin: float = 0.1
-    fallback: str = "brake"
-    lookahead: float = 1.0
-    speed_gain: float = 1.0
-    ignore_followers: bool = False
+    safety_stop: bool = param(False, "every robot's first planned input passes AAC's safety stop (the paper's LFC has none)")
+    safety_margin: float = param(0.1, "footprint gap below which the safety stop triggers [m]", **NN)
+    fallback: str = param("brake", "what a robot whose solve fails applies: brake (the planner's fallback) or tracking "
+                          "(the tracking law below through the safety stop; needs safety_stop)", type=FALLBACKS)
+    lookahead: float = param(1.0, "pure-pursuit lookahead of that tracking law [m]", **P)
+    speed_gain: float = param(1.0, "speed-error gain of that tracking law [1/s]", **P)
+    ignore_followers: bool = param(False, "a robot does not avoid robots straight behind it: they keep their distance "
+                                   "through the safety stop (needs safety_stop); nor does the safety stop brake for uncontrolled vehicles "
+                                   "behind a robot that drive its way (SUMO's cars keep their own distance)")
+    commit: bool = param(False, "committed plans (prioritized planning): every robot plans in index order around the "
+                         "others' commitments and commits only where the exact check passes, with [aac]'s committed-plan "
+                         "settings and deadlock rules; false = the paper's LFC")
 
     def __post_init__(self):
         check_safety_options(self.safety_stop, self.fallback, self.ignore_followers)

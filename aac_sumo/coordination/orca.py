@@ -38,6 +38,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from aac_sumo.config.keys import NN, P
+from aac_sumo.config.schema import param, section
 from aac_sumo.coordination.base import Coordinator, Decision, Finished, RobotDecision
 from aac_sumo.geometry import wrap_angle
 from aac_sumo.mpc.planner import MpcPlanner, ego_discs
@@ -60,6 +62,7 @@ TRACKING = ("direct", "halfplanes")
 SPEED_SAMPLES = 41
 
 
+@section("orca")
 @dataclass(frozen=True)
 class OrcaParams:
     """RVO2's agent settings (neighbour distance [m], most neighbours, time horizons [s] against
@@ -68,18 +71,20 @@ class OrcaParams:
     [m/s], the tracking law's heading time constant [s], whether it may drive backwards (when the
     robot may), and how it picks the speed (``TRACKING``)."""
 
-    neighbor_dist: float = 3.0
-    max_neighbors: int = 10
-    time_horizon: float = 2.0
-    time_horizon_obst: float = 2.0
-    radius_margin: float = 0.0
-    max_speed: float = 0.0
-    lookahead: float = 1.0
-    pref_noise: float = 0.0
-    turn_time: float = 0.3
-    reverse: bool = True
-    seed: int = 0
-    tracking: str = "direct"
+    neighbor_dist: float = param(3.0, "RVO2 neighbour distance: other discs farther than this are ignored [m]", **P)
+    max_neighbors: int = param(10, "RVO2: most neighbours each robot considers", check=lambda n: 1 <= n <= 1000, expect="in 1..1000")
+    time_horizon: float = param(2.0, "RVO2 time horizon against other robots [s]", **P)
+    time_horizon_obst: float = param(2.0, "RVO2 time horizon against static obstacles (debris polygons) [s]", **P)
+    radius_margin: float = param(0.0, "added to each robot's covering-disc radius hypot(length, width) / 2 [m]", **NN)
+    max_speed: float = param(0.0, "RVO2 most speed, at most robot.v_max (0: each robot's cruise speed, as the preferred speed) [m/s]", **NN)
+    lookahead: float = param(1.0, "the preferred velocity points at the path point this far ahead of the rear axle's projection [m]", **P)
+    pref_noise: float = param(0.0, "seeded random perturbation of each preferred velocity, up to this size (0: plain ORCA) [m/s]", **NN)
+    turn_time: float = param(0.3, "tracking law: time constant of turning the heading towards the ORCA velocity's direction [s]", **P)
+    reverse: bool = param(True, "tracking law: drive backwards when the ORCA velocity points behind the robot (needs robot.allow_reverse)")
+    seed: int = param(0, "seed of the preferred-velocity noise", key="scenario.seed")
+    tracking: str = param("direct", "tracking law's speed: direct (the ORCA speed times the cosine of the "
+                          "heading error, within the limits) or halfplanes (the speed reachable in one period along the next heading "
+                          "nearest that which keeps ORCA's half-planes, else the one violating them least)", type=TRACKING)
 
 
 def rectangle_polygon(centre, length: float, width: float, heading: float) -> list[tuple[float, float]]:

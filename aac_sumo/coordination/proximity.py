@@ -18,6 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from aac_sumo.config.keys import NN, P
+from aac_sumo.config.schema import param
 from aac_sumo.kernels.proximity import grow_trees
 
 
@@ -38,13 +40,14 @@ class ProximityParams:
     length [m], sampling radius [m], collision-cost radius [m] and the share of samples drawn
     at the goal (the usual RRT goal bias)."""
 
-    iterations: int = 40
-    alpha: float = 1.0
-    beta: float = 2.0
-    step: float = 0.3
-    sample_radius: float = 3.0
-    collision_radius: float = 1.0
-    goal_bias: float = 0.1
+    iterations: int = param(40, "sampling-tree iterations per robot in the proximity decision", key="proximity_iterations",
+                            check=lambda n: 1 <= n <= 10_000, expect="in 1..10000")
+    alpha: float = param(1.0, "proximity score weight on progress toward the goal [1/m]", **NN)
+    beta: float = param(2.0, "proximity score weight on the collision cost with other robots", **NN)
+    step: float = param(0.3, "sampling-tree step length [m]", key="tree_step", **P)
+    sample_radius: float = param(3.0, "sampling-tree samples are drawn within this radius of the robot [m]", **P)
+    collision_radius: float = param(1.0, "a tree node closer than this to another robot costs (1 - d/r)^2 [m]", **P)
+    goal_bias: float = param(0.1, "share of the samples drawn at the goal (the usual RRT goal bias)", internal=True)
 
 
 @dataclass

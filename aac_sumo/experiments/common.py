@@ -8,9 +8,9 @@ from typing import Callable
 
 import numpy as np
 
-from aac_sumo.barriers import FcbfParams
 from aac_sumo.config import Scenario, ScenarioError
-from aac_sumo.coordination.aac import AacCoordinator, AacParams, Authorities
+from aac_sumo.config.schema import from_section
+from aac_sumo.coordination.aac import AacCoordinator, AacParams
 from aac_sumo.coordination.anticipation import Anticipation
 from aac_sumo.coordination.base import Coordinator, Finished
 from aac_sumo.coordination.cbf_qp import CbfQpCoordinator, CbfQpParams
@@ -18,7 +18,6 @@ from aac_sumo.coordination.independent import IndependentCoordinator
 from aac_sumo.coordination.lfc import LfcCoordinator, LfcParams
 from aac_sumo.coordination.orca import OrcaCoordinator, OrcaParams
 from aac_sumo.coordination.prioritized import PrioritizedLfc
-from aac_sumo.coordination.proximity import ProximityParams
 from aac_sumo.coordination.sumo_driver import SumoDriver
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.geometry import pairwise_rect_clearance
@@ -73,58 +72,16 @@ def robot_spec(scenario: Scenario, name: str, length: float | None = None, width
 
 def mpc_config(scenario: Scenario) -> MpcConfig:
     """The planner settings of ``[controller]``."""
-    c = scenario.data["controller"]
-    return MpcConfig(
-        horizon=c["horizon"], dt=scenario["scenario.dt"], solver=c["solver"], barrier=c["barrier"],
-        gamma=c["gamma"], d_safe=c["d_safe"], fcbf=FcbfParams(c["mu1"], c["mu2"], c["sigmoid_k"], c["v0"]),
-        slots=c["obstacle_slots"], discs=c["ego_discs"], q_pos=c["q_pos"], q_heading=c["q_heading"],
-        q_speed=c["q_speed"], r_accel=c["r_accel"], r_steer=c["r_steer"], s_accel=c["s_accel"],
-        s_steer=c["s_steer"], terminal_scale=c["terminal_scale"], max_iter=c["max_iter"],
-        max_cpu_time=c["max_cpu_time"], retry_with_ipopt=c["retry_with_ipopt"], codegen=c["codegen"],
-        warm_start=c["warm_start"],
-        pedestrian_reach=c["pedestrian_reach"], pedestrian_margin=c["pedestrian_margin"], walkway_time=c["walkway_time"],
-        prediction=c["prediction"], prediction_window=c["prediction_window"],
-        terminal_stop=c["terminal_stop"], obstacle_decel=c["obstacle_decel"],
-        comfort_accel=c["comfort_accel"], comfort_lat=c["comfort_lat"],
-    )
+    return from_section(MpcConfig, scenario, "controller")
 
 
 def aac_params(scenario: Scenario) -> AacParams:
     """The AAC settings of ``[aac]``; the sampling trees are seeded by the scenario seed."""
-    a = scenario.data["aac"]
-    return AacParams(
-        close_distance=a["close_distance"],
-        proximity=ProximityParams(a["proximity_iterations"], a["alpha"], a["beta"], a["tree_step"], a["sample_radius"], a["collision_radius"]),
-        safety_stop=a["safety_stop"], safety_margin=a["safety_margin"], lookahead=a["lookahead"], speed_gain=a["speed_gain"],
-        fallback=a["fallback"], ignore_followers=a["ignore_followers"], seed=scenario["scenario.seed"],
-        commit=a["commit"], authorities=Authorities.parse(a["authorities"]), tail_brake=a["tail_brake"], commit_margin=a["commit_margin"],
-        keep_right=a["keep_right"], keep_right_range=a["keep_right_range"], keep_right_max=a["keep_right_max"], make_room=a["make_room"],
-        stall_time=a["stall_time"], lead_time=a["lead_time"], detour=a["detour"], detour_clearance=a["detour_clearance"],
-        cruise=a["cruise"],
-    )
-
-
-def lfc_params(scenario: Scenario) -> LfcParams:
-    """The LFC settings of ``[lfc]``."""
-    f = scenario.data["lfc"]
-    return LfcParams(f["safety_stop"], f["safety_margin"], f["fallback"], f["lookahead"], f["speed_gain"], f["ignore_followers"])
-
-
-def _check_safety_options(scenario: Scenario, section: str) -> None:
-    """Exit-2 error when an option of ``section`` that relies on its safety stop is on without it."""
-    if section == "aac" and scenario["aac.detour"] and not scenario["aac.commit"]:
-        raise ScenarioError(scenario.source, "aac.detour", "false unless aac.commit is true", True)
-    if scenario[f"{section}.safety_stop"]:
-        return
-    if scenario[f"{section}.fallback"] == "tracking":
-        raise ScenarioError(scenario.source, f"{section}.fallback", f"brake unless {section}.safety_stop is true", "tracking")
-    if scenario[f"{section}.ignore_followers"]:
-        raise ScenarioError(scenario.source, f"{section}.ignore_followers", f"false unless {section}.safety_stop is true", True)
+    return from_section(AacParams, scenario, "aac")
 
 
 @register_coordinator("aac")
 def aac_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corridors, finished) -> AacCoordinator:
-    _check_safety_options(scenario, "aac")
     return AacCoordinator(planner, tasks, corridors, finished, params=aac_params(scenario))
 
 
@@ -132,15 +89,13 @@ def aac_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corridors, f
 def lfc_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corridors, finished) -> LfcCoordinator | PrioritizedLfc:
     """The paper's LFC, or with ``lfc.commit`` prioritized planning on committed plans (its
     committed-plan settings from ``[aac]``, its safety options from ``[lfc]``)."""
-    _check_safety_options(scenario, "lfc")
-    if scenario["lfc.commit"]:
-        f = scenario.data["lfc"]
-        params = dataclasses.replace(aac_params(scenario), commit=True, safety_stop=f["safety_stop"], safety_margin=f["safety_margin"],
-                                     fallback=f["fallback"], lookahead=f["lookahead"], speed_gain=f["speed_gain"],
-                                     ignore_followers=f["ignore_followers"],
-                                     detour=scenario["aac.detour"] and scenario["aac.commit"])
+    lfc = from_section(LfcParams, scenario, "lfc")
+    if lfc.commit:
+        params = from_section(AacParams, scenario, "aac", commit=True, safety_stop=lfc.safety_stop, safety_margin=lfc.safety_margin,
+                              fallback=lfc.fallback, lookahead=lfc.lookahead, speed_gain=lfc.speed_gain,
+                              ignore_followers=lfc.ignore_followers, detour=scenario["aac.detour"] and scenario["aac.commit"])
         return PrioritizedLfc(planner, tasks, corridors, finished, params=params)
-    return LfcCoordinator(planner, tasks, corridors, finished, params=lfc_params(scenario))
+    return LfcCoordinator(planner, tasks, corridors, finished, params=lfc)
 
 
 @register_coordinator("independent")
@@ -152,19 +107,11 @@ def independent_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corr
 ORCA_KINDS = ("swarm_rescue", "circle_swap", "random_crossing")
 
 
-def orca_params(scenario: Scenario) -> OrcaParams:
-    """The ORCA settings of ``[orca]``; its preferred-velocity noise is seeded by the scenario seed."""
-    o = scenario.data["orca"]
-    return OrcaParams(o["neighbor_dist"], o["max_neighbors"], o["time_horizon"], o["time_horizon_obst"], o["radius_margin"],
-                      o["max_speed"], o["lookahead"], o["pref_noise"], o["turn_time"], o["reverse"], scenario["scenario.seed"],
-                      o["tracking"])
-
-
 @register_coordinator("orca")
 def orca_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corridors, finished) -> OrcaCoordinator:
     if scenario.kind not in ORCA_KINDS:
         raise ScenarioError(scenario.source, "controller.coordinator", f"orca only with scenario.kind {', '.join(ORCA_KINDS)}", "orca")
-    return OrcaCoordinator(planner, tasks, corridors, finished, params=orca_params(scenario))
+    return OrcaCoordinator(planner, tasks, corridors, finished, params=from_section(OrcaParams, scenario, "orca"))
 
 
 @register_coordinator("sumo")
@@ -187,8 +134,7 @@ def simulator_drives(scenario: Scenario) -> bool:
 
 @register_coordinator("cbf_qp")
 def cbf_qp_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corridors, finished) -> CbfQpCoordinator:
-    q = scenario.data["cbf_qp"]
-    return CbfQpCoordinator(planner, tasks, corridors, finished, params=CbfQpParams(q["radius"], q["lookahead"], q["speed_gain"]))
+    return CbfQpCoordinator(planner, tasks, corridors, finished, params=from_section(CbfQpParams, scenario, "cbf_qp"))
 
 
 def coordinator(scenario: Scenario, tasks: list[PathReference], corridors=None, finished: Finished | None = None,
@@ -206,14 +152,9 @@ def coordinator(scenario: Scenario, tasks: list[PathReference], corridors=None, 
 
 def anticipation(scenario: Scenario) -> Anticipation | None:
     """The ``controller.anticipate*`` and ``yield_*`` settings, None when ``controller.anticipate`` is off."""
-    c = scenario.data["controller"]
-    if not c["anticipate"]:
+    if not scenario["controller.anticipate"]:
         return None
-    return Anticipation(decel=c["anticipate_decel"], accel=c["anticipate_accel"], brake=c["anticipate_brake"], gap=c["anticipate_gap"],
-                        time_gap=c["anticipate_time_gap"],
-                        pedestrian_margin=c["pedestrian_margin"], pedestrian_reach=c["pedestrian_reach"],
-                        walkway_time=c["walkway_time"], yield_distance=c["yield_distance"],
-                        yield_band=c["yield_band"])
+    return from_section(Anticipation, scenario, "controller")
 
 
 def check_start(scenario: Scenario, world: WorldState, key: str) -> None:

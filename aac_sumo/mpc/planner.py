@@ -18,7 +18,7 @@ from aac_sumo.dynamics import heading_hold_steer
 from aac_sumo.geometry import wrap_angle
 from aac_sumo.kernels.motion import rollouts
 from aac_sumo.mpc.plan import Plan
-from aac_sumo.mpc.problem import NO_LIMIT, OPEN_BAND, get_problem
+from aac_sumo.mpc.problem import NO_LIMIT, OPEN_BAND, WEIGHTS, get_problem
 from aac_sumo.mpc.settings import MpcConfig
 from aac_sumo.prediction import predict_obstacle, stage_zero
 from aac_sumo.references import LateralBand
@@ -313,8 +313,8 @@ class MpcPlanner:
         free = np.isnan(reference).any(axis=0)  # a NaN reference column is not weighed
         if free.any():
             reference = np.where(np.isnan(reference), np.r_[state[:2], state[2], 0.0][None, :], reference)
-            weights[np.flatnonzero(free)] = 0.0
-            weights[8 + np.flatnonzero(free)] = 0.0
+            weights[WEIGHTS["q"]][free] = 0.0  # views: the state rows of Q and of the terminal P
+            weights[WEIGHTS["p"]][free] = 0.0
         offsets, _ = ego_discs(robot, cfg.discs)
         barriers, terminal = self.barrier_parameters(robot, state, u_prev, obstacles)
         params = dict(

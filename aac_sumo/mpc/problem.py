@@ -37,7 +37,14 @@ from aac_sumo.barriers import N_STAGE_FIELDS, N_TERMINAL_FIELDS, barrier_value, 
 from aac_sumo.dynamics import NU, NX, bicycle_step
 
 SOLVERS = ("fatrop", "sqp", "ipopt")
-N_WEIGHTS = 12  # Q(4), R(2), S(2), P(4) diagonals
+#: The weight vector's parts, in order, defined once: the diagonals of Q on the ``[x, y, heading,
+#: v]`` errors, R on ``[accel, steer]``, S on input changes and the terminal P (same rows as Q).
+#: :meth:`MpcConfig.weights` fills it by these names and the cost reads it by them.
+WEIGHT_PARTS = (("q", 4), ("r", 2), ("s", 2), ("p", 4))
+WEIGHTS = {name: slice(sum(n for _, n in WEIGHT_PARTS[:i]), sum(n for _, n in WEIGHT_PARTS[:i + 1]))
+           for i, (name, _) in enumerate(WEIGHT_PARTS)}
+N_WEIGHTS = sum(n for _, n in WEIGHT_PARTS)
+assert N_WEIGHTS == 12 and WEIGHTS["p"] == slice(8, 12)
 NZ = NX + NU  # stage state: the robot's state and the input applied before the stage
 
 
@@ -143,7 +150,7 @@ class MpcProblem:
         xs, ms = [z[:NX] for z in zs], [z[NX:] for z in zs]
         us = [w[self._u_index(k)] for k in range(n)]
         weights = par["weights"]
-        q, r, s, pw = weights[0:4], weights[4:6], weights[6:8], weights[8:12]
+        q, r, s, pw = (weights[WEIGHTS[name]] for name in ("q", "r", "s", "p"))
         x_ref = ca.reshape(par["x_ref"], NX, n + 1)
         obstacles = ca.reshape(par["obstacles"], N_STAGE_FIELDS, (n + 1) * slots)
         band = ca.reshape(par["band"], BAND_FIELDS, n) if shape.band else None

@@ -8,9 +8,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from aac_sumo.barriers import FcbfParams
-from aac_sumo.mpc.problem import ProblemShape
+from aac_sumo.config.keys import NN, P
+from aac_sumo.config.schema import param, section
+from aac_sumo.mpc.problem import N_WEIGHTS, WEIGHTS, ProblemShape
 
 
+@section("controller")
 @dataclass(frozen=True)
 class MpcConfig:
     """Everything the planner needs besides the robot and its surroundings.
@@ -40,42 +43,59 @@ class MpcConfig:
     limits, so a harder input is one that the situation called for.
     """
 
-    horizon: int = 10
-    dt: float = 0.1
-    solver: str = "fatrop"
-    barrier: str = "fcbf"
-    gamma: float = 0.3
-    d_safe: float = 0.2
-    fcbf: FcbfParams = FcbfParams()
-    slots: int = 8
-    discs: int = 1
-    q_pos: float = 1.0
-    q_heading: float = 1.0
-    q_speed: float = 1.0
-    r_accel: float = 0.1
-    r_steer: float = 0.1
-    s_accel: float = 0.1
-    s_steer: float = 1.0
-    terminal_scale: float = 5.0
-    max_iter: int = 100
-    max_cpu_time: float = 60.0
-    retry_with_ipopt: bool = True
-    codegen: bool = False
-    warm_start: bool = True
-    band: bool = False
-    pedestrian_reach: float = 0.0
-    pedestrian_margin: float = 0.0
-    walkway_time: float = 0.0
-    prediction: str = "constant_velocity"
-    prediction_window: int = 2
-    terminal_stop: bool = False
-    obstacle_decel: float = 0.0
-    comfort_accel: float = 0.0
-    comfort_lat: float = 0.0
+    barrier: str = param("fcbf", "F-CBF (velocity-stretched ellipse) or plain CBF (footprint ellipse)", type=("fcbf", "cbf"))
+    horizon: int = param(10, "MPC horizon N [steps]", check=lambda n: 1 <= n <= 100, expect="in 1..100")
+    solver: str = param("fatrop", "NLP solver of the fast path", type=("fatrop", "sqp", "ipopt"))
+    retry_with_ipopt: bool = param(True, "retry a failed fast-path solve once with ipopt")
+    warm_start: bool = param(True, "start each solve from the previous plan shifted by one period (else from the "
+                             "zero-input rollout); a failed warm start is retried cold")
+    codegen: bool = param(False, "compile the fast path to C with gcc (cached on disk; ~2x faster solves)")
+    gamma: float = param(0.3, "discrete barrier decay rate", check=lambda g: 0 < g <= 1, expect="in (0, 1]")
+    d_safe: float = param(0.2, "margin added to the ego's covering-disc radius [m]", **NN)
+    fcbf: FcbfParams = param(FcbfParams(), "the F-CBF ellipse's shape", nested=True)
+    pedestrian_reach: float = param(0.0, "pedestrians may start, stop or turn at any moment: their regions grow by this speed times the look-ahead time in every direction [m/s]", **NN)
+    pedestrian_margin: float = param(0.0, "extra clearance every robot keeps from pedestrians, on top of d_safe [m]", **NN)
+    walkway_time: float = param(0.0, "a pedestrian on a walkway of her own (a sidewalk or footpath, not a crossing) who cannot reach either of its ends within this time at her speed plus pedestrian_reach stays on it: her region does not grow by pedestrian_reach; 0 = never [s]", **NN)
+    prediction: str = param("constant_velocity",
+                            "how obstacles move over the horizon, the same for every barrier: constant_velocity, or "
+                            "constant_acceleration (each keeps its direction and changes its speed at the acceleration "
+                            "estimated from its last prediction_window observed speeds, stopping at zero, never reversing)",
+                            type=("constant_velocity", "constant_acceleration"))
+    prediction_window: int = param(2, "observed speeds (one per control period) whose least-squares slope is an "
+                                   "obstacle's estimated acceleration; 2 = the backward difference",
+                                   check=lambda n: 2 <= n <= 50, expect="in 2..50")
+    terminal_stop: bool = param(False, "terminal stopping condition: braking at its strongest after the horizon, the robot stops short of "
+                                "where each obstacle ahead of it could stop at the earliest (the car-following stopping-distance rule; "
+                                "docs/braking.md)")
+    obstacle_decel: float = param(0.0, "strongest braking assumed of obstacles for terminal_stop [m/s^2]; 0 = as hard as the robot itself can", **NN)
+    comfort_accel: float = param(0.0, "comfort envelope the MPC plans within first: |acceleration| at most this; only when no "
+                                 "plan fits does it use the vehicle's full limits (0: off) [m/s^2]", **NN)
+    comfort_lat: float = param(0.0, "the comfort envelope's lateral acceleration v^2 |tan(steer)| / wheelbase (0: off) [m/s^2]", **NN)
+    slots: int = param(8, "obstacles the MPC considers (nearest first)", key="obstacle_slots", check=lambda n: 1 <= n <= 64, expect="in 1..64")
+    discs: int = param(1, "discs covering the ego footprint", key="ego_discs", check=lambda n: 1 <= n <= 5, expect="in 1..5")
+    q_pos: float = param(1.0, "Q weight on position error [1/m^2]", **NN)
+    q_heading: float = param(1.0, "Q weight on heading error [1/rad^2]", **NN)
+    q_speed: float = param(1.0, "Q weight on speed error [s^2/m^2]", **NN)
+    r_accel: float = param(0.1, "R weight on acceleration", **NN)
+    r_steer: float = param(0.1, "R weight on steering angle", **NN)
+    s_accel: float = param(0.1, "S weight on acceleration change", **NN)
+    s_steer: float = param(1.0, "S weight on steering change", **NN)
+    terminal_scale: float = param(5.0, "terminal weight P = terminal_scale * Q", **NN)
+    max_iter: int = param(100, "iteration cap per solve", check=lambda n: 1 <= n <= 100_000, expect="in 1..100000")
+    max_cpu_time: float = param(60.0, "CPU-time cap per ipopt solve [s]; keep it above what max_iter allows, or results depend on machine speed", **P)
+    dt: float = param(0.1, "control period [s]", key="scenario.dt")
+    band: bool = param(False, "build the problem with the lateral-band rows a LateralBand corridor needs", internal=True)
 
     def weights(self) -> np.ndarray:
+        """The problem's weight vector, filled by the names of :data:`~aac_sumo.mpc.problem.WEIGHTS`."""
         q = np.array([self.q_pos, self.q_pos, self.q_heading, self.q_speed])
-        return np.concatenate([q, [self.r_accel, self.r_steer], [self.s_accel, self.s_steer], self.terminal_scale * q])
+        w = np.full(N_WEIGHTS, np.nan)
+        w[WEIGHTS["q"]] = q
+        w[WEIGHTS["r"]] = [self.r_accel, self.r_steer]
+        w[WEIGHTS["s"]] = [self.s_accel, self.s_steer]
+        w[WEIGHTS["p"]] = self.terminal_scale * q
+        assert not np.isnan(w).any()
+        return w
 
     def envelopes(self, limits) -> list[tuple[float, float, float]]:
         """The input envelopes ``(a_min, a_max, a_lat_max)`` [m/s^2] the planner tries in turn

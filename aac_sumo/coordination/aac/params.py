@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from aac_sumo.coordination.base import check_safety_options
+from aac_sumo.config.keys import NN, P
+from aac_sumo.config.schema import param, section
+from aac_sumo.coordination.base import FALLBACKS, check_safety_options
 from aac_sumo.coordination.proximity import ProximityParams
 
 
@@ -37,6 +39,7 @@ class Authorities:
         return not self.per_cluster and self.count == 1
 
 
+@section("aac")
 @dataclass(frozen=True)
 class AacParams:
     """AAC settings: close-pair distance [m], proximity decision, safety stop (on/off, margin
@@ -53,32 +56,50 @@ class AacParams:
     and how long [s] a commitment may continue along its path, at the speeds its anticipated
     reference has, before its stopping tail (``cruise``; 0: the tail follows the plan)."""
 
-    close_distance: float = 2.0
-    proximity: ProximityParams = ProximityParams()
-    safety_stop: bool = False
-    safety_margin: float = 0.1
-    lookahead: float = 1.0
-    speed_gain: float = 1.0
-    fallback: str = "brake"
-    ignore_followers: bool = False
-    seed: int = 0
-    commit: bool = True
-    authorities: Authorities = Authorities()
-    tail_brake: float = 0.5
-    commit_margin: float = 0.05
-    keep_right: float = 0.0
-    keep_right_range: float = 4.0
-    keep_right_max: float = 4.0
-    make_room: bool = True
-    stall_time: float = 1.0
-    lead_time: float = 8.0
-    detour: bool = False
-    detour_clearance: float = 0.5
-    cruise: float = 0.0
+    close_distance: float = param(2.0, "robots whose footprint centres are closer than this form a close pair [m]", **P)
+    proximity: ProximityParams = param(ProximityParams(), "the proximity decision's sampling trees", nested=True)
+    safety_stop: bool = param(False, "non-authority robots brake when their stored input would take them into another's region "
+                              "(off by default, as lfc.safety_stop: the paper has no such layer)")
+    safety_margin: float = param(0.1, "footprint gap below which the safety stop triggers [m]", **NN)
+    lookahead: float = param(1.0, "pure-pursuit lookahead of the tracking law for robots without a plan [m]", **P)
+    speed_gain: float = param(1.0, "speed-error gain of the tracking law [1/s]", **P)
+    fallback: str = param("brake", "what an authority whose solve fails applies: brake (the planner's fallback, as in the paper) or "
+                          "tracking (the tracking law through the safety stop; needs safety_stop)", type=FALLBACKS)
+    ignore_followers: bool = param(False, "the authority does not avoid robots straight behind it: they keep their distance "
+                                   "through the safety stop (needs safety_stop); nor does the safety stop brake for uncontrolled vehicles "
+                                   "behind a robot that drive its way (SUMO's cars keep their own distance)")
+    seed: int = param(0, "seed of the sampling trees", key="scenario.seed")
+    commit: bool = param(True, "committed plans: every robot drives the plan of its last turn, ending in a stopping tail, "
+                         "and a new plan replaces it only when it keeps commit_margin from every other commitment (collision-free "
+                         "by construction); false: the paper's stored plan, then the tracking law")
+    authorities: Authorities = param(Authorities(), "robots holding authority per period: 1 (the paper), a larger integer, or \"clusters\" "
+                                     "(one per group of robots that can interact within the horizon), with committed or stored plans",
+                                     type=object, parse=lambda a: Authorities.parse(a), raw_default=1,
+                                     check=lambda a: a == "clusters" or (isinstance(a, int) and not isinstance(a, bool) and a >= 1),
+                                     expect="a positive integer or \"clusters\"")
+    tail_brake: float = param(0.5, "deceleration of a commitment's stopping tail, as a share of the strongest braking |robot.a_min|",
+                              check=lambda x: 0 < x <= 1, expect="in (0, 1]")
+    commit_margin: float = param(0.05, "footprint gap every two commitments keep at every period [m]", **NN)
+    cruise: float = param(0.0, "with commit, on a path that goes on (a road): a commitment continues along its path for up "
+                          "to this long (then half, a quarter) at the speeds its reference anticipates (slowing for what is ahead, "
+                          "yielding to walkers) before its stopping tail, where the exact check passes; 0: the tail follows the plan [s]",
+                          check=lambda x: 0 <= x <= 60, expect="in [0, 60]")
+    keep_right: float = param(0.0, "right-hand rule: the authority's reference shifts this far to the right while another "
+                              "robot is ahead within keep_right_range (0: off, the paper) [m]", **NN)
+    keep_right_range: float = param(4.0, "distance within which a robot ahead triggers keep_right [m]", **P)
+    keep_right_max: float = param(4.0, "a robot held up in a crowd (slower than 0.3 of its cruise speed) shifts further right, "
+                                  "growing at 0.5 m/s up to this [m]", **NN)
+    make_room: bool = param(True, "deadlock resolution (with commit): a robot that has stood for stall_time leads, and the "
+                            "robots in its way drive aside while it passes")
+    stall_time: float = param(1.0, "standing time after which an unfinished robot may lead [s]", **P)
+    lead_time: float = param(8.0, "longest lead [s]", **P)
+    detour: bool = param(False, "detours (with commit): a robot that has stood for stall_time, or whose reference runs within "
+                         "detour_clearance of debris or of a parked or long-standing robot, follows a grid A* path round them "
+                         "to its goal instead")
+    detour_clearance: float = param(0.5, "gap a detour keeps from standing footprints where there is room; it squeezes closer "
+                                    "(down to half the robot width + commit_margin) where there is not [m]", **P)
 
     def __post_init__(self):
-        check_safety_options(self.safety_stop, self.fallback, self.ignore_followers)
+        check_safety_options(self.safety_stop, self.fallback, self.ignore_followers, self.commit, self.detour)
         if not isinstance(self.authorities, Authorities):
             raise ValueError("authorities must be an Authorities (Authorities.parse(1 | k | 'clusters'))")
-        if self.detour and not self.commit:
-            raise ValueError("detours need committed plans (commit = true)")

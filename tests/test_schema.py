@@ -1,0 +1,134 @@
+"""One declaration per parameter: the parameter dataclasses are the schema of their sections
+(aac_sumo.config.schema). Every key of a dataclass-backed section has its field, with the same
+default; every field has a doc; a scenario builds each dataclass by the generic from_section."""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+import runpy
+
+import pytest
+
+from aac_sumo import config
+from aac_sumo.config import ScenarioError, schema
+from aac_sumo.experiments import common
+from aac_sumo.mpc.problem import N_WEIGHTS, WEIGHTS
+from aac_sumo.mpc.settings import MpcConfig
+
+SECTIONS = config.common() and dict(schema.SECTIONS)  # the providers loaded, then their sections
+#: Keys of those sections that no dataclass declares: a registry choice, not a parameter.
+NOT_PARAMETERS = {("controller", "coordinator")}
+
+
+def declared_fields(section):
+    """``{key: (field, Param, dataclass)}`` of every field that declares a key of ``section``."""
+    out = {}
+    for cls in SECTIONS[section]:
+        for f, p in schema.scenario_fields(cls):
+            out.setdefault(schema.key_name(f), []).append((f, p, cls))
+    return out
+
+
+def test_the_dataclass_sections_are_the_ones_expected():
+    assert set(SECTIONS) == {"controller", "aac", "lfc", "orca", "cbf_qp"}
+
+
+@pytest.mark.parametrize("section", ["controller", "aac", "lfc", "orca", "cbf_qp"])
+def test_every_key_of_a_dataclass_section_has_its_field_with_the_same_default(section):
+    fields = declared_fields(section)
+    for key, declared in config.common()[section].items():
+        if (section, key) in NOT_PARAMETERS:
+            continue
+        assert key in fields, f"{section}.{key} has no dataclass field"
+        for f, p, cls in fields[key]:
+            assert schema.key_default(f, p) == declared.default, f"{cls.__name__}.{f.name}: {schema.key_default(f, p)!r} != {declared.default!r}"
+            if p.parse is not None:
+                assert p.parse(declared.default) == f.default, f"{cls.__name__}.{f.name}"
+    assert set(fields) <= set(config.common()[section]), "a field declares a key the section lacks"
+
+
+def test_no_key_table_is_hand_written_for_a_dataclass_section():
+    """config/keys.py, run afresh (the loaded COMMON has the derived sections filled in), holds
+    no key of a dataclass-backed section but the registry's choice."""
+    fresh = runpy.run_path(importlib.util.find_spec("aac_sumo.config.keys").origin)["COMMON"]
+    for section in SECTIONS:
+        assert {(section, key) for key in fresh.get(section, {})} <= NOT_PARAMETERS
+
+
+def test_fields_read_from_another_section_have_its_default():
+    for classes in SECTIONS.values():
+        for cls in classes:
+            for f in dataclasses.fields(cls):
+                p = schema.meta(f)
+                if "." in (p.key or ""):
+                    section, key = p.key.split(".")
+                    assert config.common()[section][key].default == f.default, f"{cls.__name__}.{f.name}"
+
+
+def every_dataclass():
+    seen = []
+    stack = [cls for classes in SECTIONS.values() for cls in classes]
+    while stack:
+        cls = stack.pop()
+        if cls not in seen:
+            seen.append(cls)
+            stack += [type(f.default) for f in dataclasses.fields(cls) if schema.meta(f).nested]
+    return seen
+
+
+def test_every_field_is_declared_with_a_doc():
+    for cls in every_dataclass():
+        for f in dataclasses.fields(cls):
+            assert schema.meta(f).doc.strip(), f"{cls.__name__}.{f.name} has no doc"
+
+
+def test_a_shared_key_has_one_default_in_every_dataclass_that_reads_it():
+    for section in SECTIONS:
+        for key, declared in declared_fields(section).items():
+            assert len({repr(schema.key_default(f, p)) for f, p, _ in declared}) == 1, f"{section}.{key}"
+            assert sum(not p.shared for _, p, _ in declared) == 1, f"{section}.{key} is declared (not shared) once"
+
+
+def test_defaults_build_the_dataclasses_defaults():
+    """A scenario of defaults builds every dataclass equal to its own defaults (seed and dt aside)."""
+    scenario = config.Scenario.from_dict({"scenario": {"kind": "braking"}, "controller": {"anticipate": True}})
+    assert common.mpc_config(scenario) == MpcConfig(dt=scenario["scenario.dt"])
+    from aac_sumo.coordination.aac import AacParams
+    from aac_sumo.coordination.anticipation import Anticipation
+    from aac_sumo.coordination.cbf_qp import CbfQpParams
+    from aac_sumo.coordination.lfc import LfcParams
+    from aac_sumo.coordination.orca import OrcaParams
+    assert common.aac_params(scenario) == AacParams()
+    assert common.anticipation(scenario) == Anticipation(enabled=True)
+    assert schema.from_section(LfcParams, scenario, "lfc") == LfcParams()
+    assert schema.from_section(OrcaParams, scenario, "orca") == OrcaParams()
+    assert schema.from_section(CbfQpParams, scenario, "cbf_qp") == CbfQpParams()
+
+
+def test_a_set_key_reaches_its_field_and_nested_fields():
+    scenario = config.load("braking", ["controller.sigmoid_k=3.5", "controller.obstacle_slots=5", "aac.tree_step=0.7",
+                                       "aac.authorities=\"clusters\"", "scenario.seed=7"])
+    mpc, aac = common.mpc_config(scenario), common.aac_params(scenario)
+    assert mpc.fcbf.k == 3.5 and mpc.slots == 5
+    assert aac.proximity.step == 0.7 and aac.authorities.per_cluster and aac.seed == 7
+
+
+@pytest.mark.parametrize("sets, key, text", [
+    (["aac.fallback=tracking"], "aac.fallback", "expected brake unless aac.safety_stop is true, got 'tracking'"),
+    (["lfc.ignore_followers=true"], "lfc.ignore_followers", "expected false unless lfc.safety_stop is true, got True"),
+    (["aac.commit=false", "aac.detour=true"], "aac.detour", "expected false unless aac.commit is true, got True"),
+])
+def test_the_safety_rules_name_the_scenario_key(sets, key, text):
+    scenario = config.load("swarm_rescue", sets)
+    section = key.split(".")[0]
+    with pytest.raises(ScenarioError) as err:
+        schema.from_section({"aac": common.AacParams, "lfc": common.LfcParams}[section], scenario, section)
+    assert err.value.key == key and str(err.value).endswith(f"{key}: {text}")
+
+
+def test_the_weight_vector_is_filled_by_name():
+    w = MpcConfig(q_pos=2.0, q_heading=3.0, q_speed=4.0, r_accel=5.0, r_steer=6.0, s_accel=7.0, s_steer=8.0, terminal_scale=10.0).weights()
+    assert len(w) == N_WEIGHTS
+    assert w[WEIGHTS["q"]].tolist() == [2.0, 2.0, 3.0, 4.0] and w[WEIGHTS["p"]].tolist() == [20.0, 20.0, 30.0, 40.0]
+    assert w[WEIGHTS["r"]].tolist() == [5.0, 6.0] and w[WEIGHTS["s"]].tolist() == [7.0, 8.0]
