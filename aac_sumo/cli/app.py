@@ -17,19 +17,16 @@ from pathlib import Path
 from aac_sumo.cli.common import PROG, UsageError, check_out
 from aac_sumo.cli.parser import build_parser
 from aac_sumo.cli.studies import cmd_bench, cmd_stress, cmd_sweep, cmd_table, cmd_tune
+from aac_sumo.cli.views import COMMANDS as VIEW_COMMANDS
+from aac_sumo.config import ScenarioError
+from aac_sumo.runs.files import RunDirError
+from aac_sumo.runs.sweep import SweepError
+from aac_sumo.sim.sumo_options import SumoError
 
 
 def main(argv: list[str] | None = None) -> int:
-    try:
-        from aac_sumo.config import ScenarioError
-        from aac_sumo.sim.sumo_options import SumoError
-        from aac_sumo.cli.views import COMMANDS as VIEW_COMMANDS
-        from aac_sumo.runs.files import RunDirError
-        from aac_sumo.runs.sweep import SweepError
-    except KeyboardInterrupt:  # Ctrl-C while the modules load
-        print(f"{PROG}: interrupted while starting", file=sys.stderr)
-        return 130
-
+    """Run ``aac-sumo`` with ``argv``; a Ctrl-C while this module loads is
+    :func:`aac_sumo.cli.main`'s to answer."""
     args = None
     try:
         args = build_parser().parse_args(argv)
