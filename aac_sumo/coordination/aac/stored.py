@@ -177,21 +177,22 @@ class StoredPlanAac(AacCoordinator):
         if parked:
             return self.hold_inputs(world, j, steps), "hold"
         plan = self.plans[j]
+        speed = self.tracking_speed(world, j, self.params.speed_gain)
         if plan is not None and self.used[j] < len(plan.inputs):
             rest = plan.inputs[self.used[j]:][:steps]
             out[: len(rest)] = rest
-            speed = self.tracking_speed(world, j, self.params.speed_gain)
-            if speed is not None:
-                lawful = self.params.speed_gain * (speed - world.states[j, 3])
-                if world.states[j, 3] < OUTRUN_SHARE * task.speed and lawful > out[0, 0] + HOLD_TOLERANCE:
-                    self.used[j] = len(plan.inputs)  # held up by a plan the traffic has outrun: the law drives it off
-                    return self.intended_inputs(world, j, parked, steps)
-                out[0, 0] = min(out[0, 0], max(lawful, -world.robots[j].model.limits.comfort_decel))
-            if self.yielding(world, j):  # it keeps its lane on the tracking law's steering (a plan made a period or
-                # more ago, driven open-loop at 9 m/s, took a car 0.54 m off its lane beside a walker)
-                out[0, 1] = track(world.robots[j], world.states[j], task, self.params.lookahead, self.params.speed_gain,
-                                  self.last_inputs[j, 1], self.planner.config.dt, a_lat=self.tracking_lat())[1]
-            return out, "plan"
+            lawful = None if speed is None else self.params.speed_gain * (speed - world.states[j, 3])
+            if lawful is not None and world.states[j, 3] < OUTRUN_SHARE * task.speed and lawful > out[0, 0] + HOLD_TOLERANCE:
+                self.used[j] = len(plan.inputs)  # held up by a plan the traffic has outrun: the law drives it off
+            else:
+                if lawful is not None:
+                    out[0, 0] = min(out[0, 0], max(lawful, -world.robots[j].model.limits.comfort_decel))
+                if self.yielding(world, j):  # it keeps its lane on the tracking law's steering (a plan made a period
+                    # or more ago, driven open-loop at 9 m/s, took a car 0.54 m off its lane beside a walker)
+                    out[0, 1] = track(world.robots[j], world.states[j], task, self.params.lookahead, self.params.speed_gain,
+                                      self.last_inputs[j, 1], self.planner.config.dt, a_lat=self.tracking_lat())[1]
+                return out, "plan"
+            out[:] = 0.0
         out[0] = track(world.robots[j], world.states[j], task, self.params.lookahead, self.params.speed_gain, self.last_inputs[j, 1],
-                       self.planner.config.dt, target_speed=self.tracking_speed(world, j, self.params.speed_gain), a_lat=self.tracking_lat())
+                       self.planner.config.dt, target_speed=speed, a_lat=self.tracking_lat())
         return out, "tracking"
