@@ -249,10 +249,13 @@ def test_ctrl_c_on_the_process_group_interrupts_an_isolated_run(tmp_path):
     """Ctrl-C reaches aac-sumo and SUMO's process alike: the run stops as interrupted (exit 130,
     outputs written), not as a SUMO crash."""
     out = tmp_path / "out"
+    # LFC's 15 solves a period, with references at 3 m/s and a 120 s limit: 1,200 periods, far more
+    # than the 15 s before the signal (the bundled run, 33 s of road, had become short enough to
+    # finish first on a fast machine)
     cmd = [str(Path(sys.executable).parent / "aac-sumo"), "run", "lane_change", "--set", "controller.coordinator=lfc",
-           "--out", str(out)]
+           "--set", "lane_change.speed=3", "--set", "scenario.duration=120", "--out", str(out)]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
-    time.sleep(15.0)  # past start-up and warm-up, long before the run ends (LFC's 15 solves a period: about a minute)
+    time.sleep(15.0)  # past start-up and warm-up, long before the run ends
     os.killpg(proc.pid, signal.SIGINT)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
