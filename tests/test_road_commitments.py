@@ -12,6 +12,7 @@ from aac_sumo.coordination.aac import AacCoordinator, AacParams
 from aac_sumo.coordination.anticipation import Anticipation
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.mpc.settings import MpcConfig
+from aac_sumo.kernels.motion import footprint_rows
 from aac_sumo.mpc.planner import MpcPlanner
 from aac_sumo.references import PathReference
 from aac_sumo.world import Obstacle, RobotSpec, WorldState
@@ -22,11 +23,11 @@ CARS = [RobotSpec(f"car{i}", 4.0, 1.8, BicycleModel(2.6, LIMITS)) for i in range
 COMMITTED = ["aac.commit=true", "aac.safety_stop=false", "aac.fallback=brake", "aac.ignore_followers=false", "aac.make_room=false"]
 
 
-def two_cars(cruise: float, obstacles=()):
+def two_cars(cruise: float, obstacles=(), reach: float = 0.0):
     """Two cars in one lane along y = 0 at 10 m/s, 30 m apart, their first decision under
-    committed AAC with anticipation and ``cruise`` [s]."""
+    committed AAC with anticipation, ``cruise`` [s] and walkers' ``reach`` [m/s]."""
     tasks = [PathReference([[-50.0, 0.0], [800.0, 0.0]], 10.0, stop_at_end=False) for _ in CARS]
-    config_ = MpcConfig(dt=DT, horizon=10, comfort_accel=2.0, comfort_lat=2.0, pedestrian_margin=1.0)
+    config_ = MpcConfig(dt=DT, horizon=10, comfort_accel=2.0, comfort_lat=2.0, pedestrian_margin=1.0, pedestrian_reach=reach)
     aac = AacCoordinator(MpcPlanner(config_), tasks, params=AacParams(commit=True, safety_stop=False, make_room=False, cruise=cruise,
                                                                       lookahead=10.0))
     aac.anticipation = Anticipation(pedestrian_margin=1.0)
@@ -61,6 +62,27 @@ def test_a_continuation_yields_to_a_walker_on_the_lane_as_the_anticipation_does(
     nose = course[:, 0] + 1.3 + 2.0
     assert np.all(nose < 90.0 - 0.25 - 1.0)
     assert np.all(np.diff(course[:, 3]) >= -2.0 * DT - 1e-9)
+
+
+def test_every_commitment_keeps_clear_of_where_a_walker_beside_the_lane_may_walk_meanwhile():
+    """A walker stands on a crossing 3.2 m beside the lane, 40 m ahead of the front car: she may
+    set off at any moment at the reach speed (1.5 m/s). Every commitment keeps its footprint,
+    period after period, outside the disc she may reach by then (her half diagonal, the 1 m
+    margin and 1.5 m/s x the time); without her the front car commits to drive past her spot."""
+    centre = np.array([70.0, -3.2])
+    walker = Obstacle("p", "pedestrian", centre, np.zeros(2), np.pi / 2, 0.3, 0.5)
+    aac = two_cars(4.0, [walker], reach=1.5)
+    radius = 0.5 * np.hypot(0.3, 0.5) + 1.0
+    for c in aac.book.items:
+        rows = footprint_rows(c.states[None], np.array([1.3]), np.array([4.0]), np.array([1.8]))[0]
+        for k, row in enumerate(rows):
+            co, si = np.cos(row[4]), np.sin(row[4])
+            d = centre - row[:2]
+            x, y = abs(d[0] * co + d[1] * si) - 2.0, abs(-d[0] * si + d[1] * co) - 0.9
+            assert np.hypot(max(x, 0.0), max(y, 0.0)) >= radius + 1.5 * k * DT - 1e-9, f"period {k}"
+    front = aac.book.items[1]
+    assert front.states[-1, 0] + 3.3 < centre[0]  # it stands before her spot
+    assert two_cars(4.0, reach=1.5).book.items[1].states[-1, 0] > centre[0] + 10.0
 
 
 @pytest.mark.slow

@@ -25,6 +25,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from aac_sumo.coordination.regions import Fleet
+from aac_sumo.coordination.walker_reach import WalkerReach
 from aac_sumo.kernels.commitments import course_boxes, course_clearance, pair_components, ragged_nearest, stopping_course
 from aac_sumo.kernels.motion import footprint_rows
 from aac_sumo.references import PathReference
@@ -109,6 +110,7 @@ class CommitmentBook:
         self._period: int | None = None
         self._flat: tuple | None = None  # (rows, starts, lengths, the statics they hold, the courses' boxes)
         self._refused: dict[int, tuple | None] = {}  # per robot, its last refusal by something standing (see refuse)
+        self.walkers: WalkerReach | None = None  # the walkers of the current period, set by the coordinator (see check)
         # every commitment's states, each padded with its last state to one length (n, L, 4), for courses
         self._states = np.zeros((len(self.items), 1, 4))
         self._start = np.zeros(len(self.items), dtype=int)  # each commitment's first period
@@ -156,16 +158,20 @@ class CommitmentBook:
             commitment.rows = footprint_rows(commitment.states[None], self.fleet.offset[[i]], self.fleet.length[[i]], self.fleet.width[[i]])[0]
         return commitment.rows[min(max(period - commitment.start, 0), len(commitment.inputs)):]
 
-    def clearance(self, i: int, candidate: Commitment, period: int, statics: np.ndarray) -> float:
+    def clearance(self, i: int, candidate: Commitment, period: int, statics: np.ndarray, walkers: bool = True) -> float:
         """Least footprint clearance [m] of robot ``i`` along ``candidate`` to every other
         robot along its commitment and to the standing obstacles ``statics`` (S, 5), from
-        ``period`` until all stand still (exact below ``margin``)."""
-        return self.check(i, candidate, period, statics)[0]
+        ``period`` until all stand still (exact below ``margin``); with ``walkers`` and
+        :attr:`walkers` set, also ``margin`` plus the course's slack to the walkers' regions
+        (:class:`~aac_sumo.coordination.walker_reach.WalkerReach`), so that it passes
+        (``>= margin``) only clear of them."""
+        return self.check(i, candidate, period, statics, walkers)[0]
 
-    def check(self, i: int, candidate: Commitment, period: int, statics: np.ndarray) -> tuple[float, int]:
+    def check(self, i: int, candidate: Commitment, period: int, statics: np.ndarray, walkers: bool = True) -> tuple[float, int]:
         """:meth:`clearance` and what gives it: a robot's index, ``n`` + the row of ``statics``
-        for a standing obstacle, -1 for nothing. The standing obstacles ride in the same flat
-        array as the commitments (courses of one row), so a check is one compiled pass."""
+        for a standing obstacle, -2 for a walker, -1 for nothing. The standing obstacles ride in
+        the same flat array as the commitments (courses of one row), so a check is one compiled
+        pass."""
         if self._period != period or self._flat is None or self._flat[3] is not statics:
             self._period = period
             fixed = np.asarray(statics, dtype=float).reshape(-1, 5)
@@ -175,7 +181,12 @@ class CommitmentBook:
             flat = np.concatenate(rows + [fixed])
             self._flat = (flat, starts, lengths, statics, course_boxes(flat, starts, lengths))
         flat, starts, lengths, _, boxes = self._flat
-        gap, nearest = ragged_nearest(self.footprints(i, candidate, period), flat, starts, lengths, boxes, i, self.margin)
+        rows = self.footprints(i, candidate, period)
+        gap, nearest = ragged_nearest(rows, flat, starts, lengths, boxes, i, self.margin)
+        if walkers and self.walkers is not None and gap >= self.margin:
+            slack = self.walkers.slack(rows)
+            if self.margin + slack < gap:
+                return self.margin + slack, -2
         return float(gap), int(nearest)
 
     def refuse(self, i: int, state: np.ndarray, key: tuple, blocker: int, period: int, statics: np.ndarray) -> None:

@@ -23,12 +23,18 @@ from aac_sumo.coordination.detour import Detours
 from aac_sumo.coordination.make_room import STILL_SPEED, MakeRoom
 from aac_sumo.coordination.anticipation import speed_cap, stop_points
 from aac_sumo.coordination.tracking import track, track_course
+from aac_sumo.coordination.walker_reach import WalkerReach
 from aac_sumo.kernels.motion import limited_steer
 from aac_sumo.references import PathReference
 from aac_sumo.world import WorldState
 
 #: Periods a robot whose tracking extension failed the check waits before it tries again.
 EXTENSION_RETRY = 3
+#: With ``cruise`` (a road), a robot without authority renews its continuation every
+#: RENEW_EVERY periods where the new one passes the exact check and ends at least RENEW_GAIN [m]
+#: further along its path than its commitment: a car whose queue has set off follows it at once.
+RENEW_EVERY = 5
+RENEW_GAIN = 0.5
 #: Grid cell [m] of the detour planner, and how often [s] a robot checks its reference for standing footprints.
 DETOUR_CELL = 0.1
 DETOUR_CHECK = 1.0
@@ -67,13 +73,16 @@ class CommittedAac(AacCoordinator):
         period = self.period
         self.period += 1
         statics = np.array([o.footprint() for o in world.obstacles if o.kind in ("static", "cone")]).reshape(-1, 5)
+        walkers = WalkerReach.of(world, cfg.pedestrian_margin, cfg.pedestrian_reach, cfg.walkway_time, cfg.dt)
         if self.book is None:
             self.book = CommitmentBook(fleet, [self.commitment(world, i, period, np.zeros((0, 2))) for i in range(n)],
                                        self.params.commit_margin)
+            self.book.walkers = walkers
             for i in range(n):  # with cruise, every car drives on from the start where the exact check lets it (not a tail)
                 start = self.continued_commitment(world, i, period, np.zeros((0, 2)), statics)
                 if start is not None:
                     self.book.replace(i, start, period)
+        self.book.walkers = walkers
         done = self.finished(world)
         parked = self.parked(world, done)
         records = [RobotDecision(False, mode=c.stage(period)) for c in self.book.items]
@@ -294,7 +303,7 @@ class CommittedAac(AacCoordinator):
         Returns how many robots extended their commitment."""
         cfg, book = self.planner.config, self.book
         extended = 0
-        movers = [o for o in world.obstacles if o.kind not in ("static", "cone")]
+        movers = [o for o in world.obstacles if o.kind not in ("static", "cone", "pedestrian")]  # walkers: in the exact check
         reach = reach_radii(self.fleet, world.states, cfg.horizon, cfg.dt, self.tail_decel()) if movers else None
         mover_centres = np.array([o.centre for o in movers]).reshape(-1, 2)
         mover_extent = np.array([0.5 * np.hypot(o.length, o.width) + cfg.pedestrian_margin for o in movers])
@@ -307,9 +316,13 @@ class CommittedAac(AacCoordinator):
                 continue
             if self.room is not None and j in self.room.targets:
                 continue  # making room: it moves aside on its turns, not back onto its path
-            if c.stage(period) == "plan" and c.start + c.planned - period > 1:
+            renewing = c.stage(period) == "plan" and c.start + c.planned - period > 1
+            if renewing and not (self.params.cruise > 0.0 and (period + j) % RENEW_EVERY == 0):
                 continue
             longer = self.continued_commitment(world, j, period, np.zeros((0, 2)), statics)  # with cruise: on as anticipated
+            if renewing and (longer is None or self.path(j).project(longer.states[-1, :2])[0]
+                             <= self.path(j).project(c.states[-1, :2])[0] + RENEW_GAIN):
+                continue  # a renewal only where it takes the car further than its commitment does
             if longer is not None:
                 book.replace(j, longer, period)
                 records[j].mode = "tracking"
@@ -355,7 +368,7 @@ class CommittedAac(AacCoordinator):
         for i in moving[np.any(checked[moving] != inputs[moving], axis=1)]:
             braking = stopping_commitment(self.fleet, i, period, world.states[i], checked[i][None], self.tasks[i].heading_at(world.states[i, :2]),
                                           -self.fleet.a_min[i], self.last_inputs[i, 1], cfg.dt)
-            if self.book.clearance(i, braking, period, statics) >= self.book.margin:
+            if self.book.clearance(i, braking, period, statics, walkers=False) >= self.book.margin:  # braking is never refused for a walker
                 self.book.replace(i, braking, period)
                 inputs[i], records[i].mode = checked[i], "safety_stop"
                 stopped += 1

@@ -1,0 +1,87 @@
+"""Where the walkers may be while a commitment is driven: the walker-aware part of the exact check.
+
+A walker seen now at centre ``c`` [m] with velocity ``v`` [m/s] walks at most at ``V`` =
+max(``|v|``, ``pedestrian_reach``) [m/s]. ``t`` [s] later she is taken to be
+* within ``V t`` of ``c`` in any direction: she may start, stop or turn at any moment; or,
+* on a walkway of her own whose ends she cannot reach within ``walkway_time``
+  (:meth:`~aac_sumo.world.Obstacle.step_out_speed` is 0: SUMO's walkers leave a footpath only at
+  its end), on the segment from ``c`` to ``c + V t v/|v|`` along her way.
+Every car keeps ``radius`` from that region: her footprint's half diagonal plus
+``pedestrian_margin``. Unlike the planner's regions over its short horizon (constant velocity,
+grown by the reach on every side), this is a bound on her speed, so it stays true over a
+commitment's whole course.
+
+A course passes when, at every period from now until it stands, its footprint keeps outside
+every walker's region of that moment. Frames and units: world frame [m], periods of ``dt`` [s].
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from aac_sumo.world import WorldState
+
+#: Spacing [m] of the points that stand for a walker's segment; the gap is taken half a spacing
+#: smaller, so the check never passes what the exact segment would refuse.
+SEGMENT_STEP = 0.25
+#: Walkers whose region stays this far [m] from a course's footprints by the centres alone are
+#: not measured exactly: the slack is exact below it.
+FAR = 5.0
+
+
+@dataclass(frozen=True)
+class WalkerReach:
+    """The walkers of one period: each one's region at ``t`` [s] is the segment from its centre
+    (m, 2) [m] to ``centre + velocities * t`` ((m, 2) [m/s]), grown by ``radius + growth * t``
+    ((m,) [m], (m,) [m/s]); ``dt`` [s] is the period."""
+
+    centres: np.ndarray
+    velocities: np.ndarray
+    radius: np.ndarray
+    growth: np.ndarray
+    dt: float
+
+    @classmethod
+    def of(cls, world: WorldState, margin: float, reach: float, walkway_time: float, dt: float) -> "WalkerReach":
+        """The pedestrians of ``world``, each kept ``margin`` [m] from, walking at most at
+        ``reach`` [m/s] or their speed now (``walkway_time`` [s]: see the module)."""
+        walkers = [o for o in world.obstacles if o.kind == "pedestrian"]
+        velocity = np.array([o.velocity for o in walkers], dtype=float).reshape(-1, 2)
+        speed = np.hypot(*velocity.T)
+        top = np.maximum(speed, reach)
+        bound = np.array([o.step_out_speed(reach, walkway_time) == 0.0 for o in walkers], dtype=bool)  # stays on her walkway
+        way = velocity / np.maximum(speed, 1e-9)[:, None] * top[:, None]
+        return cls(np.array([o.centre for o in walkers], dtype=float).reshape(-1, 2),
+                   np.where(bound[:, None], way, 0.0),
+                   np.array([0.5 * np.hypot(o.length, o.width) + margin for o in walkers], dtype=float),
+                   np.where(bound, 0.0, top), float(dt))
+
+    def slack(self, rows: np.ndarray) -> float:
+        """Least gap [m] between the footprints ``rows`` (K, 5) ``[cx, cy, length, width,
+        heading]`` of a course (row k at k periods from now; the course stands after its last
+        row, which is checked too) and the walkers' regions at the same moments; negative where
+        a footprint enters one, inf without walkers; a lower bound above ``FAR``."""
+        if len(self.centres) == 0 or len(rows) == 0:
+            return np.inf
+        t = np.arange(len(rows)) * self.dt  # (K,)
+        # a lower bound per walker from the centres alone; only walkers it leaves within FAR are measured
+        extent = np.hypot(*self.velocities.T)[None, :] * t[:, None] + self.growth[None, :] * t[:, None] + self.radius[None, :]
+        apart = np.hypot(rows[:, None, 0] - self.centres[None, :, 0], rows[:, None, 1] - self.centres[None, :, 1])
+        bound = (apart - 0.5 * np.hypot(rows[:, 2], rows[:, 3])[:, None] - extent).min(axis=0)  # (m,)
+        near = bound < FAR
+        if not near.any():
+            return float(bound.min())
+        c, v, r, g = self.centres[near], self.velocities[near], self.radius[near], self.growth[near]
+        count = int(np.ceil(float((np.hypot(*v.T) * t[-1]).max()) / SEGMENT_STEP)) + 1
+        u = np.linspace(0.0, 1.0, count)  # (S,) along each segment
+        points = c[None, :, None, :] + (t[:, None, None, None] * u[None, None, :, None]) * v[None, :, None, :]  # (K, m, S, 2)
+        spacing = np.hypot(*v.T)[None, :] * t[:, None] / max(count - 1, 1)  # (K, m)
+        d = points - rows[:, None, None, :2]
+        cos, sin = np.cos(rows[:, 4])[:, None, None], np.sin(rows[:, 4])[:, None, None]
+        along = np.abs(d[..., 0] * cos + d[..., 1] * sin) - 0.5 * rows[:, 2, None, None]
+        across = np.abs(-d[..., 0] * sin + d[..., 1] * cos) - 0.5 * rows[:, 3, None, None]
+        outside = np.hypot(np.maximum(along, 0.0), np.maximum(across, 0.0)) + np.minimum(np.maximum(along, across), 0.0)
+        gap = outside.min(axis=2) - 0.5 * spacing - r[None, :] - g[None, :] * t[:, None]
+        return float(min(gap.min(), bound[~near].min(initial=np.inf)))

@@ -1,0 +1,92 @@
+"""The walkers' regions in the exact check of committed plans: closed-form distances from a car's
+footprint to where a walker may be, and the bound never passes what the exact region refuses."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from aac_sumo.coordination.walker_reach import FAR, SEGMENT_STEP, WalkerReach
+from aac_sumo.world import Obstacle, WorldState
+
+DT = 0.1
+
+
+def box_distance(points: np.ndarray, row: np.ndarray) -> np.ndarray:
+    """Signed distance [m] from ``points`` (P, 2) to the footprint ``row`` [cx, cy, length,
+    width, heading]: outside, the clamped excess over the half sizes in the box's frame; inside,
+    minus the depth to the nearest side."""
+    c, s = np.cos(row[4]), np.sin(row[4])
+    d = np.atleast_2d(points) - row[:2]
+    x = np.abs(d[:, 0] * c + d[:, 1] * s) - 0.5 * row[2]
+    y = np.abs(-d[:, 0] * s + d[:, 1] * c) - 0.5 * row[3]
+    return np.where((x <= 0.0) & (y <= 0.0), np.maximum(x, y), np.hypot(np.maximum(x, 0.0), np.maximum(y, 0.0)))
+
+
+def walker(centre, velocity, walkway=None, size=0.5) -> Obstacle:
+    return Obstacle("p", "pedestrian", np.array(centre, float), np.array(velocity, float), 0.0, size, size, walkway=walkway)
+
+
+def reach_of(*walkers, margin=1.0, reach=1.5, walkway_time=10.0) -> WalkerReach:
+    world = WorldState(0.0, np.zeros((0, 4)), [], list(walkers))
+    return WalkerReach.of(world, margin, reach, walkway_time, DT)
+
+
+def standing_course(centre, length=4.0, width=1.8, heading=0.0, periods=20) -> np.ndarray:
+    return np.tile([centre[0], centre[1], length, width, heading], (periods + 1, 1))
+
+
+def test_a_standing_walker_may_walk_off_in_any_direction_at_the_reach_speed():
+    """She stands 8 m from the car's front (closest point): after 2 s she may be 3 m nearer, so
+    the slack is 8 - (half diagonal + margin) - 1.5 m/s x 2 s, taken at the course's last row."""
+    car = standing_course([10.0, 0.0])  # front bumper at x = 8
+    slack = reach_of(walker([0.0, 0.0], [0.0, 0.0])).slack(car)
+    radius = 0.5 * np.hypot(0.5, 0.5) + 1.0
+    assert np.isclose(slack, 8.0 - radius - 1.5 * 2.0)
+
+
+def test_a_walker_who_stays_on_her_walkway_never_reaches_a_car_beside_it():
+    """Far from both ends of her footpath (SUMO's walkers leave it only there) she walks on
+    along it: a car 3 m beside her way keeps its slack for as long as she needs to pass it."""
+    on_path = walker([0.0, 0.0], [1.2, 0.0], walkway=(100.0, 100.0))
+    car = standing_course([10.0, 3.0], periods=200)  # 20 s: she walks 30 m at the reach speed
+    radius = 0.5 * np.hypot(0.5, 0.5) + 1.0
+    slack = reach_of(on_path).slack(car)
+    assert slack <= 3.0 - 0.9 - radius + 1e-9  # beside the car she is 2.1 m from its side
+    assert slack >= 3.0 - 0.9 - radius - 0.5 * SEGMENT_STEP - 1e-9
+    near_end = walker([0.0, 0.0], [1.2, 0.0], walkway=(2.0, 5.0))  # she can turn at her walkway's end: any direction
+    assert reach_of(near_end).slack(car) < -10.0
+
+
+def test_a_walker_on_her_walkway_reaches_a_car_standing_on_it_at_the_reach_speed():
+    """Ahead on her way: the region is the segment she can cover at max(her speed, reach)."""
+    on_path = walker([0.0, 0.0], [1.0, 0.0], walkway=(500.0, 500.0))
+    car = standing_course([20.0, 0.0], periods=100)  # its rear at x = 18; after 10 s she may be at x = 15
+    radius = 0.5 * np.hypot(0.5, 0.5) + 1.0
+    slack = reach_of(on_path).slack(car)
+    assert 3.0 - radius - 0.5 * SEGMENT_STEP - 1e-9 <= slack <= 3.0 - radius + 1e-9
+
+
+@settings(max_examples=40, deadline=None)
+@given(cx=st.floats(-15, 15), cy=st.floats(-15, 15), heading=st.floats(-np.pi, np.pi), vx=st.floats(-1.6, 1.6),
+       vy=st.floats(-1.6, 1.6), bound=st.booleans(), periods=st.integers(0, 60))
+def test_the_slack_is_never_above_the_exact_region_and_at_most_half_a_step_below(cx, cy, heading, vx, vy, bound, periods):
+    """Against a dense sampling of the exact region (segment, then disc), for a car moving
+    across it: never more slack than exact (the check never passes what it should refuse), and
+    never more than half a SEGMENT_STEP less."""
+    who = walker([0.0, 0.0], [vx, vy], walkway=(1e4, 1e4) if bound else None)
+    reach = reach_of(who)
+    t = np.arange(periods + 1) * DT
+    rows = np.column_stack([cx + 3.0 * t * np.cos(heading), cy + 3.0 * t * np.sin(heading), np.full_like(t, 4.0), np.full_like(t, 1.8),
+                            np.full_like(t, heading)])
+    speed = np.hypot(vx, vy)
+    top = max(speed, 1.5)
+    way = np.array([vx, vy]) / max(speed, 1e-9) * top if bound else np.zeros(2)
+    growth = 0.0 if bound else top
+    radius = 0.5 * np.hypot(0.5, 0.5) + 1.0
+    u = np.linspace(0.0, 1.0, 801)[:, None]
+    exact = min(box_distance(way * tk * u, row).min() - radius - growth * tk for tk, row in zip(t, rows))
+    slack = reach.slack(rows)
+    assert slack <= exact + 1e-9
+    assert slack >= min(exact - 0.5 * SEGMENT_STEP - top * t[-1] / 800, FAR) - 1e-9  # exact below FAR
