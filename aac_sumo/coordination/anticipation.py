@@ -11,8 +11,7 @@ speed with a comfortable stopping profile, as a driver's car following does:
   speed ``v`` that keeps ``(v^2 - v_lead^2) / 2 b + time_gap v <= s_stop - s`` at arc length
   ``s``, with ``v_lead`` its speed along the path and ``s_stop`` the point ``gap`` [m] behind
   it: the time gap at the robot's own speed (as IDM keeps it), growing from none behind a
-  standing leader to the whole behind one at 1 m/s, so that a standing queue sets off together
-  (with the time gap at the leader's speed, each car waited about 2 s for the one ahead);
+  standing leader to the whole behind one at 1 m/s, so that a standing queue sets off together;
   an obstacle that brakes (its estimated
   acceleration ``a < 0``, :attr:`~aac_sumo.world.Obstacle.accel`) also counts as standing
   ``v_lead^2 / 2|a|`` further on, where it stops at that rate (a SUMO car braking hard for a walker);
@@ -29,9 +28,7 @@ A walker that counted goes on counting for ``hold`` seconds unless it walks away
 (one who pauses on the crossing for a moment is still yielded to). Past the point of no return,
 a walker not yet within ``pedestrian_margin`` of the path whom the robot can no longer stop for
 at its comfort deceleration does not count when it cannot reach the path at its own speed before
-the robot has passed it: the robot goes on, rather than brake into the walker's way (a walker who
-appeared on the footpath 8 m from a car's lane when the car was 30 m from the crossing at 13 m/s
-made it stop with its nose on the crossing).
+the robot has passed it: the robot goes on, rather than brake into the walker's way.
 
 The reference speed over the horizon then ramps from the robot's speed towards that cap by at
 most ``accel`` / ``decel`` [m/s^2] per second (with ``brake``, harder, up to it and the robot's
@@ -128,9 +125,7 @@ def intended_courses(world: WorldState, tasks: list[PathReference], preview: flo
     """Each robot's course [rad] (n,): the heading of its task's path ``preview`` [s] ahead at its
     speed (at least 1 m/s), where the path takes it; its heading where the path leaves the heading
     free (the goal approach). The robots share their tasks: a car that changes lanes beside
-    another that changes lanes the same way is not cutting into its path (seen at its heading, a
-    car keeping straight in its lane was cutting into the diagonal path of each car beside it that
-    moved into that lane, and the 15 cars of the bundled road braked each other from 10 to 5 m/s)."""
+    another that changes lanes the same way is not cutting into its path."""
     courses = world.states[:, 2].copy()
     for j, (task, state) in enumerate(zip(tasks, world.states)):
         if world.on_road[j] and not task.heading_free(state):
@@ -255,8 +250,7 @@ def crossing_rows(world: WorldState, i: int, task: PathReference, stops: np.ndar
     world's pedestrian crossings ahead on robot ``i``'s path that it could not clear: a row of
     ``stops`` of something standing or slower than ``CLEAR_SPEED`` would stop it with its
     footprint on the crossing or within ``margin`` [m] of it. It then waits with its front
-    ``margin`` before the crossing (a car that stopped in a queue at the crossing's edge had a
-    walker pass 0.63 m in front of it). A crossing whose strip the robot's front has reached
+    ``margin`` before the crossing. A crossing whose strip the robot's front has reached
     gives no row: it drives on through."""
     if not world.crossings:
         return np.zeros((0, 3))

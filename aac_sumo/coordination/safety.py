@@ -29,8 +29,7 @@ steering angle keeps the vehicle limits.
 A walking pedestrian whose path lies ahead of a robot is answered by stopping before her path,
 or else by passing her when she cannot come within the margin first
 (:meth:`SafetyCheck.walker_paths`): the check above only makes a robot no closer than braking
-at once, and a car at 16 m/s 40 m before a walker who set off next to the road, braked at its
-comfort deceleration, came to stand 0.4 m from her path.
+at once.
 """
 
 from __future__ import annotations
@@ -76,9 +75,7 @@ class WalkerSpeeds:
     """Every walker's slowest and fastest speed [m/s] over the last ``WALKER_MEMORY`` seconds,
     by name. SUMO's walkers change their speed from step to step (1.0, 1.14, 1.0 m/s); the
     check takes the slowest for one walking away from a robot's path and the fastest for one
-    walking towards it. (On a single reading of 1.14 m/s, a car at the lane change's zebra was
-    let go towards a walker's path, and on the next, 1.0 m/s, it had to stop before it at 2.9
-    m/s^2.) A memory restarts when time goes backwards."""
+    walking towards it. A memory restarts when time goes backwards."""
 
     def __init__(self):
         self.seen: dict[str, deque] = {}
@@ -216,8 +213,7 @@ class SafetyCheck:
         it can still stop before the strip within its strongest braking, ``v^2 / (2 (D - v dt / 2
         - a dt^2 / 8))`` (the model's Euler steps, ``a`` its strongest braking) with ``D`` that
         distance, or within ``STRIP_OVERSHOOT`` of it (then braking at its strongest; standing
-        there, it stays: a car that stood at her strip's edge and set off again crept into her
-        path, 0.51 m from her, in the lane change's seed 3 at N = 15). Such a walker
+        there, it stays). Such a walker
         is then left out of the check above for that robot (:attr:`ignored`): her growing region
         would make it brake as if it could stop nowhere. A robot that does not stop so passes her
         when it leaves her strip before she could come within the margin of its path walking on
@@ -310,9 +306,7 @@ class SafetyCheck:
         much room (a car that set off behind a queue would stop in her path). A robot ahead that
         drives on at ``CLEAR_SPEED`` or faster does not hold it, as in the anticipation
         (:func:`~aac_sumo.coordination.anticipation.crossing_rows`): one that must stop for her
-        stops before her path, and the robot behind it too (taken to stop at once, a car ahead
-        at 7 m/s held the cars behind it for a walker 14 m from their lane, and the queue missed
-        its gap before the second walker)."""
+        stops before her path, and the robot behind it too."""
         world, fleet = self.world, self.fleet
         vehicles = [o for o in world.obstacles if o.kind in VEHICLE_KINDS]
         centres = np.vstack([world.robot_centres()] + [o.centre[None, :] for o in vehicles]).reshape(-1, 2)
