@@ -297,9 +297,10 @@ class CommittedAac(AacCoordinator):
         left) go on as the paper's robots without a plan do, on the tracking law, but only when
         that course (N periods of the law, continued with ``cruise`` as a plan is, then a stopping
         tail) passes the same exact check as a plan; a robot whose try failed waits ``EXTENSION_RETRY`` periods before the next one. The
-        law ignores obstacles, and uncontrolled moving agents are not in the check, so a robot
-        that such an agent (growing as the planner grows walkers) may reach meanwhile is not
-        extended.
+        law ignores obstacles, and uncontrolled vehicles are not in the check (walkers are), so a
+        robot that such a vehicle (growing at the walkers' reach) may reach meanwhile is not
+        extended. With ``cruise``, a robot renews its continuation every ``RENEW_EVERY``
+        periods where the new one passes and ends at least ``RENEW_GAIN`` further along its path.
         Returns how many robots extended their commitment."""
         cfg, book = self.planner.config, self.book
         extended = 0
