@@ -90,3 +90,16 @@ def test_the_slack_is_never_above_the_exact_region_and_at_most_half_a_step_below
     slack = reach.slack(rows)
     assert slack <= exact + 1e-9
     assert slack >= min(exact - 0.5 * SEGMENT_STEP - top * t[-1] / 800, FAR) - 1e-9  # exact below FAR
+
+
+def test_a_car_may_not_come_to_stand_within_the_margin_of_a_crossing_strip():
+    """A crossing along x = 239 m, 4 m wide: a car standing across the lane with its front at
+    x = 236 m keeps 1 m from the strip's edge (237 m), the margin; two metres further on it
+    stands 1 m inside it: the slack is the signed distance, within half a SEGMENT_STEP below."""
+    from aac_sumo.world import Crossing
+    world = WorldState(0.0, np.zeros((0, 4)), [], [], crossings=(Crossing("c", np.array([[239.0, 0.0], [239.0, -9.6]]), 4.0, 3.2),))
+    reach = WalkerReach.of(world, 1.0, 1.5, 10.0, DT)
+    before = np.array([234.0, -4.8, 4.0, 1.8, 0.0])  # front at 236
+    for row, exact in ((before, 0.0), (before + [2.0, 0, 0, 0, 0], -2.0)):  # front at 238: 1 m into the 2 m half width
+        assert exact - 0.5 * SEGMENT_STEP - 1e-9 <= reach.stand_slack(row) <= exact + 1e-9
+    assert reach.slack(standing_course([234.0, -4.8])) == np.inf  # no walker: no region

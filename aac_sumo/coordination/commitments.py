@@ -184,7 +184,7 @@ class CommitmentBook:
         rows = self.footprints(i, candidate, period)
         gap, nearest = ragged_nearest(rows, flat, starts, lengths, boxes, i, self.margin)
         if walkers and self.walkers is not None and gap >= self.margin:
-            slack = self.walkers.slack(rows)
+            slack = min(self.walkers.slack(rows), self.walkers.stand_slack(rows[-1]))
             if self.margin + slack < gap:
                 return self.margin + slack, -2
         return float(gap), int(nearest)

@@ -12,12 +12,13 @@ grown by the reach on every side), this is a bound on her speed, so it stays tru
 commitment's whole course.
 
 A course passes when, at every period from now until it stands, its footprint keeps outside
-every walker's region of that moment. Frames and units: world frame [m], periods of ``dt`` [s].
+every walker's region of that moment, and where it stands keeps ``pedestrian_margin`` from
+every crossing's strip (a car never waits on a crossing: the walkers to come walk there). Frames and units: world frame [m], periods of ``dt`` [s].
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -35,13 +36,16 @@ FAR = 5.0
 class WalkerReach:
     """The walkers of one period: each one's region at ``t`` [s] is the segment from its centre
     (m, 2) [m] to ``centre + velocities * t`` ((m, 2) [m/s]), grown by ``radius + growth * t``
-    ((m,) [m], (m,) [m/s]); ``dt`` [s] is the period."""
+    ((m,) [m], (m,) [m/s]); ``dt`` [s] is the period. ``strips`` (c, 2, 2) are the segments of
+    the crossings' centre lines, ``strip_radius`` (c,) [m] half their width plus the margin."""
 
     centres: np.ndarray
     velocities: np.ndarray
     radius: np.ndarray
     growth: np.ndarray
     dt: float
+    strips: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 2)))
+    strip_radius: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @classmethod
     def of(cls, world: WorldState, margin: float, reach: float, walkway_time: float, dt: float) -> "WalkerReach":
@@ -53,10 +57,13 @@ class WalkerReach:
         top = np.maximum(speed, reach)
         bound = np.array([o.step_out_speed(reach, walkway_time) == 0.0 for o in walkers], dtype=bool)  # stays on her walkway
         way = velocity / np.maximum(speed, 1e-9)[:, None] * top[:, None]
+        segments = [(c.shape[k:k + 2], 0.5 * c.width + margin) for c in world.crossings for k in range(len(c.shape) - 1)]
         return cls(np.array([o.centre for o in walkers], dtype=float).reshape(-1, 2),
                    np.where(bound[:, None], way, 0.0),
                    np.array([0.5 * np.hypot(o.length, o.width) + margin for o in walkers], dtype=float),
-                   np.where(bound, 0.0, top), float(dt))
+                   np.where(bound, 0.0, top), float(dt),
+                   np.array([seg for seg, _ in segments], dtype=float).reshape(-1, 2, 2),
+                   np.array([r for _, r in segments], dtype=float))
 
     def slack(self, rows: np.ndarray) -> float:
         """Least gap [m] between the footprints ``rows`` (K, 5) ``[cx, cy, length, width,
@@ -78,10 +85,28 @@ class WalkerReach:
         u = np.linspace(0.0, 1.0, count)  # (S,) along each segment
         points = c[None, :, None, :] + (t[:, None, None, None] * u[None, None, :, None]) * v[None, :, None, :]  # (K, m, S, 2)
         spacing = np.hypot(*v.T)[None, :] * t[:, None] / max(count - 1, 1)  # (K, m)
-        d = points - rows[:, None, None, :2]
-        cos, sin = np.cos(rows[:, 4])[:, None, None], np.sin(rows[:, 4])[:, None, None]
-        along = np.abs(d[..., 0] * cos + d[..., 1] * sin) - 0.5 * rows[:, 2, None, None]
-        across = np.abs(-d[..., 0] * sin + d[..., 1] * cos) - 0.5 * rows[:, 3, None, None]
-        outside = np.hypot(np.maximum(along, 0.0), np.maximum(across, 0.0)) + np.minimum(np.maximum(along, across), 0.0)
-        gap = outside.min(axis=2) - 0.5 * spacing - r[None, :] - g[None, :] * t[:, None]
+        gap = box_distance(points, rows).min(axis=2) - 0.5 * spacing - r[None, :] - g[None, :] * t[:, None]
         return float(min(gap.min(), bound[~near].min(initial=np.inf)))
+
+    def stand_slack(self, row: np.ndarray) -> float:
+        """Least gap [m] between the footprint ``row`` (5,) where a course stands and the
+        crossings' strips grown by the margin; inf without crossings."""
+        if len(self.strips) == 0:
+            return np.inf
+        length = np.hypot(*(self.strips[:, 1] - self.strips[:, 0]).T)  # (c,)
+        count = int(np.ceil(float(length.max()) / SEGMENT_STEP)) + 1
+        u = np.linspace(0.0, 1.0, count)[None, :, None]
+        points = self.strips[:, :1] + u * (self.strips[:, 1:] - self.strips[:, :1])  # (c, S, 2)
+        gap = box_distance(points[None], row[None]).min(axis=2)[0] - 0.5 * length / max(count - 1, 1) - self.strip_radius
+        return float(gap.min())
+
+
+def box_distance(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Signed distance [m] (K, m, S) from points (K, m, S, 2) to the footprints ``rows`` (K, 5)
+    ``[cx, cy, length, width, heading]``: outside, to the nearest point of the rectangle; inside,
+    minus the depth to its nearest side."""
+    d = points - rows[:, None, None, :2]
+    cos, sin = np.cos(rows[:, 4])[:, None, None], np.sin(rows[:, 4])[:, None, None]
+    along = np.abs(d[..., 0] * cos + d[..., 1] * sin) - 0.5 * rows[:, 2, None, None]
+    across = np.abs(-d[..., 0] * sin + d[..., 1] * cos) - 0.5 * rows[:, 3, None, None]
+    return np.hypot(np.maximum(along, 0.0), np.maximum(across, 0.0)) + np.minimum(np.maximum(along, across), 0.0)
