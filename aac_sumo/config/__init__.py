@@ -36,12 +36,16 @@ def common() -> dict[str, dict[str, Key]]:
     (:mod:`aac_sumo.registry`) and declare the sections of their parameter dataclasses."""
     global _completed
     if not _completed:
-        _completed = True  # a module that loads a scenario while it is imported finds the schema as far as it goes
-        for module in PROVIDERS:
-            importlib.import_module(module)
-        for package in PLUGINS:
-            for found in pkgutil.walk_packages(importlib.import_module(package).__path__, package + "."):
-                importlib.import_module(found.name)
+        _completed = True  # not again while they are imported (a registration in them does not reload them)
+        try:
+            for module in PROVIDERS:
+                importlib.import_module(module)
+            for package in PLUGINS:
+                for found in pkgutil.walk_packages(importlib.import_module(package).__path__, package + "."):
+                    importlib.import_module(found.name)
+        except BaseException:
+            _completed = False  # a module that failed to import: the next use tries again and says why
+            raise
         for name in schema.SECTIONS:
             declare(name)
     return COMMON
