@@ -24,6 +24,9 @@ def test_the_documented_example_runs_as_written(tmp_path):
     selfish = next(line for line in lines if line.startswith("selfish:"))
     aac = next(line for line in lines if line.startswith("aac:"))
     assert "collisions 0" not in selfish and "collisions 0," in aac
+    status, speed = re.search(r"^exit status (\d+), top speed ([\d.]+) m/s$", done.stdout, flags=re.M).groups()
+    assert status == "0" and 0.3 < float(speed) <= 0.4 + 3.0 * 0.1  # the key's cap, plus one period at robot.a_max
+    assert "head_on.toml --set: selfish.max_sped: expected a known key (did you mean selfish.max_speed?)" in lines
 
 
 def test_the_package_exports_the_api_lazily():

@@ -12,6 +12,8 @@ import pytest
 
 from aac_sumo import config
 from aac_sumo.config import ScenarioError, schema
+from aac_sumo.coordination.aac import AacParams
+from aac_sumo.coordination.lfc import LfcParams
 from aac_sumo.experiments import common
 from aac_sumo.mpc.problem import N_WEIGHTS, WEIGHTS
 from aac_sumo.mpc.settings import MpcConfig
@@ -123,7 +125,7 @@ def test_the_safety_rules_name_the_scenario_key(sets, key, text):
     scenario = config.load("swarm_rescue", sets)
     section = key.split(".")[0]
     with pytest.raises(ScenarioError) as err:
-        schema.from_section({"aac": common.AacParams, "lfc": common.LfcParams}[section], scenario, section)
+        schema.from_section({"aac": AacParams, "lfc": LfcParams}[section], scenario, section)
     assert err.value.key == key and str(err.value).endswith(f"{key}: {text}")
 
 

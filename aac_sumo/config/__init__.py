@@ -12,6 +12,7 @@ from __future__ import annotations
 import copy
 import difflib
 import importlib
+import pkgutil
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -19,7 +20,7 @@ from typing import Any
 import tomli_w
 
 from aac_sumo.config import package_data, schema
-from aac_sumo.config.keys import COMMON, KIND_EXTRA_SECTIONS, KIND_SECTIONS, PROVIDERS, Key, ScenarioError
+from aac_sumo.config.keys import COMMON, KIND_EXTRA_SECTIONS, KIND_SECTIONS, PLUGINS, PROVIDERS, Key, ScenarioError
 
 #: The bundled scenarios (:mod:`aac_sumo.config.package_data`: an installed wheel's package data, or the checkout's ``scenarios/``).
 BUNDLED_DIR = package_data.scenarios_dir()
@@ -29,16 +30,30 @@ _completed = False
 
 
 def common() -> dict[str, dict[str, Key]]:
-    """``COMMON`` with the sections that parameter dataclasses declare filled in: the modules of
-    ``PROVIDERS`` are imported (by name: they sit above this layer) the first time."""
+    """``COMMON`` with what the package's components declare: the first time, the modules of
+    ``PROVIDERS`` and then every other module of the ``PLUGINS`` packages are imported (by name:
+    they sit above this layer), and so register their experiment kinds and coordinators
+    (:mod:`aac_sumo.registry`) and declare the sections of their parameter dataclasses."""
     global _completed
     if not _completed:
-        for module in PROVIDERS:
-            importlib.import_module(module)
-        _completed = True
+        _completed = True  # not again while they are imported (a registration in them does not reload them)
+        try:
+            for module in PROVIDERS:
+                importlib.import_module(module)
+            for package in PLUGINS:
+                for found in pkgutil.walk_packages(importlib.import_module(package).__path__, package + "."):
+                    importlib.import_module(found.name)
+        except BaseException:
+            _completed = False  # a module that failed to import: the next use tries again and says why
+            raise
         for name in schema.SECTIONS:
-            COMMON[name] = {k: v for k, v in COMMON.get(name, {}).items()} | schema.section_keys(name)
+            declare(name)
     return COMMON
+
+
+def declare(name: str) -> None:
+    """Section ``[name]`` of ``COMMON`` with the keys its dataclasses declare (:func:`schema.section`)."""
+    COMMON[name] = dict(COMMON.get(name, {})) | schema.section_keys(name)
 
 
 class Scenario:
@@ -79,10 +94,10 @@ class Scenario:
     def from_dict(cls, raw: dict[str, dict[str, Any]], source: str = "<dict>") -> "Scenario":
         """A scenario from nested ``{section: {key: value}}`` as a TOML file would hold it:
         validated, defaults filled; ``source`` names it in errors."""
-        head = raw.get("scenario")
-        kind = head.get("kind", COMMON["scenario"]["kind"].default) if isinstance(head, dict) else COMMON["scenario"]["kind"].default
-        if not isinstance(kind, str) or kind not in KIND_SECTIONS:
-            raise ScenarioError(source, "scenario.kind", COMMON["scenario"]["kind"].expected(), kind)
+        head, declared = raw.get("scenario"), common()["scenario"]["kind"]
+        kind = head.get("kind", declared.default) if isinstance(head, dict) else declared.default
+        if not isinstance(kind, str) or kind not in declared.type:
+            raise ScenarioError(source, "scenario.kind", declared.expected(), kind)
         schema = schema_for(kind)
         data = {section: _defaults(keys) for section, keys in schema.items()}
         for section, table in raw.items():

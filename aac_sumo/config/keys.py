@@ -88,17 +88,14 @@ NN = dict(check=_non_negative, expect=">= 0")
 COMMON: dict[str, dict[str, Key]] = {
     "scenario": {
         "name": Key(str, "unnamed", "label written into metrics.json"),
-        "kind": Key(("braking", "swarm_rescue", "circle_swap", "lane_change", "random_crossing"), "braking", "which experiment builds the world"),
+        "kind": Key((), "braking", "which experiment builds the world"),  # the allowed kinds: registered (registry.py)
         "seed": Key(int, 0, "seed of every random choice in the run (SUMO's seed is a 32-bit integer)",
                     check=lambda s: 0 <= s <= MAX_SEED, expect=f"in 0..{MAX_SEED}"),
         "dt": Key(float, 0.1, "control period and simulation step [s]", check=lambda dt: 0.001 <= dt <= 1.0, expect="in [0.001, 1]"),
         "duration": Key(float, 20.0, "time limit, at most a day [s]", check=lambda d: 0 < d <= 86400.0, expect="in (0, 86400]"),
     },
-    "controller": {
-        "coordinator": Key(("aac", "lfc", "independent", "sumo"), "aac",
-                           "who plans when: aac (one authority robot per period), lfc (every robot in index-priority order), "
-                           "independent (every robot for itself)"
-                           ", sumo (SUMO's own driver moves the cars, kind lane_change: docs/baselines_sumo.md)"),
+    "controller": {  # the allowed coordinators and their meanings: registered (registry.py)
+        "coordinator": Key((), "aac", "who plans when"),
     },
     "robot": {
         "length": Key(float, 1.0, "footprint length [m]", **P),
@@ -124,22 +121,21 @@ COMMON: dict[str, dict[str, Key]] = {
     },
 }
 
-#: The baselines' sections: ORCA (controller.coordinator = "orca", aac_sumo/coordination/orca.py, docs/baselines.md) and
-#: CBF-QP (aac_sumo/coordination/cbf_qp.py, docs/baselines_cbf_qp.md), declared by their parameter dataclasses.
+#: The baselines' sections: ORCA (aac_sumo/coordination/orca.py, docs/baselines.md) and CBF-QP
+#: (aac_sumo/coordination/cbf_qp.py, docs/baselines_cbf_qp.md), declared by their parameter dataclasses.
 COMMON["orca"] = {}
 COMMON["cbf_qp"] = {}
-_coordinator = COMMON["controller"]["coordinator"]  # declared here, not only when registered: sweep/tune load scenarios first
-COMMON["controller"]["coordinator"] = Key(_coordinator.type + ("orca",), _coordinator.default,
-                                          _coordinator.doc + ", orca (RVO2's ORCA on covering discs, a baseline; docs/baselines.md)")
-_coordinator = COMMON["controller"]["coordinator"]
-COMMON["controller"]["coordinator"] = Key(_coordinator.type + ("cbf_qp",), _coordinator.default,
-                                          _coordinator.doc + ", cbf_qp (a CBF-QP safety filter on the tracking law, a baseline; "
-                                          "docs/baselines_cbf_qp.md)")
 
-#: The modules whose parameter dataclasses declare sections (``@schema.section``); the config
-#: imports them by name on first use of the schema (:func:`aac_sumo.config.common`).
-PROVIDERS = ("aac_sumo.mpc.settings", "aac_sumo.coordination.anticipation", "aac_sumo.coordination.aac.params",
-             "aac_sumo.coordination.lfc", "aac_sumo.coordination.orca", "aac_sumo.coordination.cbf_qp")
+#: The modules that declare sections (``@schema.section``) and register experiment kinds and
+#: coordinators (:mod:`aac_sumo.registry`), in the order of the listings (``aac-sumo keys``, the
+#: allowed values of ``scenario.kind`` and ``controller.coordinator``); the config imports them
+#: by name on first use of the schema (:func:`aac_sumo.config.common`), then every other module
+#: of the ``PLUGINS`` packages, so that a new module there registers without being listed.
+PROVIDERS = ("aac_sumo.mpc.settings", "aac_sumo.coordination.anticipation", "aac_sumo.coordination.aac",
+             "aac_sumo.coordination.lfc", "aac_sumo.coordination.independent", "aac_sumo.coordination.sumo_driver",
+             "aac_sumo.coordination.orca", "aac_sumo.coordination.cbf_qp", "aac_sumo.experiments.braking",
+             "aac_sumo.experiments.swarm", "aac_sumo.experiments.lane_change", "aac_sumo.experiments.random_crossing")
+PLUGINS = ("aac_sumo.coordination", "aac_sumo.experiments")
 
 KIND_SECTIONS: dict[str, dict[str, Key]] = {
     "braking": {

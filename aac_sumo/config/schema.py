@@ -8,9 +8,9 @@
   that the dataclass raises for a combination of values becomes a
   :class:`~aac_sumo.config.ScenarioError` naming the key.
 
-The modules that declare sections are named in :data:`~aac_sumo.config.keys.PROVIDERS`; the
-config loads them by name on first use of the schema (as :func:`aac_sumo.experiments.build`
-loads its kinds), so that ``aac_sumo.config`` itself imports nothing above it.
+The modules that declare sections are named in :data:`~aac_sumo.config.keys.PROVIDERS` or sit in
+a package of :data:`~aac_sumo.config.keys.PLUGINS`; the config loads them by name on first use
+of the schema, so that ``aac_sumo.config`` itself imports nothing above it.
 """
 
 from __future__ import annotations
@@ -106,6 +106,11 @@ def key_of(f: dataclasses.Field, p: Param) -> Key:
     return Key(kind, default, p.doc, check=p.check, expect=p.expect)
 
 
+def keys_of(cls) -> dict[str, Key]:
+    """The key table that the fields of ``cls`` declare, in field order (those not ``shared``)."""
+    return {key_name(f): key_of(f, p) for f, p in scenario_fields(cls) if not p.shared}
+
+
 #: Sections declared by dataclasses: ``{section: [dataclass, ...]}`` in declaration order.
 SECTIONS: dict[str, list[type]] = {}
 
@@ -126,8 +131,7 @@ def section_keys(name: str) -> dict[str, Key]:
     table: dict[str, Key] = {}
     blocks = []
     for cls in SECTIONS.get(name, []):
-        fields = [(f, p) for f, p in scenario_fields(cls) if not p.shared]
-        blocks.append((next((p.after for _, p in fields if p.after), None), {key_name(f): key_of(f, p) for f, p in fields}))
+        blocks.append((next((p.after for _, p in scenario_fields(cls) if p.after and not p.shared), None), keys_of(cls)))
     for after, block in sorted(blocks, key=lambda b: b[0] is not None):  # placed blocks last, whatever the import order
         if after is None:
             table |= block

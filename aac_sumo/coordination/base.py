@@ -150,6 +150,12 @@ class Coordinator(ABC):
     @abstractmethod
     def _decide(self, world: WorldState) -> Decision: ...
 
+    def warm_up(self, world: WorldState) -> None:
+        """Pay the one-off costs (a compiled kernel's first call) of what a later period may need
+        and a :meth:`decide` on ``world`` does not reach, without changing any later decision.
+        The runner calls it on a throw-away copy before the first period (:func:`aac_sumo.runs.runner.warm_up`).
+        The base coordinator has none."""
+
     def finished(self, world: WorldState) -> np.ndarray:
         """Which robots (n,) have finished their task or are not on the road."""
         return np.asarray(self.task_finished(world), dtype=bool) | ~world.on_road

@@ -67,6 +67,7 @@ from aac_sumo.coordination.tracking import track
 from aac_sumo.mpc.settings import MpcConfig
 from aac_sumo.mpc.planner import MpcPlanner, ego_discs
 from aac_sumo.references import PathReference
+from aac_sumo.registry import register_coordinator
 from aac_sumo.world import Obstacle, RobotSpec, WorldState
 
 #: A row the nominal input violates by less than this is taken as met.
@@ -266,3 +267,7 @@ class CbfQpCoordinator(Coordinator):
             records[i] = RobotDecision(True, status, (time.perf_counter() - start) * 1e3, "osqp", reason="cbf_qp", mode=mode,
                                        iterations=result.iterations, capped=result.capped)
         return Decision(inputs, records, notes=dict(authority="", reason="cbf_qp", safety_stops=0))
+
+
+register_coordinator("cbf_qp", CbfQpCoordinator, params=CbfQpParams, baseline=True, label="CBF-QP safety filter",
+                     doc="a CBF-QP safety filter on the tracking law, a baseline; docs/baselines_cbf_qp.md")

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from aac_sumo.coordination.base import Coordinator, Decision, RobotDecision
+from aac_sumo.registry import register_coordinator
 from aac_sumo.world import WorldState
 
 
@@ -25,3 +26,6 @@ class IndependentCoordinator(Coordinator):
         for i in np.flatnonzero(parked):
             inputs[i] = self.hold_inputs(world, i, 1)[0]
         return Decision(inputs, records)
+
+
+register_coordinator("independent", IndependentCoordinator, doc="every robot for itself")

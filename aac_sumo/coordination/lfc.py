@@ -23,11 +23,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from aac_sumo.config.keys import NN, P
-from aac_sumo.config.schema import param, section
+from aac_sumo.config.schema import from_section, param, section
+from aac_sumo.coordination.aac.params import AacParams
 from aac_sumo.coordination.base import FALLBACKS, Coordinator, Decision, Finished, RobotDecision, check_safety_options, straight_behind
 from aac_sumo.coordination.tracking import track
+from aac_sumo.coordination.prioritized import PrioritizedLfc
 from aac_sumo.mpc.planner import MpcPlanner
 from aac_sumo.references import PathReference
+from aac_sumo.registry import register_coordinator
 from aac_sumo.world import WorldState
 
 
@@ -108,3 +111,16 @@ class LfcCoordinator(Coordinator):
                 stopped += 1
             inputs = checked
         return Decision(inputs, records, notes=dict(authority="", reason="priority", safety_stops=stopped))
+
+
+@register_coordinator("lfc", params=LfcParams, doc="every robot in index-priority order", label="LFC-MPC-FCBF")
+def lfc_coordinator(scenario, planner: MpcPlanner, tasks, corridors, finished) -> LfcCoordinator | PrioritizedLfc:
+    """The paper's LFC, or with ``lfc.commit`` prioritized planning on committed plans (its
+    committed-plan settings from ``[aac]``, its safety options from ``[lfc]``)."""
+    lfc = from_section(LfcParams, scenario, "lfc")
+    if lfc.commit:
+        params = from_section(AacParams, scenario, "aac", commit=True, safety_stop=lfc.safety_stop, safety_margin=lfc.safety_margin,
+                              fallback=lfc.fallback, lookahead=lfc.lookahead, speed_gain=lfc.speed_gain,
+                              ignore_followers=lfc.ignore_followers, detour=scenario["aac.detour"] and scenario["aac.commit"])
+        return PrioritizedLfc(planner, tasks, corridors, finished, params=params)
+    return LfcCoordinator(planner, tasks, corridors, finished, params=lfc)

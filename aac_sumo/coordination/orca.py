@@ -44,6 +44,7 @@ from aac_sumo.coordination.base import Coordinator, Decision, Finished, RobotDec
 from aac_sumo.geometry import wrap_angle
 from aac_sumo.mpc.planner import MpcPlanner, ego_discs
 from aac_sumo.references import PathReference
+from aac_sumo.registry import register_coordinator
 from aac_sumo.world import WorldState
 
 #: Obstacle kinds handed to RVO2 as polygons (they never move).
@@ -265,3 +266,7 @@ class OrcaCoordinator(Coordinator):
             inputs[i] = self.track_velocity(world, i, velocity[i])
         records = [RobotDecision(False, reason="orca", mode="orca") for _ in range(n)]
         return Decision(inputs, records, notes=dict(authority="", reason="orca", safety_stops=0))
+
+
+register_coordinator("orca", OrcaCoordinator, params=OrcaParams, kinds=("swarm_rescue", "circle_swap", "random_crossing"),
+                     baseline=True, label="ORCA (RVO2)", doc="RVO2's ORCA on covering discs, a baseline; docs/baselines.md")

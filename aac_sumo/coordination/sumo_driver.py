@@ -1,7 +1,7 @@
 """The ``sumo`` baseline: SUMO's own driver (its car-following model and LC2013, or SL2015 with
 ``sumo.lateral_resolution`` > 0) moves the controlled cars, and our runner measures it.
 
-The seam: this coordinator plans nothing. Its factory declares ``simulator_drives`` (see
+The seam: this coordinator plans nothing. It is registered with ``simulator_drives`` (see
 :func:`aac_sumo.experiments.common.simulator_drives`); the experiment's builder then starts its
 simulator in the mode where the simulator moves the robots itself (for SUMO:
 ``SumoOptions.sumo_drives``, :mod:`aac_sumo.sim.sumo`) and hands it the scenario's target lanes.
@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from aac_sumo.coordination.base import Coordinator, Decision, RobotDecision
+from aac_sumo.registry import register_coordinator
 from aac_sumo.world import WorldState
 
 
@@ -26,3 +27,7 @@ class SumoDriver(Coordinator):
     def _decide(self, world: WorldState) -> Decision:
         n = len(world.robots)
         return Decision(np.zeros((n, 2)), [RobotDecision(False, reason="sumo", mode="sumo") for _ in range(n)])
+
+
+register_coordinator("sumo", SumoDriver, kinds=("lane_change",), simulator_drives=True, baseline=True, label="SUMO's own driver",
+                     doc="SUMO's own driver moves the cars, kind lane_change: docs/baselines_sumo.md")

@@ -10,21 +10,15 @@ import numpy as np
 
 from aac_sumo.config import Scenario, ScenarioError
 from aac_sumo.config.schema import from_section
-from aac_sumo.coordination.aac import AacCoordinator, AacParams
+from aac_sumo.coordination.aac import AacParams
 from aac_sumo.coordination.anticipation import Anticipation
 from aac_sumo.coordination.base import Coordinator, Finished
-from aac_sumo.coordination.cbf_qp import CbfQpCoordinator, CbfQpParams
-from aac_sumo.coordination.independent import IndependentCoordinator
-from aac_sumo.coordination.lfc import LfcCoordinator, LfcParams
-from aac_sumo.coordination.orca import OrcaCoordinator, OrcaParams
-from aac_sumo.coordination.prioritized import PrioritizedLfc
-from aac_sumo.coordination.sumo_driver import SumoDriver
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.geometry import pairwise_rect_clearance
 from aac_sumo.mpc.settings import MpcConfig
 from aac_sumo.mpc.planner import MpcPlanner
 from aac_sumo.references import LateralBand, PathReference
-from aac_sumo.registry import COORDINATORS, register_coordinator
+from aac_sumo.registry import coordinators
 from aac_sumo.sim.base import Simulator
 from aac_sumo.world import RobotSpec, WorldState
 
@@ -80,61 +74,10 @@ def aac_params(scenario: Scenario) -> AacParams:
     return from_section(AacParams, scenario, "aac")
 
 
-@register_coordinator("aac")
-def aac_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corridors, finished) -> AacCoordinator:
-    return AacCoordinator(planner, tasks, corridors, finished, params=aac_params(scenario))
-
-
-@register_coordinator("lfc")
-def lfc_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corridors, finished) -> LfcCoordinator | PrioritizedLfc:
-    """The paper's LFC, or with ``lfc.commit`` prioritized planning on committed plans (its
-    committed-plan settings from ``[aac]``, its safety options from ``[lfc]``)."""
-    lfc = from_section(LfcParams, scenario, "lfc")
-    if lfc.commit:
-        params = from_section(AacParams, scenario, "aac", commit=True, safety_stop=lfc.safety_stop, safety_margin=lfc.safety_margin,
-                              fallback=lfc.fallback, lookahead=lfc.lookahead, speed_gain=lfc.speed_gain,
-                              ignore_followers=lfc.ignore_followers, detour=scenario["aac.detour"] and scenario["aac.commit"])
-        return PrioritizedLfc(planner, tasks, corridors, finished, params=params)
-    return LfcCoordinator(planner, tasks, corridors, finished, params=lfc)
-
-
-@register_coordinator("independent")
-def independent_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corridors, finished) -> IndependentCoordinator:
-    return IndependentCoordinator(planner, tasks, corridors, finished)
-
-
-#: The scenario kinds the ORCA baseline runs on (internal simulator, robots with goals).
-ORCA_KINDS = ("swarm_rescue", "circle_swap", "random_crossing")
-
-
-@register_coordinator("orca")
-def orca_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corridors, finished) -> OrcaCoordinator:
-    if scenario.kind not in ORCA_KINDS:
-        raise ScenarioError(scenario.source, "controller.coordinator", f"orca only with scenario.kind {', '.join(ORCA_KINDS)}", "orca")
-    return OrcaCoordinator(planner, tasks, corridors, finished, params=from_section(OrcaParams, scenario, "orca"))
-
-
-@register_coordinator("sumo")
-def sumo_coordinator(scenario: Scenario, planner, tasks, corridors, finished) -> SumoDriver:
-    """SUMO's own driver moves the cars (:mod:`aac_sumo.coordination.sumo_driver`); road kinds only."""
-    if scenario.kind != "lane_change":
-        raise ScenarioError(scenario.source, "controller.coordinator", "a coordinator of ours on this kind (sumo: SUMO's own driver, "
-                            "for kind lane_change, whose cars SUMO hosts)", "sumo")
-    return SumoDriver(planner, tasks, corridors, finished)
-
-
-sumo_coordinator.simulator_drives = True  # the builder starts its simulator with SUMO driving (sumo_driver's module)
-
-
 def simulator_drives(scenario: Scenario) -> bool:
-    """Whether ``controller.coordinator`` leaves driving to the simulator (its factory declares
+    """Whether ``controller.coordinator`` leaves driving to the simulator (it is registered with
     ``simulator_drives``): the builder then starts the simulator in that mode."""
-    return bool(getattr(COORDINATORS.get(scenario["controller.coordinator"]), "simulator_drives", False))
-
-
-@register_coordinator("cbf_qp")
-def cbf_qp_coordinator(scenario: Scenario, planner: MpcPlanner, tasks, corridors, finished) -> CbfQpCoordinator:
-    return CbfQpCoordinator(planner, tasks, corridors, finished, params=from_section(CbfQpParams, scenario, "cbf_qp"))
+    return coordinators()[scenario["controller.coordinator"]].simulator_drives
 
 
 def coordinator(scenario: Scenario, tasks: list[PathReference], corridors=None, finished: Finished | None = None,
@@ -145,7 +88,7 @@ def coordinator(scenario: Scenario, tasks: list[PathReference], corridors=None, 
     band = any(isinstance(c, LateralBand) for c in corridors or []) if band is None else band
     config = dataclasses.replace(mpc_config(scenario), band=band)
     planner = PlannerSettings(config) if simulator_drives(scenario) else MpcPlanner(config)
-    coord = COORDINATORS[scenario["controller.coordinator"]](scenario, planner, tasks, corridors, finished)
+    coord = coordinators()[scenario["controller.coordinator"]].build(scenario, planner, tasks, corridors, finished)
     coord.anticipation = None if simulator_drives(scenario) else anticipation(scenario)
     return coord
 

@@ -10,7 +10,7 @@ import pandas as pd
 
 from aac_sumo.config import Scenario
 from aac_sumo.runs.provenance import provenance
-from aac_sumo.registry import COORDINATORS
+from aac_sumo.registry import coordinators
 from aac_sumo.metrics import compute_metrics, jain, pedestrian_waits
 from aac_sumo.sim.base import Crossing
 
@@ -85,7 +85,7 @@ def assemble_metrics(scenario: Scenario, rec: Recording, steps: pd.DataFrame, pe
         metrics["error"] = rec.error
     if rec.collisions:
         metrics["completed"], metrics["task_duration_s"] = False, None
-        drives = getattr(COORDINATORS.get(c["coordinator"]), "simulator_drives", False)  # SUMO's driver: SUMO drives on
+        drives = coordinators()[c["coordinator"]].simulator_drives  # SUMO's driver: SUMO drives on
         reasons.append(f"{rec.collisions} collision(s); " + ("SUMO's driver drove on" if drives else "wrecked robots stop where they hit"))
     if rec.deadlock:
         reasons.append(f"deadlock: no unfinished robot got further than {stop * patience:.2f} m, at any time in the last "

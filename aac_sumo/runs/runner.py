@@ -14,8 +14,6 @@ import pandas as pd
 
 from aac_sumo import experiments
 from aac_sumo.config import Scenario
-from aac_sumo.coordination.detour import plan_detour
-from aac_sumo.coordination.proximity import ProximityParams, proximity_decision
 from aac_sumo.experiments.common import Setup
 from aac_sumo.geometry import pairwise_rect_clearance
 from aac_sumo.metrics import nearest_robot_distance, pedestrian_clearance, time_to_collision
@@ -186,12 +184,11 @@ def warm_up(setup: Setup, world: WorldState) -> None:
     run: the numba kernels load from their cache (or compile, the first time on a machine)
     when first called, and so does whatever else a decision touches for the first time.
 
-    A copy of the coordinator decides once on ``world``, runs the safety stop's checks and is
-    thrown away. Copying gives it fresh solvers (see ``MpcProblem.__deepcopy__``: solvers keep
-    state between solves) and its own random generator and memory, so the run's coordinator is
-    untouched. The proximity decision and a detour, which the first period may not need, run on
-    tiny instances (the decision with its own generator); the per-step measurements and the reference projection
-    are pure and run on ``world`` as well.
+    A copy of the coordinator warms up what it declares (:meth:`Coordinator.warm_up`), decides
+    once on ``world``, runs the safety stop's checks and is thrown away. Copying gives it fresh
+    solvers (see ``MpcProblem.__deepcopy__``: solvers keep state between solves) and its own
+    random generator and memory, so the run's coordinator is untouched. The per-step
+    measurements and the reference projection are pure and run on ``world`` as well.
     """
     time_to_collision(world)
     nearest_robot_distance(world)
@@ -200,11 +197,9 @@ def warm_up(setup: Setup, world: WorldState) -> None:
     pairwise_rect_clearance(footprints, footprints)
     for i in range(len(world.robots)):
         reference_point(setup, i, world.states[i])
-    proximity_decision(np.zeros((2, 2)), np.ones((2, 2)), np.zeros((1, 2)), np.ones(1), np.array([-1]),
-                       ProximityParams(iterations=2), np.random.default_rng(0))
-    plan_detour(np.zeros(2), np.array([1.0, 0.0]), np.array([[0.5, 0.3, 0.2, 0.2, 0.0]]), 0.1, 0.3, 0.1)
     try:
         shadow = copy.deepcopy(setup.coordinator)
+        shadow.warm_up(world)
         shadow.decide(world)
         everyone, coasting = np.arange(len(world.robots)), np.zeros((len(world.robots), 2))
         shadow.safety_check(world).unsafe(everyone, coasting, 0.1)

@@ -126,9 +126,9 @@ KINDS: dict[str, Kind] = {
     "braking": Kind("braking", 20.0, draw_braking, ("braking.speed", "braking.gap", "braking.lead_decel")),
 }
 #: The baselines as kinds of their own: ``<baseline>-<kind>`` with the kind's draws, for every kind whose
-#: scenario the baseline drives (:data:`~aac_sumo.tables.common.BASELINES`) and that this version declares.
-KINDS |= {f"{b}-{k}": dataclasses.replace(kind, baseline=b) for b, scenarios in BASELINES.items() for k, kind in list(KINDS.items())
-          if kind.scenario in scenarios and b in config.COMMON["controller"]["coordinator"].type}
+#: scenario kind the baseline drives (:data:`~aac_sumo.tables.common.BASELINES`).
+KINDS |= {f"{b}-{k}": dataclasses.replace(kind, baseline=b) for b, kinds in BASELINES.items() for k, kind in list(KINDS.items())
+          if kind.scenario in kinds}
 #: Columns that describe a generated file's content; they are not ``--set`` keys.
 DESCRIPTIVE = ("road", "cones", "pedestrians")
 ROUTES_TEXT = "_routes_xml"  # a draw's route-file content (written by :func:`prepare`, not a column)

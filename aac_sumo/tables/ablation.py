@@ -21,7 +21,7 @@ from pathlib import Path
 
 from aac_sumo import config
 from aac_sumo.runs import sweep
-from aac_sumo.tables.common import BASELINE_LABELS, BASELINES, _fmt, _num, baselines_for, fill_metrics, run_grid, write_csv
+from aac_sumo.tables.common import COORDINATOR_LABELS, _fmt, _num, baselines_for, fill_metrics, run_grid, write_csv
 
 #: Keys that switch AAC's extensions and emergency layer off (the paper's plain settings).
 AAC_PLAIN = ("aac.safety_stop=false", "aac.fallback=brake", "aac.ignore_followers=false", "aac.make_room=false",
@@ -56,12 +56,7 @@ COLUMNS = (("Completed", "completed", "pct"), ("Task [s]", "task_duration_s", "f
 
 def variants_for(kind: str) -> list[tuple[str, str, tuple[str, ...]]]:
     """The AAC and LFC variants, then every registered baseline that drives ``kind``."""
-    return list(VARIANTS) + [(name, BASELINE_LABELS[name], (f"controller.coordinator={name}",)) for name in baselines_for(kind)]
-
-
-def missing_baselines(kind: str) -> list[str]:
-    """Baselines that would drive ``kind`` but are not registered here."""
-    return [name for name, kinds in BASELINES.items() if kind in kinds and name not in baselines_for(kind)]
+    return list(VARIANTS) + [(name, COORDINATOR_LABELS[name], (f"controller.coordinator={name}",)) for name in baselines_for(kind)]
 
 
 def ablation_rows(runs: list[dict], seeds: int, case: str) -> list[dict]:
@@ -112,9 +107,6 @@ def ablation_markdown(tables: list[tuple[str, str, list[dict], list[tuple]]], se
                 cells[0] += f" ({r['errors']} failed run{'s' if r['errors'] > 1 else ''})"
             lines.append("| " + " | ".join(cells) + " |")
         lines += [""] + [f"- {g}" for g in gains(rows)]
-        missing = missing_baselines(kind)
-        if missing:
-            lines.append(f"- Not run here: {', '.join(BASELINE_LABELS[m] for m in missing)} (not installed in this version).")
     return "\n".join(lines) + "\n"
 
 

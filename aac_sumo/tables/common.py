@@ -5,11 +5,11 @@ formatting (:mod:`aac_sumo.tables.build`)."""
 from __future__ import annotations
 
 import csv
-import importlib
 import dataclasses
 import math
 from pathlib import Path
 
+from aac_sumo import registry
 from aac_sumo.runs import sweep
 
 #: ``safety_layers`` values: ``off`` = neither coordinator has an emergency layer (the paper),
@@ -60,23 +60,17 @@ def plan_bundled_tasks(scenario: str, sets: list[str], bundles, grid, seeds: int
     return tasks, [k for k, _ in bundles[0][0]] + [k for k, _ in grid]
 
 
+#: Our coordinators, compared in the paper's tables.
 COORDINATORS = ("aac", "lfc")
-#: Baseline coordinators (``controller.coordinator``), the scenario kinds they drive, and their labels.
-BASELINES = {"orca": ("swarm_rescue", "circle_swap", "random_crossing"),
-             "cbf_qp": ("swarm_rescue", "circle_swap", "random_crossing", "lane_change"),
-             "sumo": ("lane_change",)}
-BASELINE_LABELS = {"orca": "ORCA (RVO2)", "cbf_qp": "CBF-QP safety filter", "sumo": "SUMO's own driver"}
-COORDINATOR_LABELS = {"aac": "AAC-MPC-FCBF", "lfc": "LFC-MPC-FCBF"} | BASELINE_LABELS
+#: The registered baseline coordinators (``controller.coordinator``) and the scenario kinds each drives.
+BASELINES = {name: entry.kinds or registry.kinds() for name, entry in registry.coordinators().items() if entry.baseline}
+#: Every registered coordinator's name in the tables.
+COORDINATOR_LABELS = {name: entry.label for name, entry in registry.coordinators().items()}
 
 
 def baselines_for(kind: str) -> tuple[str, ...]:
-    """The registered baseline coordinators that drive scenarios of ``kind`` (the bundled ones
-    register when the experiments are imported, here)."""
-    from aac_sumo.registry import COORDINATORS as REGISTERED
-
-    importlib.import_module("aac_sumo.experiments")
-
-    return tuple(name for name, kinds in BASELINES.items() if kind in kinds and name in REGISTERED)
+    """The registered baseline coordinators that drive scenarios of ``kind``."""
+    return tuple(name for name, kinds in BASELINES.items() if kind in kinds)
 
 
 def _cell(value) -> str:

@@ -8,5 +8,8 @@ from aac_sumo.coordination.aac.authority import AacCoordinator
 from aac_sumo.coordination.aac.committed import CommittedAac
 from aac_sumo.coordination.aac.params import AacParams, Authorities
 from aac_sumo.coordination.aac.stored import StoredPlanAac
+from aac_sumo.registry import register_coordinator
+
+register_coordinator("aac", AacCoordinator, params=AacParams, doc="one authority robot per period", label="AAC-MPC-FCBF")
 
 __all__ = ["AacCoordinator", "AacParams", "Authorities", "CommittedAac", "StoredPlanAac"]

@@ -15,9 +15,9 @@ import numpy as np
 from aac_sumo.coordination.aac.params import AacParams
 from aac_sumo.coordination.base import Coordinator, Finished, RobotDecision
 from aac_sumo.coordination.commitments import clusters, reach_radii
-from aac_sumo.coordination.detour import Detours
+from aac_sumo.coordination.detour import Detours, plan_detour
 from aac_sumo.coordination.make_room import MakeRoom
-from aac_sumo.coordination.proximity import close_pairs, proximity_decision
+from aac_sumo.coordination.proximity import ProximityParams, close_pairs, proximity_decision
 from aac_sumo.mpc.planner import MpcPlanner
 from aac_sumo.references import PathReference
 from aac_sumo.world import WorldState
@@ -66,6 +66,13 @@ class AacCoordinator(Coordinator):
         self._crowded: tuple[float | None, np.ndarray] = (None, np.zeros(len(tasks), dtype=bool))  # (t, crowded_ahead)
         self.last_reason: dict[int, str] = {}  # per group (its first member), why its last authority held it
         self.detours: Detours | None = None
+
+    def warm_up(self, world: WorldState) -> None:
+        """The proximity decision (with its own generator) and a detour, which the first period may
+        not need, on tiny instances."""
+        proximity_decision(np.zeros((2, 2)), np.ones((2, 2)), np.zeros((1, 2)), np.ones(1), np.array([-1]),
+                           ProximityParams(iterations=2), np.random.default_rng(0))
+        plan_detour(np.zeros(2), np.array([1.0, 0.0]), np.array([[0.5, 0.3, 0.2, 0.2, 0.0]]), 0.1, 0.3, 0.1)
 
     def admit(self, world: WorldState, i: int) -> None:
         """Robot ``i`` has just come onto the road: it has waited longest for a turn."""
