@@ -144,10 +144,36 @@ class SumoSimulator(SumoReading, Simulator):
                 self._insert_driven(robot, self.states[i], edges, vtype)
                 continue
             v.add(robot.name, ROUTE_ID, vtype, depart="now", departSpeed=repr(max(float(self.states[i, 3]), 0.0)))
-            v.setSpeedMode(robot.name, 0)
-            v.setLaneChangeMode(robot.name, 0)
+            self._make_ours(i)
             x, y, angle = sumo_from_state(self.states[i], robot.length, robot.model.wheelbase)
             v.moveToXY(robot.name, "", -1, x, y, angle, keepRoute=2)
+
+    def _make_ours(self, i: int) -> None:
+        """Robot ``i``'s SUMO vehicle moves as our model moves it: speed and lane-change mode 0,
+        and a speed SUMO allows it on every car lane of the network at least its top speed
+        ``v_max``: its maximum speed and speed factor are raised where they fall short (the
+        slowest lane's limit times the speed factor). SUMO caps the speed it derives from a
+        ``moveToXY`` move at that allowed speed, so that a car crossing onto a slower lane
+        (the highway's work zone) was slowed there in SUMO's eyes alone: fcd.xml showed 12.49
+        m/s where it drove 16, and SUMO warned of emergency braking every step."""
+        name, v = self.robots[i].name, self.api.vehicle
+        v.setSpeedMode(name, 0)
+        v.setLaneChangeMode(name, 0)
+        top = float(self.robots[i].model.limits.v_max)
+        if v.getMaxSpeed(name) < top:
+            v.setMaxSpeed(name, top)
+        factor = top / self._slowest_limit()
+        if v.getSpeedFactor(name) < factor:
+            v.setSpeedFactor(name, factor)
+
+    def _slowest_limit(self) -> float:
+        """The lowest speed limit [m/s] of the network's lanes open to cars (junctions'
+        internal lanes included), read once."""
+        if getattr(self, "_slowest", None) is None:
+            lane = self.api.lane
+            limits = [lane.getMaxSpeed(k) for k in lane.getIDList() if not lane.getAllowed(k) or VEHICLE_CLASS in lane.getAllowed(k)]
+            self._slowest = max(min(limits, default=1.0), 0.1)
+        return self._slowest
 
     def _insert_driven(self, robot: RobotSpec, state: np.ndarray, edges: list[str], vtype: str) -> None:
         """Insert ``robot`` for SUMO's driver at ``state``: on the lane and lane position SUMO
