@@ -107,9 +107,11 @@ def loop(setup: Setup, rec: Recording) -> None:
         rec.traj += [dict(t=round(world.t, 9), **a) for a in sim.agents()]
         done = np.asarray(setup.finished(world), dtype=bool)
         here = world.on_road
-        rec.arrival[done & np.isnan(rec.arrival)] = world.t
+        arriving = done & np.isnan(rec.arrival)
+        rec.arrival[arriving] = world.t
         if done.all():
             rec.completed, rec.task_duration = True, world.t
+            rec.steps += arrival_rows(setup, world, arriving & here)
             return
         if k * dt >= duration - 1e-9:
             return
@@ -145,6 +147,20 @@ def loop(setup: Setup, rec: Recording) -> None:
                 arrived=bool(done[i]), clearance_m=contacts.clearance[i], nearest_robot_m=nearest[i], ttc_s=ttc[i],
                 pedestrian_clearance_m=to_pedestrians[i],
             ))
+
+
+def arrival_rows(setup: Setup, world: WorldState, arriving: np.ndarray) -> list[dict]:
+    """``steps.csv`` rows of the robots ``arriving`` (n,) at the run's last observation, the one
+    that completes it: their state and reference point, ``arrived`` true, and no decision (none
+    is taken then: inputs, solver fields and measurements empty). Without them the last robot to
+    arrive was never marked arrived."""
+    rows = []
+    for i in np.flatnonzero(arriving):
+        x, ref = world.states[i], reference_point(setup, int(i), world.states[i])
+        rows.append(dict(t=world.t, robot=world.robots[i].name, x=x[0], y=x[1], heading=x[2], v=x[3], accel=np.nan, steer=np.nan,
+                         ref_x=ref[0], ref_y=ref[1], ref_heading=ref[2], ref_v=ref[3], status="", solver="", capped=False,
+                         authority=False, mode="", arrived=True))
+    return rows
 
 
 def check_finite(world: WorldState) -> None:
