@@ -11,6 +11,19 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 
+#: Scenario kinds whose robots are cars (titles count "cars", not "robots").
+CAR_KINDS = ("lane_change", "braking")
+
+
+def horizon_and_fleet(metrics: dict, kind: str) -> str:
+    """``"horizon N=10, 15 cars"``: the MPC horizon and how many robots the run had (a bare
+    "N=10" read as ten cars)."""
+    n = metrics.get("n_robots")
+    noun = "cars" if kind in CAR_KINDS else "robots"
+    fleet = "" if n is None else f", {n} {noun[:-1] if n == 1 else noun}"
+    return f"horizon N={metrics.get('horizon')}{fleet}"
+
+
 def plot_run(result, path: Path) -> None:
     """``trajectories.png`` for the run's scenario kind."""
     if result.scenario.kind == "lane_change":
@@ -44,7 +57,7 @@ def _plot_braking(result, path: Path) -> None:
     ax_v.set_xlabel("time [s]")
     ax_v.legend(loc="upper right")
     m = result.metrics
-    fig.suptitle(f"{m['scenario']}: {m['barrier']}, horizon {m['horizon']}; min distance "
+    fig.suptitle(f"{m['scenario']}: {m['barrier']}, {horizon_and_fleet(m, result.scenario.kind)}; min distance "
                  f"{_fmt(m['min_distance_m'])} m, collisions {m['collisions']}, infeasible {m['infeasible_solves']}/{m['solves']}")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
@@ -73,7 +86,7 @@ def _plot_swarm(result, path: Path) -> None:
     ax.set_ylabel("y [m]")
     ax.legend(fontsize="small", loc="best")
     done = "completed in " + _fmt(m["task_duration_s"]) + " s" if m["completed"] else m.get("incomplete_reason", "not completed")
-    ax.set_title(f"{m['scenario']}: {m['coordinator'].upper()}, {m['barrier']}, horizon {m['horizon']}, seed {m['seed']}; {done}\n"
+    ax.set_title(f"{m['scenario']}: {m['coordinator'].upper()}, {m['barrier']}, {horizon_and_fleet(m, result.scenario.kind)}, seed {m['seed']}; {done}\n"
                  f"min distance {_fmt(m['min_distance_m'])} m, collisions {m['collisions']}, "
                  f"compute median {_fmt(m['compute_ms_median'])} ms/period", fontsize="medium")
     index = {name: i for i, name in enumerate(robots)}
