@@ -34,9 +34,12 @@ so that the runner records what SUMO's driver did. A vehicle SUMO removes leaves
 
 from __future__ import annotations
 
+import contextlib
+import io
 import multiprocessing
+import subprocess
 import sys
-from contextlib import contextmanager
+import tempfile
 
 import numpy as np
 
@@ -106,7 +109,10 @@ class SumoSimulator(SumoReading, Simulator):
         self._applied = np.zeros((len(self.robots), 2))
         self.model = FleetModel([r.model for r in self.robots])
         try:
-            self.api.start(options.command(dt))
+            if options.gui:
+                _start_gui(self.api, options.command(dt))
+            else:
+                self.api.start(options.command(dt))
         except Exception as exc:
             raise SumoError(f"SUMO did not start ({_first_line(exc)}); command: {' '.join(options.command(dt))}") from None
         self._running = True
@@ -316,7 +322,7 @@ class SumoSimulator(SumoReading, Simulator):
             except Exception:  # SUMO already gone; nothing left to release
                 pass
 
-    @contextmanager
+    @contextlib.contextmanager
     def _sumo_errors(self, doing: str):
         """Turn any libsumo/traci exception into one ``SumoError`` line naming the world time."""
         try:
@@ -356,6 +362,25 @@ def applied_inputs(before: np.ndarray, after: np.ndarray, dt: float, wheelbase: 
     with np.errstate(divide="ignore", invalid="ignore"):
         steer = np.where(np.abs(v) > 0.1, np.arctan(wheelbase * turn / np.where(np.abs(v) > 0.1, v, 1.0)), 0.0)
     return np.column_stack([accel, np.clip(steer, -APPLIED_STEER_MAX, APPLIED_STEER_MAX)])
+
+
+def _start_gui(traci, cmd: list[str]) -> None:
+    """Start sumo-gui (``cmd``) and connect traci to it, as ``traci.start`` does, but with its
+    messages in a file and traci's retries silent: when sumo-gui exits before it answers (no
+    display it can open), raise at once with its first message. ``traci.start`` tried 60
+    ports in a row, each a new sumo-gui, for a minute and 240 lines of retries."""
+    with tempfile.TemporaryFile() as messages:
+        proc = subprocess.Popen(cmd + ["--remote-port", str(traci.getFreeSocketPort())], stderr=messages)
+        try:
+            with contextlib.redirect_stdout(io.StringIO()):  # traci's "Retrying in 1 seconds" while sumo-gui loads
+                traci.init(int(proc.args[-1]), proc=proc)
+        except Exception as exc:
+            if proc.poll() is None:
+                proc.kill()
+            proc.wait()
+            messages.seek(0)
+            said = [line.strip() for line in messages.read().decode(errors="replace").splitlines() if line.strip()]
+            raise RuntimeError(said[0] if said else f"sumo-gui exited ({_first_line(exc)})") from None
 
 
 def _first_line(exc: BaseException) -> str:
