@@ -106,3 +106,17 @@ def test_the_s2_demo_agrees_with_sumos_tripinfo_and_fcd(tmp_path, capsys):
     assert (both["fcd_v"] - both["driven"]).abs().max() < 0.1
     log = (out / "sumo.log").read_text().lower()
     assert "emergency" not in log
+
+
+def test_a_road_without_cones_or_walkers_says_the_task_is_the_lane_changes_alone(capsys):
+    """A lane_change run on a network whose route files hold no cones and no walkers (here the
+    bundled road with none) says so in one line; the bundled files, with both, say nothing."""
+    from aac_sumo.experiments import build
+    from aac_sumo.experiments.lane_change import BUNDLED_NET
+
+    notice = "aac-sumo: note: no cones or walkers in the route files: the task is the lane changes alone"
+    for sets, said in (([f"sumo.net={BUNDLED_NET}"], True), ([], False)):
+        setup = build(config.load("lane_change", SMALL + ["lane_change.vehicles=3", *sets]))
+        setup.sim.close()
+        err = capsys.readouterr().err.splitlines()
+        assert (notice in err) == said and err.count(notice) <= 1

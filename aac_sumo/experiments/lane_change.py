@@ -190,6 +190,8 @@ def build_lane_change(scenario: Scenario) -> Setup:
     src = scenario.source
     net_path, routes = network_files(scenario)
     scenario = with_resolved_paths(scenario)
+    if not any(has_obstacles(path, su["cone_types"]) for path in routes):
+        print("aac-sumo: note: no cones or walkers in the route files: the task is the lane changes alone", file=sys.stderr)
     if su["controlled_types"] or su["controlled_ids"]:
         return build_routed(scenario, net_path, routes, sumo_options(scenario, net_path, routes))
     rd = scenario_road(scenario, net_path)
@@ -281,6 +283,19 @@ def road_end_arrivals(sim, robots: list[RobotSpec], lines: list[PathReference], 
         return sim.observe() if leaving else world
 
     return prepare
+
+
+def has_obstacles(path: Path, cone_types: str) -> bool:
+    """Whether the route file ``path`` holds a walker (``person``, ``personFlow``) or a vehicle
+    or flow of one of ``cone_types`` (comma-separated); unreadable files count as holding some."""
+    import xml.etree.ElementTree as ET
+
+    cones = {t.strip() for t in cone_types.split(",") if t.strip()}
+    try:
+        root = ET.parse(path).getroot()
+    except (OSError, ET.ParseError):
+        return True
+    return any(e.tag in ("person", "personFlow") or (e.tag in ("vehicle", "flow", "trip") and e.get("type") in cones) for e in root.iter())
 
 
 def _cone_lane(rd: network.Road, centre_lines: list[PathReference], cones) -> int:
