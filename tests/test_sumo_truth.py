@@ -70,7 +70,9 @@ def test_the_last_car_to_arrive_is_marked_arrived_when_the_run_completes():
     assert set(first.index) == set(steps["robot"])
     assert first.max() == pytest.approx(m["task_duration_s"])
     last = steps[steps["t"] == steps["t"].max()]
-    assert last["arrived"].astype(bool).all() and last["status"].fillna("").eq("").all() and last["accel"].isna().all()
+    assert last["arrived"].astype(bool).all() and last["status"].fillna("").eq("").all()  # no solve then
+    before = steps[steps["robot"].isin(last["robot"])].groupby("robot").nth(-2).set_index("robot")
+    assert (last.set_index("robot")[["accel", "steer", "mode"]] == before[["accel", "steer", "mode"]]).all().all()  # held
 
 
 @pytest.mark.slow
