@@ -163,7 +163,7 @@ def test_compare_counts_a_robot_arrived_from_its_first_arrived_row_on_also_after
 
 
 def test_titles_say_the_horizon_and_how_many_cars():
-    from aac_sumo.views.pictures import horizon_and_fleet
+    from aac_sumo.views.titles import horizon_and_fleet
 
     assert horizon_and_fleet({"horizon": 10, "n_robots": 15}, "lane_change") == "horizon N=10, 15 cars"
     assert horizon_and_fleet({"horizon": 5, "n_robots": 1}, "swarm_rescue") == "horizon N=5, 1 robot"

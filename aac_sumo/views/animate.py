@@ -18,7 +18,7 @@ from matplotlib.patches import Patch  # noqa: E402
 
 from aac_sumo.barriers import FcbfParams, cbf_axes, fcbf_axes  # noqa: E402
 from aac_sumo.config import ScenarioError  # noqa: E402
-from aac_sumo.views.pictures import horizon_and_fleet  # noqa: E402
+from aac_sumo.views.titles import horizon_and_fleet  # noqa: E402
 
 #: Face colours by agent kind (trajectories.csv ``kind``); controlled robots get their own colour.
 KIND_COLOURS = {"static": "0.55", "scripted": "0.35", "cone": "tab:orange", "pedestrian": "tab:red"}

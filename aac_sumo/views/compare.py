@@ -13,7 +13,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from aac_sumo.metrics import METRIC_KEYS  # noqa: E402
-from aac_sumo.views.pictures import horizon_and_fleet  # noqa: E402
+from aac_sumo.views.titles import horizon_and_fleet  # noqa: E402
 
 
 def labels(run_dirs: list[Path]) -> list[str]:

@@ -11,7 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from aac_sumo.views.pictures import horizon_and_fleet  # noqa: E402
+from aac_sumo.views.titles import horizon_and_fleet  # noqa: E402
 
 
 def _offset(line: np.ndarray, d: float) -> np.ndarray:

@@ -10,18 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-
-#: Scenario kinds whose robots are cars (titles count "cars", not "robots").
-CAR_KINDS = ("lane_change", "braking")
-
-
-def horizon_and_fleet(metrics: dict, kind: str) -> str:
-    """``"horizon N=10, 15 cars"``: the MPC horizon and how many robots the run had (a bare
-    "N=10" read as ten cars)."""
-    n = metrics.get("n_robots")
-    noun = "cars" if kind in CAR_KINDS else "robots"
-    fleet = "" if n is None else f", {n} {noun[:-1] if n == 1 else noun}"
-    return f"horizon N={metrics.get('horizon')}{fleet}"
+from aac_sumo.views.titles import horizon_and_fleet  # noqa: E402
 
 
 def plot_run(result, path: Path) -> None:

@@ -33,7 +33,7 @@ import numpy as np
 import pandas as pd
 
 from aac_sumo.runs.files import RunDirError, read_run
-from aac_sumo.views.pictures import horizon_and_fleet
+from aac_sumo.views.titles import horizon_and_fleet
 
 #: How far ahead of a car's front [m], and how far beside its centre line [m], a walker it yields to may be.
 YIELD_AHEAD = 30.0

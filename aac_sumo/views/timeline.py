@@ -14,7 +14,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from aac_sumo.metrics import authority_share  # noqa: E402
-from aac_sumo.views.pictures import horizon_and_fleet  # noqa: E402
+from aac_sumo.views.titles import horizon_and_fleet  # noqa: E402
 
 #: Above this many robots the per-robot lines share one colour and the legend is left out.
 LEGEND_MAX = 10
