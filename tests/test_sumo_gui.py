@@ -97,3 +97,16 @@ def test_the_gui_without_a_display_is_one_line_at_once(tmp_path, monkeypatch, ca
     assert main(["run", "lane_change", "--gui", "--out", str(tmp_path / "g")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "sumo.gui" in err and "display" in err and "without --gui" in err
+
+
+def test_a_display_sumo_gui_cannot_open_is_one_line_at_once(tmp_path, monkeypatch, capfd):
+    """With DISPLAY naming a display that does not exist, sumo-gui exits at once: the run stops
+    with exit status 2 and one line carrying sumo-gui's own message, not a minute of traci
+    starting sumo-gui again on 60 ports and 240 lines of retries."""
+    monkeypatch.setenv("DISPLAY", ":97")
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    assert main(["run", "lane_change", "--gui", "--out", str(tmp_path / "g")]) == 2
+    captured = capfd.readouterr()
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1 and "SUMO did not start (FXApp::openDisplay: unable to open display :97)" in err[0], err
+    assert "Retrying" not in captured.out

@@ -73,7 +73,8 @@ def test_the_fairness_picture_shows_only_the_robots_that_were_recorded(tmp_path)
     steps = pd.DataFrame({"t": [0.0, 0.0, 0.1, 0.1, 0.2, 0.2], "robot": ["a", "b"] * 3,
                           "authority": [True, False, False, True, True, False], "arrived": [False] * 6})
     result = SimpleNamespace(steps=steps, metrics={"authority_jain": 0.9, "delay_jain": None, "delay_max_s": 1.5,
-                                                   "scenario": "highway_work_zone", "coordinator": "aac", "horizon": 10, "seed": 0})
+                                                   "scenario": "highway_work_zone", "coordinator": "aac", "horizon": 10, "seed": 0},
+                             scenario=SimpleNamespace(kind="lane_change"))
     delays = pd.Series([1.5, np.nan, np.nan], index=["a", "b", "c"])
     fig = fairness_figure(result, delays)
     try:
@@ -139,12 +140,49 @@ def test_compare_draws_paths_to_scale_unless_they_are_a_long_road(tmp_path, monk
     from aac_sumo.views import compare
 
     t = np.arange(3) * 0.1
-    steps = pd.DataFrame(dict(t=np.repeat(t, 2), v=1.0, clearance_m=1.0, arrived=False))
+    steps = pd.DataFrame(dict(t=np.repeat(t, 2), robot=["a", "b"] * 3, v=1.0, clearance_m=1.0, arrived=False))
     traj = pd.DataFrame(dict(name=["a"] * 3 + ["b"] * 3, kind="controlled", x=[0.0, length / 2, length] * 2,
                              y=[-8.0, -8.0, -8.0, -1.6, -1.6, 1.6]))
     figures = []
     monkeypatch.setattr(compare.plt, "close", figures.append)
-    compare.plot({"one": SimpleNamespace(steps=steps, trajectories=traj)}, tmp_path / "c.png")
+    run = SimpleNamespace(steps=steps, trajectories=traj, metrics={"horizon": 10, "n_robots": 2}, scenario=SimpleNamespace(kind="lane_change"))
+    compare.plot({"one": run}, tmp_path / "c.png")
     paths = figures[0].axes[-1]
     assert (paths.get_aspect() == 1.0) == equal
     assert ("not to scale" in paths.get_title()) == (not equal)
+    assert ("not to scale" in paths.get_ylabel()) == (not equal)  # the lateral axis says how much it is stretched
+    legend = [text.get_text() for text in figures[0].axes[0].get_legend().get_texts()]
+    assert legend == ["one (horizon N=10, 2 cars)"]  # a bare "N=10" read as ten cars
+
+
+def test_compare_counts_a_robot_arrived_from_its_first_arrived_row_on_also_after_it_left():
+    from aac_sumo.views.compare import arrivals_over_time
+
+    steps = pd.DataFrame(dict(t=[0.0, 0.0, 0.1, 0.1, 0.2], robot=["a", "b", "a", "b", "b"], arrived=[False, False, True, False, True]))
+    assert arrivals_over_time(steps).tolist() == [0, 1, 2]  # a has left at 0.2 and still counts
+
+
+def test_titles_say_the_horizon_and_how_many_cars():
+    from aac_sumo.views.titles import horizon_and_fleet
+
+    assert horizon_and_fleet({"horizon": 10, "n_robots": 15}, "lane_change") == "horizon N=10, 15 cars"
+    assert horizon_and_fleet({"horizon": 5, "n_robots": 1}, "swarm_rescue") == "horizon N=5, 1 robot"
+
+
+@pytest.mark.parametrize("road, zoomed", [(2750.0, True), (420.0, False)])
+def test_the_road_picture_zooms_to_the_cars_on_a_long_road(road, zoomed):
+    """On a 2.75 km road the cars' 60 m of motion was a blob: the panel zooms to their extent
+    (plus a margin) and says so; a 420 m road the cars drive along stays whole."""
+    import matplotlib.pyplot as plt
+
+    from aac_sumo.views.lane_change import ZOOM_MARGIN, zoom_to_cars
+
+    fig, ax = plt.subplots()
+    ax.plot([0.0, road], [-8.0, 8.0])
+    ax.autoscale()
+    span = 60.0 if zoomed else road
+    cars = pd.DataFrame(dict(x=[100.0, 100.0 + span], y=[-4.8, -1.6]))
+    assert zoom_to_cars(ax, cars) == zoomed
+    if zoomed:
+        assert ax.get_xlim() == pytest.approx((100.0 - ZOOM_MARGIN, 160.0 + ZOOM_MARGIN))
+    plt.close(fig)

@@ -16,6 +16,7 @@ from aac_sumo.config import ScenarioError
 from aac_sumo.sim.sumo_routes import FLOW_END, RoutesError, flow_departures
 
 SHOWN = 8  # candidate roads listed
+SHOWN_IDS = 6  # ids listed of a longer list, then how many more
 WHERE = "net info"
 
 
@@ -57,7 +58,9 @@ def _roads(net, need: int) -> list[str]:
     if chosen is None:
         lines.append(f"  none has {need} lanes: lane_change cannot run on this network")
     else:
-        lines.append(f"  lane_change's rightmost car lane (where cones close a lane): {' '.join(lane.getID() for lane in chosen.lanes(0))}")
+        lines.append(f"  lane_change takes the road marked <- lane_change: {chosen.n_lanes} lanes, {chosen.length:.0f} m, "
+                     f"edges {chosen.ids[0]} to {chosen.ids[-1]} ({_count(chosen.ids, 'edge')})")
+        lines.append(f"  lane_change's rightmost car lane (where cones close a lane): {_first([lane.getID() for lane in chosen.lanes(0)])}")
     return lines
 
 
@@ -86,8 +89,8 @@ def _pedestrians(net, edges) -> list[str]:
     crossed = sorted({c.getID() for e in crossings for c in e.getCrossingEdges()})
     lines = [f"pedestrians: sidewalks or footpaths on {_count(walk, 'edge')}{_some(walk)}; "
              f"on the road itself on {_count(shared, 'more edge')}{_some(shared)}",
-             f"  crossings: {len(crossings)}" + (f" (over {' '.join(crossed)})" if 0 < len(crossed) <= 6 else
-                                                     f" (over {len(crossed)} edges: {' '.join(crossed[:6])} ...)" if crossed else "")]
+             f"  crossings: {len(crossings)}" + (f" (over {' '.join(crossed)})" if 0 < len(crossed) <= SHOWN_IDS else
+                                                     f" (over {len(crossed)} edges: {_first(crossed)})" if crossed else "")]
     if not walk:
         lines.append("  walkers need sidewalks: netconvert --sidewalks.guess, or sidewalkWidth on the edges")
     if not crossings:
@@ -99,8 +102,15 @@ def _count(items: list, noun: str) -> str:
     return f"{len(items)} {noun}{'s' * (len(items) != 1)}"
 
 
-def _some(ids: list[str], n: int = 6) -> str:
-    return "" if not ids else f" ({' '.join(ids[:n])}{' ...' if len(ids) > n else ''})"
+def _some(ids: list[str]) -> str:
+    return "" if not ids else f" ({_first(ids)})"
+
+
+def _first(ids: list[str]) -> str:
+    """The first ``SHOWN_IDS`` of ``ids``, and how many more there are (DRT's 1180 sidewalk
+    edges were 1180 ids)."""
+    more = len(ids) - SHOWN_IDS
+    return " ".join(ids[:SHOWN_IDS]) + (f" ... and {more} more" if more > 0 else "")
 
 
 def _routes(path: Path) -> list[str]:

@@ -190,8 +190,9 @@ def build_lane_change(scenario: Scenario) -> Setup:
     src = scenario.source
     net_path, routes = network_files(scenario)
     scenario = with_resolved_paths(scenario)
+    bare = not any(has_obstacles(path, su["cone_types"]) for path in routes)
     if su["controlled_types"] or su["controlled_ids"]:
-        return build_routed(scenario, net_path, routes, sumo_options(scenario, net_path, routes))
+        return _noted(build_routed(scenario, net_path, routes, sumo_options(scenario, net_path, routes)), bare)
     rd = scenario_road(scenario, net_path)
     n, lanes = lc["vehicles"], rd.n_lanes
     robots = [robot_spec(scenario, f"veh{k}") for k in range(n)]
@@ -255,7 +256,7 @@ def build_lane_change(scenario: Scenario) -> Setup:
                  for k, (a, b) in enumerate(zip(start_lane, targets))]
         prepare = None if simulator_drives(scenario) else road_end_arrivals(sim, robots, [centre_lines[b] for b in targets],
                                                                            [rd.length(b) for b in targets], done, scenario["scenario.dt"])
-        return Setup(scenario, sim, coordinator(scenario, tasks, bands, finished), tasks, finished, free_flow, prepare)
+        return _noted(Setup(scenario, sim, coordinator(scenario, tasks, bands, finished), tasks, finished, free_flow, prepare), bare)
     except BaseException:
         sim.close()
         raise
@@ -281,6 +282,26 @@ def road_end_arrivals(sim, robots: list[RobotSpec], lines: list[PathReference], 
         return sim.observe() if leaving else world
 
     return prepare
+
+
+def _noted(setup: Setup, bare: bool) -> Setup:
+    """``setup``, once built, after a one-line note when the route files hold no cones or walkers (``bare``)."""
+    if bare:
+        print("aac-sumo: note: no cones or walkers in the route files: the task is the lane changes alone", file=sys.stderr)
+    return setup
+
+
+def has_obstacles(path: Path, cone_types: str) -> bool:
+    """Whether the route file ``path`` holds a walker (``person``, ``personFlow``) or a vehicle
+    or flow of one of ``cone_types`` (comma-separated); unreadable files count as holding some."""
+    import xml.etree.ElementTree as ET
+
+    cones = {t.strip() for t in cone_types.split(",") if t.strip()}
+    try:
+        root = ET.parse(path).getroot()
+    except (OSError, ET.ParseError):
+        return True
+    return any(e.tag in ("person", "personFlow") or (e.tag in ("vehicle", "flow", "trip") and e.get("type") in cones) for e in root.iter())
 
 
 def _cone_lane(rd: network.Road, centre_lines: list[PathReference], cones) -> int:

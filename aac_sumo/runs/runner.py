@@ -105,9 +105,11 @@ def loop(setup: Setup, rec: Recording) -> None:
         rec.traj += [dict(t=round(world.t, 9), **a) for a in sim.agents()]
         done = np.asarray(setup.finished(world), dtype=bool)
         here = world.on_road
-        rec.arrival[done & np.isnan(rec.arrival)] = world.t
+        arriving = done & np.isnan(rec.arrival)
+        rec.arrival[arriving] = world.t
         if done.all():
             rec.completed, rec.task_duration = True, world.t
+            rec.steps += arrival_rows(setup, world, arriving & here, rec.steps)
             return
         if k * dt >= duration - 1e-9:
             return
@@ -143,6 +145,24 @@ def loop(setup: Setup, rec: Recording) -> None:
                 arrived=bool(done[i]), clearance_m=contacts.clearance[i], nearest_robot_m=nearest[i], ttc_s=ttc[i],
                 pedestrian_clearance_m=to_pedestrians[i],
             ))
+
+
+def arrival_rows(setup: Setup, world: WorldState, arriving: np.ndarray, steps: list[dict]) -> list[dict]:
+    """``steps.csv`` rows of the robots ``arriving`` (n,) at the run's last observation, the one
+    that completes it: their state and reference point, ``arrived`` true, no solve (``status``
+    empty), and the inputs and mode of their last row in ``steps`` held (no decision is taken
+    then; the last inputs are the ones in effect). Without them the last robot to arrive was
+    never marked arrived."""
+    last = {row["robot"]: row for row in steps}
+    rows = []
+    for i in np.flatnonzero(arriving):
+        name, x = world.robots[i].name, world.states[i]
+        ref = reference_point(setup, int(i), x)
+        held = last.get(name, {})
+        rows.append(dict(t=world.t, robot=name, x=x[0], y=x[1], heading=x[2], v=x[3], accel=held.get("accel", 0.0),
+                         steer=held.get("steer", 0.0), ref_x=ref[0], ref_y=ref[1], ref_heading=ref[2], ref_v=ref[3], status="",
+                         solver="", capped=False, authority=False, mode=held.get("mode", ""), arrived=True))
+    return rows
 
 
 def check_finite(world: WorldState) -> None:

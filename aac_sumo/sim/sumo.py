@@ -34,9 +34,12 @@ so that the runner records what SUMO's driver did. A vehicle SUMO removes leaves
 
 from __future__ import annotations
 
+import contextlib
+import io
 import multiprocessing
+import subprocess
 import sys
-from contextlib import contextmanager
+import tempfile
 
 import numpy as np
 
@@ -106,7 +109,10 @@ class SumoSimulator(SumoReading, Simulator):
         self._applied = np.zeros((len(self.robots), 2))
         self.model = FleetModel([r.model for r in self.robots])
         try:
-            self.api.start(options.command(dt))
+            if options.gui:
+                _start_gui(self.api, options.command(dt))
+            else:
+                self.api.start(options.command(dt))
         except Exception as exc:
             raise SumoError(f"SUMO did not start ({_first_line(exc)}); command: {' '.join(options.command(dt))}") from None
         self._running = True
@@ -144,10 +150,36 @@ class SumoSimulator(SumoReading, Simulator):
                 self._insert_driven(robot, self.states[i], edges, vtype)
                 continue
             v.add(robot.name, ROUTE_ID, vtype, depart="now", departSpeed=repr(max(float(self.states[i, 3]), 0.0)))
-            v.setSpeedMode(robot.name, 0)
-            v.setLaneChangeMode(robot.name, 0)
+            self._make_ours(i)
             x, y, angle = sumo_from_state(self.states[i], robot.length, robot.model.wheelbase)
             v.moveToXY(robot.name, "", -1, x, y, angle, keepRoute=2)
+
+    def _make_ours(self, i: int) -> None:
+        """Robot ``i``'s SUMO vehicle moves as our model moves it: speed and lane-change mode 0,
+        and a speed SUMO allows it on every car lane of the network at least its top speed
+        ``v_max``: its maximum speed and speed factor are raised where they fall short (the
+        slowest lane's limit times the speed factor). SUMO caps the speed it derives from a
+        ``moveToXY`` move at that allowed speed, so that a car crossing onto a slower lane
+        (the highway's work zone) was slowed there in SUMO's eyes alone: fcd.xml showed 12.49
+        m/s where it drove 16, and SUMO warned of emergency braking every step."""
+        name, v = self.robots[i].name, self.api.vehicle
+        v.setSpeedMode(name, 0)
+        v.setLaneChangeMode(name, 0)
+        top = float(self.robots[i].model.limits.v_max)
+        if v.getMaxSpeed(name) < top:
+            v.setMaxSpeed(name, top)
+        factor = top / self._slowest_limit()
+        if v.getSpeedFactor(name) < factor:
+            v.setSpeedFactor(name, factor)
+
+    def _slowest_limit(self) -> float:
+        """The lowest speed limit [m/s] of the network's lanes open to cars (junctions'
+        internal lanes included), read once."""
+        if getattr(self, "_slowest", None) is None:
+            lane = self.api.lane
+            limits = [lane.getMaxSpeed(k) for k in lane.getIDList() if not lane.getAllowed(k) or VEHICLE_CLASS in lane.getAllowed(k)]
+            self._slowest = max(min(limits, default=1.0), 0.1)
+        return self._slowest
 
     def _insert_driven(self, robot: RobotSpec, state: np.ndarray, edges: list[str], vtype: str) -> None:
         """Insert ``robot`` for SUMO's driver at ``state``: on the lane and lane position SUMO
@@ -290,7 +322,7 @@ class SumoSimulator(SumoReading, Simulator):
             except Exception:  # SUMO already gone; nothing left to release
                 pass
 
-    @contextmanager
+    @contextlib.contextmanager
     def _sumo_errors(self, doing: str):
         """Turn any libsumo/traci exception into one ``SumoError`` line naming the world time."""
         try:
@@ -330,6 +362,25 @@ def applied_inputs(before: np.ndarray, after: np.ndarray, dt: float, wheelbase: 
     with np.errstate(divide="ignore", invalid="ignore"):
         steer = np.where(np.abs(v) > 0.1, np.arctan(wheelbase * turn / np.where(np.abs(v) > 0.1, v, 1.0)), 0.0)
     return np.column_stack([accel, np.clip(steer, -APPLIED_STEER_MAX, APPLIED_STEER_MAX)])
+
+
+def _start_gui(traci, cmd: list[str]) -> None:
+    """Start sumo-gui (``cmd``) and connect traci to it, as ``traci.start`` does, but with its
+    messages in a file and traci's retries silent: when sumo-gui exits before it answers (no
+    display it can open), raise at once with its first message. ``traci.start`` tried 60
+    ports in a row, each a new sumo-gui, for a minute and 240 lines of retries."""
+    with tempfile.TemporaryFile() as messages:
+        proc = subprocess.Popen(cmd + ["--remote-port", str(traci.getFreeSocketPort())], stderr=messages)
+        try:
+            with contextlib.redirect_stdout(io.StringIO()):  # traci's "Retrying in 1 seconds" while sumo-gui loads
+                traci.init(int(proc.args[-1]), proc=proc)
+        except Exception as exc:
+            if proc.poll() is None:
+                proc.kill()
+            proc.wait()
+            messages.seek(0)
+            said = [line.strip() for line in messages.read().decode(errors="replace").splitlines() if line.strip()]
+            raise RuntimeError(said[0] if said else f"sumo-gui exited ({_first_line(exc)})") from None
 
 
 def _first_line(exc: BaseException) -> str:

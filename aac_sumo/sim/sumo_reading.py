@@ -29,7 +29,7 @@ class SumoReading:
     """The reading half of :class:`~aac_sumo.sim.sumo.SumoSimulator`, which sets the attributes
     it uses: ``api`` (libsumo or traci), ``robots``, ``states``, ``present``, ``index``,
     ``routed``, ``removed``, ``drives``, ``events``, ``t``, ``options`` and the caches
-    ``_obstacle_dims`` and ``_walkway_lanes``."""
+    ``_obstacle_dims`` and ``_walkway_lanes``, and the method ``_make_ours`` (speed modes and allowed speed of a car we move)."""
 
     def _note_removed(self) -> None:
         """Note every controlled vehicle SUMO no longer has: a routed one leaves the road, a
@@ -59,8 +59,7 @@ class SumoReading:
             if i is None or vid not in self.routed or self.present[i] or vid in self.removed:
                 continue
             if not self.drives:
-                v.setSpeedMode(vid, 0)
-                v.setLaneChangeMode(vid, 0)
+                self._make_ours(i)
             robot = self.robots[i]
             x, y = v.getPosition(vid)
             self.states[i] = state_from_sumo(x, y, v.getAngle(vid), v.getSpeed(vid), robot.length, robot.model.wheelbase)

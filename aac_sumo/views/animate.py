@@ -18,6 +18,7 @@ from matplotlib.patches import Patch  # noqa: E402
 
 from aac_sumo.barriers import FcbfParams, cbf_axes, fcbf_axes  # noqa: E402
 from aac_sumo.config import ScenarioError  # noqa: E402
+from aac_sumo.views.titles import horizon_and_fleet  # noqa: E402
 
 #: Face colours by agent kind (trajectories.csv ``kind``); controlled robots get their own colour.
 KIND_COLOURS = {"static": "0.55", "scripted": "0.35", "cone": "tab:orange", "pedestrian": "tab:red"}
@@ -123,7 +124,7 @@ def scene(result, ellipses: bool, dpi: int):
                        Patch(facecolor="mistyrose", edgecolor=SAFETY_STOP, label="safety stop")]
               + [Patch(color=KIND_COLOURS[k], label=KIND_LABELS[k]) for k in kinds],
               fontsize="small", loc="upper right", ncol=2 + len(kinds) // 2)
-    title = f"{m['scenario']}: {str(m['coordinator']).upper()}, {m['barrier']}, horizon {m['horizon']}, seed {m['seed']}"
+    title = f"{m['scenario']}: {str(m['coordinator']).upper()}, {m['barrier']}, {horizon_and_fleet(m, scenario.kind)}, seed {m['seed']}"
 
     def draw(t):
         rows = frames[t]

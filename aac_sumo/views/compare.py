@@ -13,6 +13,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from aac_sumo.metrics import METRIC_KEYS  # noqa: E402
+from aac_sumo.views.titles import horizon_and_fleet  # noqa: E402
 
 
 def labels(run_dirs: list[Path]) -> list[str]:
@@ -62,9 +63,9 @@ def plot(runs: dict[str, object], path: Path) -> None:
     for k, (label, run) in enumerate(runs.items()):
         colour = f"C{k % 10}"
         by_t = run.steps.groupby("t")
-        speed.plot(by_t["v"].mean(), color=colour, label=label)
+        speed.plot(by_t["v"].mean(), color=colour, label=f"{label} ({horizon_and_fleet(run.metrics, run.scenario.kind)})")
         clearance.plot(by_t["clearance_m"].min(), color=colour)
-        arrived.plot(by_t["arrived"].sum(), color=colour, drawstyle="steps-post")
+        arrived.plot(arrivals_over_time(run.steps), color=colour, drawstyle="steps-post")
         traj = run.trajectories[run.trajectories["kind"] == "controlled"]
         for j, (_, rows) in enumerate(traj.groupby("name", sort=False)):
             paths.plot(rows["x"], rows["y"], color=colour, lw=1.0, alpha=0.8, label=label if j == 0 else None)
@@ -82,11 +83,26 @@ def plot(runs: dict[str, object], path: Path) -> None:
     if not stretched:  # a road hundreds of metres long and a few lanes wide stays readable: its axes are not to scale
         paths.set_aspect("equal", adjustable="datalim")
     paths.set_xlabel("x [m]")
-    paths.set_ylabel("y [m]")
+    paths.set_ylabel("y [m]" + (f" (stretched x{stretch_of(paths):.0f}, not to scale)" if stretched else ""))
     paths.set_title("paths (footprint centres)" + ("; axes not to scale" if stretched else ""), fontsize="medium")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
+
+
+def arrivals_over_time(steps: pd.DataFrame) -> pd.Series:
+    """How many robots have arrived by each time of ``steps`` (a robot counts from its first
+    ``arrived`` row on, also once it has left the road and has no rows)."""
+    first = steps[steps["arrived"].astype(bool)].groupby("robot")["t"].min()
+    times = pd.Index(sorted(steps["t"].unique()))
+    return pd.Series([int((first <= t + 1e-9).sum()) for t in times], index=times, dtype=int)
+
+
+def stretch_of(ax) -> float:
+    """How many times more a metre of y than a metre of x takes on ``ax`` as drawn."""
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    box = ax.get_window_extent()
+    return (box.height / max(y1 - y0, 1e-9)) / (box.width / max(x1 - x0, 1e-9))
 
 
 def compare(run_dirs: list[Path], out: Path) -> str:

@@ -11,6 +11,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from aac_sumo.views.titles import horizon_and_fleet  # noqa: E402
+
 
 def _offset(line: np.ndarray, d: float) -> np.ndarray:
     """``line`` (M, 2) shifted by ``d`` [m] to its left (negative: right), vertex by vertex."""
@@ -54,12 +56,13 @@ def plot_lane_change(result, path: Path) -> None:
     ax.plot([], [], color="0.3", lw=1.2, label="vehicles (footprint centre)")
     ax.plot([], [], color="0.3", lw=0.8, ls=":", label="references (rear axle)")
     ax.autoscale()
+    zoomed = zoom_to_cars(ax, traj[traj["kind"] == "controlled"])
     (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
     stretch = max(1.0, round(0.3 * (x1 - x0) / max(y1 - y0, 1e-9), 1))  # a long straight road stays readable
     ax.set_aspect(stretch)
-    ax.set_xlabel("x [m]")
+    ax.set_xlabel("x [m]" + ("; zoomed to the cars, the road goes on" if zoomed else ""))
     ax.set_ylabel("y [m]" if stretch == 1.0 else f"y [m] (stretched x{stretch:g})")
-    ax.legend(fontsize="small", loc="upper left", ncol=4)
+    ax.legend(fontsize="small", loc="upper center", bbox_to_anchor=(0.5, -0.12), ncol=4)  # below the road, never over a car
     ax_v.set_ylabel("speed [m/s]")
     threshold = result.scenario["metrics.lat_accel_threshold"]
     for sign in (-1, 1):
@@ -68,12 +71,34 @@ def plot_lane_change(result, path: Path) -> None:
     ax_lat.set_xlabel("t [s]")
     ax_lat.legend(fontsize="small", loc="upper right")
     m = result.metrics
-    ax.set_title(f"{m['scenario']}: {m['coordinator']}, horizon {m['horizon']}; task {_fmt(m['task_duration_s'])} s, "
+    ax.set_title(f"{m['scenario']}: {m['coordinator']}, {horizon_and_fleet(m, result.scenario.kind)}; task {_fmt(m['task_duration_s'])} s, "
                  f"collisions {m['collisions']} (SUMO {m['sim_collisions']}), min clearance {_fmt(m['min_clearance_m'])} m, "
                  f"tracking error {_fmt(m['tracking_error_m'])} m", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=130)
     plt.close(fig)
+
+
+#: The road panel zooms to the cars when the road spans this many times their extent (either way).
+ZOOM = 3.0
+#: Room [m] around the cars' extent when zoomed.
+ZOOM_MARGIN = 10.0
+
+
+def zoom_to_cars(ax, cars) -> bool:
+    """Limit ``ax`` to the cars' extent (their footprint centres ``x``, ``y``) plus
+    ``ZOOM_MARGIN`` when its data span ``ZOOM`` times that much or more along either axis (60 m of
+    motion on a 2.75 km road was a blob); whether it zoomed."""
+    if not len(cars):
+        return False
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    cx0, cx1, cy0, cy1 = cars["x"].min(), cars["x"].max(), cars["y"].min(), cars["y"].max()
+    span = max(cx1 - cx0, cy1 - cy0) + 2.0 * ZOOM_MARGIN
+    if max(x1 - x0, y1 - y0) < ZOOM * span:
+        return False
+    ax.set_xlim(max(x0, cx0 - ZOOM_MARGIN), min(x1, cx1 + ZOOM_MARGIN))
+    ax.set_ylim(max(y0, cy0 - ZOOM_MARGIN), min(y1, cy1 + ZOOM_MARGIN))
+    return True
 
 
 def _fmt(x) -> str:

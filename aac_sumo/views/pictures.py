@@ -10,6 +10,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from aac_sumo.views.titles import horizon_and_fleet  # noqa: E402
+
 
 def plot_run(result, path: Path) -> None:
     """``trajectories.png`` for the run's scenario kind."""
@@ -44,7 +46,7 @@ def _plot_braking(result, path: Path) -> None:
     ax_v.set_xlabel("time [s]")
     ax_v.legend(loc="upper right")
     m = result.metrics
-    fig.suptitle(f"{m['scenario']}: {m['barrier']}, horizon {m['horizon']}; min distance "
+    fig.suptitle(f"{m['scenario']}: {m['barrier']}, {horizon_and_fleet(m, result.scenario.kind)}; min distance "
                  f"{_fmt(m['min_distance_m'])} m, collisions {m['collisions']}, infeasible {m['infeasible_solves']}/{m['solves']}")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
@@ -73,7 +75,7 @@ def _plot_swarm(result, path: Path) -> None:
     ax.set_ylabel("y [m]")
     ax.legend(fontsize="small", loc="best")
     done = "completed in " + _fmt(m["task_duration_s"]) + " s" if m["completed"] else m.get("incomplete_reason", "not completed")
-    ax.set_title(f"{m['scenario']}: {m['coordinator'].upper()}, {m['barrier']}, horizon {m['horizon']}, seed {m['seed']}; {done}\n"
+    ax.set_title(f"{m['scenario']}: {m['coordinator'].upper()}, {m['barrier']}, {horizon_and_fleet(m, result.scenario.kind)}, seed {m['seed']}; {done}\n"
                  f"min distance {_fmt(m['min_distance_m'])} m, collisions {m['collisions']}, "
                  f"compute median {_fmt(m['compute_ms_median'])} ms/period", fontsize="medium")
     index = {name: i for i, name in enumerate(robots)}

@@ -33,6 +33,7 @@ import numpy as np
 import pandas as pd
 
 from aac_sumo.runs.files import RunDirError, read_run
+from aac_sumo.views.titles import horizon_and_fleet
 
 #: How far ahead of a car's front [m], and how far beside its centre line [m], a walker it yields to may be.
 YIELD_AHEAD = 30.0
@@ -116,7 +117,7 @@ def budget_markdown(run_dir: str) -> str:
     table = time_budget(run.steps, run.trajectories, sc["lane_change.speed"], sc["scenario.dt"], sc["lane_change.lane_tolerance"])
     m = run.metrics
     task = m.get("task_duration_s")
-    lines = [f"{run_dir}: {m.get('coordinator')}, N = {m.get('horizon')}, seed {m.get('seed')}, "
+    lines = [f"{run_dir}: {m.get('coordinator')}, {horizon_and_fleet(m, sc.kind)}, seed {m.get('seed')}, "
              f"task {'not completed' if task is None else f'{task:.1f} s'}; "
              f"seconds lost against {sc['lane_change.speed']:g} m/s per car", "",
              "| car | " + " | ".join(CAUSES) + " | lost | time |", "|---" * (len(CAUSES) + 3) + "|"]

@@ -14,6 +14,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from aac_sumo.metrics import authority_share  # noqa: E402
+from aac_sumo.views.titles import horizon_and_fleet  # noqa: E402
 
 #: Above this many robots the per-robot lines share one colour and the legend is left out.
 LEGEND_MAX = 10
@@ -56,7 +57,7 @@ def plot_timeline(result, path: Path) -> None:
         axes[0].legend(fontsize="x-small", ncol=min(len(robots), 5), loc="upper right")
     authority_strip(axes[4], steps, robots, colours)
     done = f"completed in {m['task_duration_s']:.2f} s" if m.get("completed") else m.get("incomplete_reason", "not completed")
-    fig.suptitle(f"{m['scenario']}: {str(m['coordinator']).upper()}, {m['barrier']}, horizon {m['horizon']}, seed {m['seed']}; {done}",
+    fig.suptitle(f"{m['scenario']}: {str(m['coordinator']).upper()}, {m['barrier']}, {horizon_and_fleet(m, result.scenario.kind)}, seed {m['seed']}; {done}",
                  fontsize="medium")
     fig.tight_layout()
     fig.savefig(path, dpi=100)
@@ -115,7 +116,7 @@ def fairness_figure(result, delays: np.ndarray | None = None) -> plt.Figure:
                          + ("; grey: did not arrive" if np.isnan(delays).any() else ""), fontsize="small")
     bottom.set_ylabel("delay [s]")
     bottom.tick_params(axis="x", labelrotation=90 if len(robots) > LEGEND_MAX else 0)
-    fig.suptitle(f"{m['scenario']}: {str(m['coordinator']).upper()}, horizon {m['horizon']}, seed {m['seed']}: fairness per robot",
+    fig.suptitle(f"{m['scenario']}: {str(m['coordinator']).upper()}, {horizon_and_fleet(m, result.scenario.kind)}, seed {m['seed']}: fairness per robot",
                  fontsize="medium")
     fig.tight_layout()
     return fig
