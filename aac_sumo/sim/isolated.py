@@ -183,16 +183,25 @@ class IsolatedSimulator(Simulator):
 @contextlib.contextmanager
 def _sigint_ignored():
     """SIGINT ignored within the block, where the process can set signal handlers (its main
-    thread); a new process started within it ignores SIGINT from its first instruction."""
+    thread); a new process started within it ignores SIGINT from its first instruction. A SIGINT
+    that arrives meanwhile is held (blocked: Linux keeps a blocked signal pending even while it is
+    ignored) and reaches this process's own handler as the block ends, so a Ctrl-C is never lost."""
+    try:
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    except ValueError:
+        yield
+        return
     try:
         previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
     except ValueError:  # not the main thread: nothing to change
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
         yield
         return
     try:
         yield
     finally:
         signal.signal(signal.SIGINT, previous)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
 def _signal_name(number: int) -> str:
