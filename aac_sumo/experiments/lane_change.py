@@ -39,6 +39,7 @@ from aac_sumo.config import Scenario, ScenarioError
 from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_spec, simulator_drives
 from aac_sumo.experiments.sumo_driver import lane_indices
 from aac_sumo.experiments.routed_cars import build_routed
+from aac_sumo.experiments.lane_change_params import LaneChangeParams, lane_change_params
 from aac_sumo.experiments.lane_geometry import (
     BAND_SETTLE, MIN_LANES, ROAD_MARGIN, along, blend, lane_edges, smooth_reference,
 )
@@ -184,9 +185,9 @@ def sumo_options(scenario: Scenario, net_path: Path, routes: list[Path]) -> Sumo
     return options
 
 
-@register_experiment("lane_change")
+@register_experiment("lane_change", params=LaneChangeParams)
 def build_lane_change(scenario: Scenario) -> Setup:
-    lc, su = scenario.data["lane_change"], scenario.data["sumo"]
+    lc, su = lane_change_params(scenario), scenario.data["sumo"]
     src = scenario.source
     net_path, routes = network_files(scenario)
     scenario = with_resolved_paths(scenario)
@@ -194,17 +195,17 @@ def build_lane_change(scenario: Scenario) -> Setup:
     if su["controlled_types"] or su["controlled_ids"]:
         return _noted(build_routed(scenario, net_path, routes, sumo_options(scenario, net_path, routes)), bare)
     rd = scenario_road(scenario, net_path)
-    n, lanes = lc["vehicles"], rd.n_lanes
+    n, lanes = lc.vehicles, rd.n_lanes
     robots = [robot_spec(scenario, f"veh{k}") for k in range(n)]
-    if lc["speed"] > robots[0].model.limits.v_max:
-        raise ScenarioError(src, "lane_change.speed", f"at most robot.v_max ({robots[0].model.limits.v_max})", lc["speed"])
+    if lc.speed > robots[0].model.limits.v_max:
+        raise ScenarioError(src, "lane_change.speed", f"at most robot.v_max ({robots[0].model.limits.v_max})", lc.speed)
 
     rng = np.random.default_rng(scenario["scenario.seed"])
     start_lane = np.arange(n) % lanes
-    s0 = (lc["start_s"] + (np.arange(n) // lanes) * lc["spacing"] + start_lane * lc["spacing"] / lanes
-          + rng.uniform(-lc["start_jitter"], lc["start_jitter"], n))
+    s0 = (lc.start_s + (np.arange(n) // lanes) * lc.spacing + start_lane * lc.spacing / lanes
+          + rng.uniform(-lc.start_jitter, lc.start_jitter, n))
     s0 = np.maximum(s0, 0.0)
-    change_end = s0 + lc["change_start"] + lc["change_length"]
+    change_end = s0 + lc.change_start + lc.change_length
     for k in range(n):
         if change_end[k] > rd.length(start_lane[k]):
             raise ScenarioError(src, "sumo.net", f"a road long enough for lane_change: lane {start_lane[k]} of edges "
@@ -212,7 +213,7 @@ def build_lane_change(scenario: Scenario) -> Setup:
     states = np.zeros((n, 4))
     for k in range(n):
         point, heading = along(rd.lanes[start_lane[k]], s0[k])
-        states[k] = [point[0, 0], point[0, 1], heading[0], lc["speed"]]
+        states[k] = [point[0, 0], point[0, 1], heading[0], lc.speed]
 
     sim = sumo_simulator(robots, states, scenario["scenario.dt"], rd.edges, sumo_options(scenario, net_path, routes), su["isolate"])
     try:
@@ -224,20 +225,20 @@ def build_lane_change(scenario: Scenario) -> Setup:
         targets = [target_lane(int(a), cone_lane, lanes) for a in start_lane]
         if simulator_drives(scenario):  # SUMO's driver: each car is asked for its target lane once it has driven change_start
             net = network.read(net_path, "sumo.net", src)
-            speed = lc["speed"] if su["driver_speed"] < 0.0 else su["driver_speed"]
+            speed = lc.speed if su["driver_speed"] < 0.0 else su["driver_speed"]
             for k, b in enumerate(targets):
-                sim.order_lanes(k, [LaneOrder(lc["change_start"], lane_indices(net, rd.edges, b))])
+                sim.order_lanes(k, [LaneOrder(lc.change_start, lane_indices(net, rd.edges, b))])
                 if speed > 0.0:  # as fast as our references cruise, unless asked otherwise
                     sim.limit_speed(k, speed)
-        run_on = lc["speed"] * scenario["scenario.duration"]  # beyond the road's end, along it: farther than any car gets
-        tasks = [smooth_reference(lane_change_path(rd, int(a), b, s0[k], lc["change_start"], lc["change_length"]), lc["speed"],
-                                  min(lc["curve_lat_accel"], scenario["robot.a_lat_max"]), run_on)
+        run_on = lc.speed * scenario["scenario.duration"]  # beyond the road's end, along it: farther than any car gets
+        tasks = [smooth_reference(lane_change_path(rd, int(a), b, s0[k], lc.change_start, lc.change_length), lc.speed,
+                                  min(lc.curve_lat_accel, scenario["robot.a_lat_max"]), run_on)
                  for k, (a, b) in enumerate(zip(start_lane, targets))]
         finish_s = []
         for k, b in enumerate(targets):
             line = centre_lines[b]
             done = change_end[k] * rd.length(b) / rd.length(start_lane[k])
-            beyond_cones = max((line.project(c.centre)[0] for c in cones), default=-np.inf) + lc["finish_margin"]
+            beyond_cones = max((line.project(c.centre)[0] for c in cones), default=-np.inf) + lc.finish_margin
             finish_s.append(max(done, beyond_cones))
             if finish_s[-1] > rd.length(b):
                 raise ScenarioError(src, "lane_change.finish_margin", f"a finish within the road: lane {b} is {rd.length(b):.0f} m, "
@@ -247,11 +248,11 @@ def build_lane_change(scenario: Scenario) -> Setup:
         def finished(w: WorldState) -> np.ndarray:
             for k in np.flatnonzero(~done):
                 s, lateral = centre_lines[targets[k]].project(w.states[k, :2])
-                done[k] = (s >= finish_s[k] and lateral <= lc["lane_tolerance"]) or robots[k].name in sim.removed
+                done[k] = (s >= finish_s[k] and lateral <= lc.lane_tolerance) or robots[k].name in sim.removed
             return done.copy()
 
         finish_points = [along(rd.lanes[b], finish_s[k])[0][0] for k, b in enumerate(targets)]
-        free_flow = np.array([task.project(p)[0] for task, p in zip(tasks, finish_points)]) / lc["speed"]
+        free_flow = np.array([task.project(p)[0] for task, p in zip(tasks, finish_points)]) / lc.speed
         bands = [lane_change_band(rd, int(a), b, change_end[k], 0.5 * robots[0].width + ROAD_MARGIN)
                  for k, (a, b) in enumerate(zip(start_lane, targets))]
         prepare = None if simulator_drives(scenario) else road_end_arrivals(sim, robots, [centre_lines[b] for b in targets],
