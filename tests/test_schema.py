@@ -28,7 +28,7 @@ SECTIONS = dict(schema.SECTIONS) | {name: [cls] for name, cls in registry.SECTIO
 #: Keys of those sections that no dataclass declares: a registry choice, not a parameter.
 NOT_PARAMETERS = {("controller", "coordinator")}
 #: Sections that stay key tables in config/keys.py: the config's own.
-KEY_TABLES = {"scenario", "robot", "metrics", "sumo"}
+KEY_TABLES = {"scenario"}
 BUNDLED = sorted(config.BUNDLED_DIR.glob("*.toml"))
 
 
@@ -48,7 +48,7 @@ def declared_fields(section):
 
 
 def test_the_dataclass_sections_are_the_ones_expected():
-    assert set(SECTIONS) == {"controller", "aac", "lfc", "orca", "cbf_qp", *registry.kinds()}
+    assert set(SECTIONS) == {"controller", "robot", "aac", "lfc", "metrics", "orca", "cbf_qp", "sumo", *registry.kinds()}
 
 
 def test_every_section_but_the_key_tables_is_declared_by_dataclasses():
@@ -91,11 +91,18 @@ def test_no_key_table_is_hand_written_for_a_dataclass_section():
             assert {(section, key) for key in table.get(section, {})} <= NOT_PARAMETERS, section
 
 
-def test_every_kind_reads_its_section_through_its_dataclass():
-    for kind in registry.kinds():
-        scenario = config.Scenario.from_dict({"scenario": {"kind": kind}})
-        cls = registry.SECTION_PARAMS[kind]
-        assert schema.from_section(cls, scenario, kind) == cls(), kind
+@pytest.mark.parametrize("section", ["robot", "metrics", "sumo", *registry.kinds()])
+def test_a_scenario_of_defaults_builds_its_dataclass_defaults(section):
+    kind = next(k for k in registry.kinds() if section in config.schema_for(k))
+    scenario = config.Scenario.from_dict({"scenario": {"kind": kind}})
+    (cls,) = SECTIONS[section]
+    assert schema.from_section(cls, scenario, section) == cls()
+
+
+def test_a_set_list_key_reaches_its_field_as_a_tuple():
+    scenario = config.load("lane_change", ["lane_change.exit_lanes=[1, 2]", "sumo.outputs=fcd,summary"])
+    assert schema.from_section(registry.SECTION_PARAMS["lane_change"], scenario, "lane_change").exit_lanes == (1, 2)
+    assert schema.from_section(registry.SECTION_PARAMS["sumo"], scenario, "sumo").outputs == ("fcd", "summary")
 
 
 def test_fields_read_from_another_section_have_its_default():

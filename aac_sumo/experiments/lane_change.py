@@ -45,7 +45,7 @@ from aac_sumo.experiments.lane_geometry import (
 )
 from aac_sumo.references import LateralBand, PathReference
 from aac_sumo.registry import register_experiment
-from aac_sumo.sim.sumo_options import LaneOrder, SumoOptions
+from aac_sumo.sim.sumo_options import LaneOrder, SumoOptions, SumoParams, sumo_params
 from aac_sumo.sim.sumo import sumo_simulator
 from aac_sumo.sim.sumo_config import SumoConfig, read_config, xml_problem
 from aac_sumo.world import RobotSpec, WorldState
@@ -102,15 +102,15 @@ def scenario_file(scenario: Scenario, text: str, key: str) -> Path:
 def network_files(scenario: Scenario) -> tuple[Path, list[Path]]:
     """The network and route files of ``[sumo]`` (:func:`scenario_file`), those of ``sumo.config``
     included; route files that are not well-formed XML are an exit-2 error naming their key."""
-    su = scenario.data["sumo"]
-    routes = [route_file(scenario, scenario_file(scenario, r, "sumo.routes"), "sumo.routes") for r in su["routes"].split(",") if r.strip()]
-    if su["config"].strip():
+    su = sumo_params(scenario)
+    routes = [route_file(scenario, scenario_file(scenario, r, "sumo.routes"), "sumo.routes") for r in su.routes.split(",") if r.strip()]
+    if su.config.strip():
         cfg = sumo_config(scenario)
-        if su["net"].strip() and cfg.net is not None:
+        if su.net.strip() and cfg.net is not None:
             raise ScenarioError(scenario.source, "sumo.net", f"empty when sumo.config names the network ({cfg.path} has net-file {cfg.net})",
-                                su["net"])
-        if cfg.net is None and not su["net"].strip():
-            raise ScenarioError(scenario.source, "sumo.config", f"a net-file in {cfg.path} (or sumo.net)", su["config"])
+                                su.net)
+        if cfg.net is None and not su.net.strip():
+            raise ScenarioError(scenario.source, "sumo.config", f"a net-file in {cfg.path} (or sumo.net)", su.config)
         missing = [p for p in [cfg.net, *cfg.routes] if p is not None and not p.is_file()]
         if missing:
             sources = missing[0] == cfg.net and (any(missing[0].parent.glob("*.netccfg")) or any(missing[0].parent.glob("*.edg.xml")))
@@ -118,10 +118,10 @@ def network_files(scenario: Scenario) -> tuple[Path, list[Path]]:
             raise ScenarioError(scenario.source, "sumo.config", f"the files {cfg.path} names to exist{build}", str(missing[0]))
         for path in cfg.routes:
             route_file(scenario, path, "sumo.config")
-        return (cfg.net or scenario_file(scenario, su["net"], "sumo.net")), cfg.routes + routes
-    if not su["net"].strip():
-        return BUNDLED_NET, BUNDLED_ROUTES if not su["routes"].strip() else routes
-    return scenario_file(scenario, su["net"], "sumo.net"), routes
+        return (cfg.net or scenario_file(scenario, su.net, "sumo.net")), cfg.routes + routes
+    if not su.net.strip():
+        return BUNDLED_NET, BUNDLED_ROUTES if not su.routes.strip() else routes
+    return scenario_file(scenario, su.net, "sumo.net"), routes
 
 
 def route_file(scenario: Scenario, path: Path, key: str) -> Path:
@@ -164,19 +164,19 @@ def scenario_road(scenario: Scenario, net_path: Path) -> network.Road:
 def sumo_options(scenario: Scenario, net_path: Path, routes: list[Path]) -> SumoOptions:
     """How to start SUMO for ``scenario`` (``[sumo]``); a user's ``sumo.config`` that sets one
     of the options the co-simulation sets itself gets a one-line note."""
-    su = scenario.data["sumo"]
-    outputs = tuple(dict.fromkeys((["fcd"] if su["fcd"] else []) + list(su["outputs"])))
+    su = sumo_params(scenario)
+    outputs = tuple(dict.fromkeys((["fcd"] if su.fcd else []) + list(su.outputs)))
     out = None
-    if su["output_dir"].strip() or outputs:
-        out = Path(su["output_dir"]) if su["output_dir"].strip() else Path("out") / scenario["scenario.name"]
+    if su.output_dir.strip() or outputs:
+        out = Path(su.output_dir) if su.output_dir.strip() else Path("out") / scenario["scenario.name"]
         out.mkdir(parents=True, exist_ok=True)
-    config = sumo_config(scenario) if su["config"].strip() else None
-    if su["gui"] and not has_display():
+    config = sumo_config(scenario) if su.config.strip() else None
+    if su.gui and not has_display():
         raise ScenarioError(scenario.source, "sumo.gui", "a display for sumo-gui (DISPLAY or WAYLAND_DISPLAY set); without one, "
                             "run without --gui, or under xvfb-run", "no display")
-    options = SumoOptions(net_path, routes, tuple(t.strip() for t in su["cone_types"].split(",") if t.strip()),
-                          su["gui"], scenario["scenario.seed"], su["delay"], out, outputs, config.path if config else None,
-                          tuple(shlex.split(su["extra_args"])), su["lateral_resolution"], simulator_drives(scenario))
+    options = SumoOptions(net_path, routes, tuple(t.strip() for t in su.cone_types.split(",") if t.strip()),
+                          su.gui, scenario["scenario.seed"], su.delay, out, outputs, config.path if config else None,
+                          tuple(shlex.split(su.extra_args)), su.lateral_resolution, simulator_drives(scenario))
     if config is not None:
         overridden = config.overridden(options.our_options(scenario["scenario.dt"]))
         if overridden:
@@ -185,14 +185,14 @@ def sumo_options(scenario: Scenario, net_path: Path, routes: list[Path]) -> Sumo
     return options
 
 
-@register_experiment("lane_change", params=LaneChangeParams)
+@register_experiment("lane_change", params=LaneChangeParams, sections={"sumo": SumoParams})
 def build_lane_change(scenario: Scenario) -> Setup:
-    lc, su = lane_change_params(scenario), scenario.data["sumo"]
+    lc, su = lane_change_params(scenario), sumo_params(scenario)
     src = scenario.source
     net_path, routes = network_files(scenario)
     scenario = with_resolved_paths(scenario)
-    bare = not any(has_obstacles(path, su["cone_types"]) for path in routes)
-    if su["controlled_types"] or su["controlled_ids"]:
+    bare = not any(has_obstacles(path, su.cone_types) for path in routes)
+    if su.controlled_types or su.controlled_ids:
         return _noted(build_routed(scenario, net_path, routes, sumo_options(scenario, net_path, routes)), bare)
     rd = scenario_road(scenario, net_path)
     n, lanes = lc.vehicles, rd.n_lanes
@@ -215,7 +215,7 @@ def build_lane_change(scenario: Scenario) -> Setup:
         point, heading = along(rd.lanes[start_lane[k]], s0[k])
         states[k] = [point[0, 0], point[0, 1], heading[0], lc.speed]
 
-    sim = sumo_simulator(robots, states, scenario["scenario.dt"], rd.edges, sumo_options(scenario, net_path, routes), su["isolate"])
+    sim = sumo_simulator(robots, states, scenario["scenario.dt"], rd.edges, sumo_options(scenario, net_path, routes), su.isolate)
     try:
         world = sim.observe()
         check_start(scenario, world, "lane_change.spacing")
@@ -225,7 +225,7 @@ def build_lane_change(scenario: Scenario) -> Setup:
         targets = [target_lane(int(a), cone_lane, lanes) for a in start_lane]
         if simulator_drives(scenario):  # SUMO's driver: each car is asked for its target lane once it has driven change_start
             net = network.read(net_path, "sumo.net", src)
-            speed = lc.speed if su["driver_speed"] < 0.0 else su["driver_speed"]
+            speed = lc.speed if su.driver_speed < 0.0 else su.driver_speed
             for k, b in enumerate(targets):
                 sim.order_lanes(k, [LaneOrder(lc.change_start, lane_indices(net, rd.edges, b))])
                 if speed > 0.0:  # as fast as our references cruise, unless asked otherwise

@@ -44,7 +44,7 @@ import numpy as np
 from aac_sumo.config import Scenario, ScenarioError
 from aac_sumo.config.keys import MAX_ROBOTS, NN, P
 from aac_sumo.config.schema import from_section, param
-from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_spec
+from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_params, robot_spec
 from aac_sumo.experiments.swarm import GOAL_APPROACH, cruise_speed_param, goal_tolerance_param, turn_radius
 from aac_sumo.geometry import pairwise_rect_clearance, rect_corners
 from aac_sumo.references import PathReference
@@ -121,14 +121,13 @@ def debris_count(scenario: Scenario) -> int | float:
 
 def draw(scenario: Scenario) -> Draw:
     """The seeded random starts, goals and debris of ``scenario`` (see the module docstring)."""
-    p = params(scenario)
-    r = scenario.data["robot"]
+    p, r = params(scenario), robot_params(scenario)
     if p.debris_max_size < p.debris_min_size:
         raise ScenarioError(scenario.source, f"{SECTION}.debris_max_size", f"at least debris_min_size ({p.debris_min_size})",
                             p.debris_max_size)
     rng = np.random.default_rng(scenario["scenario.seed"])
     side = area_side(scenario)
-    reach = float(np.hypot(0.5 * r["length"] + 0.5 * r["wheelbase"], 0.5 * r["width"]))  # rear axle to the farthest corner
+    reach = float(np.hypot(0.5 * r.length + 0.5 * r.wheelbase, 0.5 * r.width))  # rear axle to the farthest corner
     if 0.5 * side <= reach:
         raise ScenarioError(scenario.source, f"{SECTION}.area_per_robot",
                             f"an area whose side ({side:.2f} m) exceeds twice the robot's reach ({reach:.2f} m)", p.area_per_robot)
@@ -148,9 +147,9 @@ def draw(scenario: Scenario) -> Draw:
 
 def _attempt(scenario: Scenario, rng: np.random.Generator, side: float, reach: float) -> Draw | tuple[int, int, dict]:
     """One fresh draw of debris and robots; on a dead end, (robot index, candidates, tally)."""
-    p, r = params(scenario), scenario.data["robot"]
+    p, r = params(scenario), robot_params(scenario)
     half, margin = 0.5 * side, 0.5 * side - reach
-    length, width, offset = r["length"], r["width"], 0.5 * r["wheelbase"]
+    length, width, offset = r.length, r.width, 0.5 * r.wheelbase
     n_debris = debris_count(scenario)
     debris = np.column_stack([
         rng.uniform(-half, half, size=(n_debris, 2)),

@@ -64,7 +64,7 @@ from aac_sumo.experiments.lane_gaps import GapRule, GapVerdict, judge_gap
 from aac_sumo.experiments.lane_plans import END_MARGIN, Change, LanePlan, closures, crossed_lanes, lane_plan, planned_band, planned_path
 from aac_sumo.experiments.lane_geometry import CURVE_DECEL, MIN_LANES, ROAD_MARGIN, lane_reference, smooth_road
 from aac_sumo.references import PathReference
-from aac_sumo.sim.sumo_options import LaneOrder, SumoOptions
+from aac_sumo.sim.sumo_options import LaneOrder, SumoOptions, sumo_params
 from aac_sumo.sim.sumo import sumo_simulator
 from aac_sumo.sim.base import Simulator
 from aac_sumo.sim.sumo_routes import RoutedVehicle, RoutesError, controlled, read_routes
@@ -79,17 +79,17 @@ KEYS = "sumo.controlled_types"
 def routed_vehicles(scenario: Scenario, routes: list) -> list[RoutedVehicle]:
     """The controlled vehicles of the route files ``routes`` departing within the run; exit-2
     errors naming the key when none is, or a file cannot be read."""
-    su = scenario.data["sumo"]
+    su = sumo_params(scenario)
     try:
         everyone = read_routes(routes, scenario["scenario.duration"])
     except RoutesError as exc:
         raise ScenarioError(scenario.source, KEYS, "route files whose controlled vehicles can be known before the run", str(exc)) from None
-    chosen = controlled(everyone, su["controlled_types"], su["controlled_ids"])
+    chosen = controlled(everyone, su.controlled_types, su.controlled_ids)
     if not chosen:
         types = sorted({v.vtype for v in everyone})
         raise ScenarioError(scenario.source, KEYS, "vTypes (or ids in sumo.controlled_ids) of vehicles in the route files that depart "
                             f"within scenario.duration (vTypes there: {', '.join(types) or 'none'})",
-                            ", ".join(su["controlled_types"] + su["controlled_ids"]))
+                            ", ".join(su.controlled_types + su.controlled_ids))
     return chosen
 
 
