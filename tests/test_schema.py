@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib.util
+import re
 import runpy
 import tomllib
 
@@ -84,11 +85,14 @@ def test_every_key_a_bundled_scenario_sets_has_its_dataclass_field(path):
 def test_no_key_table_is_hand_written_for_a_dataclass_section():
     """config/keys.py, run afresh (the loaded tables have the derived sections filled in), holds
     no key of a dataclass-backed section but the registry's choice."""
-    fresh = runpy.run_path(importlib.util.find_spec("aac_sumo.config.keys").origin)
+    path = importlib.util.find_spec("aac_sumo.config.keys").origin
+    fresh = runpy.run_path(path)
     tables = [fresh["COMMON"], fresh["KIND_SECTIONS"], *fresh["KIND_EXTRA_SECTIONS"].values()]
     for section in SECTIONS:
         for table in tables:
             assert {(section, key) for key in table.get(section, {})} <= NOT_PARAMETERS, section
+    written = len(re.findall(r"\bKey\(", open(path).read()))  # the source itself: no Key( beyond the key tables'
+    assert written == sum(len(fresh["COMMON"][section]) for section in KEY_TABLES) + len(NOT_PARAMETERS)
 
 
 @pytest.mark.parametrize("section", ["robot", "metrics", "sumo", *registry.kinds()])

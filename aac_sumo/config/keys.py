@@ -1,13 +1,15 @@
-"""The declared scenario keys: :class:`Key` (type, default, check, doc) and the tables of every
-section, ``COMMON`` (every kind's sections), ``KIND_SECTIONS`` (a kind's own section) and
-``KIND_EXTRA_SECTIONS`` (further sections a kind reads, as lane_change reads ``[sumo]``).
-:mod:`aac_sumo.registry` adds the sections of registered experiments and coordinators.
+"""The declared scenario keys: :class:`Key` (type, default, check, doc), the keys of
+``[scenario]`` (the config's own) and of ``controller.coordinator`` (a registry choice), and the
+sections in the order of the listings: ``COMMON`` (every kind's sections), ``KIND_SECTIONS`` (a
+kind's own section) and ``KIND_EXTRA_SECTIONS`` (further sections a kind reads, as lane_change
+reads ``[sumo]``).
 
-The sections of the planner and the coordinators (``[controller]`` but its ``coordinator``,
-``[aac]``, ``[lfc]``, ``[orca]``, ``[cbf_qp]``) and each experiment kind's own section are not
-written here: their parameter dataclasses declare them (:mod:`aac_sumo.config.schema`), in the
-modules named in :data:`PROVIDERS` (the kinds' through
-:func:`aac_sumo.registry.register_experiment`)."""
+Every other section is not written here: its parameter dataclass declares it
+(:mod:`aac_sumo.config.schema`) in the module that uses it, named in :data:`PROVIDERS` or found
+in :data:`PLUGINS`: ``[controller]`` (``MpcConfig``, ``Anticipation``), ``[robot]``
+(``RobotParams``), ``[aac]``, ``[lfc]``, ``[orca]``, ``[cbf_qp]`` (their coordinators' params),
+``[metrics]`` (``MetricsParams``), and through :func:`aac_sumo.registry.register_experiment`
+each kind's own section and ``[sumo]`` (``SumoParams``)."""
 
 from __future__ import annotations
 
