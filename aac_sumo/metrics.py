@@ -2,12 +2,31 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import pandas as pd
 
+from aac_sumo.config.keys import NN, P
+from aac_sumo.config.schema import param, section
 from aac_sumo.geometry import pairwise_rect_clearance, rect_corners
 from aac_sumo.kernels.metrics import times_to_collision
 from aac_sumo.world import WorldState
+
+@section("metrics")
+@dataclass(frozen=True)
+class MetricsParams:
+    """Section ``[metrics]``: the thresholds of the run metrics (aggressive driving, stopped,
+    time-to-collision) and of the deadlock rule, in SI units."""
+
+    accel_threshold: float = param(3.0, "|longitudinal acceleration| that counts as aggressive [m/s^2]", **P)
+    lat_accel_threshold: float = param(3.0, "lateral acceleration v^2 |curvature| that counts as aggressive [m/s^2]", **P)
+    stop_speed: float = param(0.05, "speed below which a robot counts as stopped [m/s]", **NN)
+    ttc_max: float = param(10.0, "time-to-collision above this is no conflict and stays out of ttc_mean_s [s]", **P)
+    deadlock_time: float = param(5.0, "a run ends as a deadlock when no unfinished robot got further than stop_speed * "
+                                 "deadlock_time, at any time in the last deadlock_time, from where it was deadlock_time before "
+                                 "(a robot that drove off and came back is not stuck) [s]", **P)
+
 
 #: metrics.json keys, in the order they are written.
 METRIC_KEYS = (

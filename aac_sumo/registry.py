@@ -12,8 +12,10 @@ way, in their own modules (:data:`aac_sumo.config.keys.PROVIDERS`).
   is a decorator.
 * ``register_experiment("kind", build, keys={...} | params=Params)`` makes ``scenario.kind =
   "kind"`` valid, with section ``[kind]`` (``keys``: :class:`~aac_sumo.config.Key` by name;
-  ``params``: a dataclass of ``param`` fields); ``build(scenario) -> Setup``
-  (:class:`aac_sumo.experiments.common.Setup`). Without ``build`` it is a decorator.
+  ``params``: a dataclass of ``param`` fields, which the builder reads as
+  ``from_section(Params, scenario, "kind")``); ``build(scenario) -> Setup``
+  (:class:`aac_sumo.experiments.common.Setup`). Without ``build`` it is a decorator. The bundled
+  kinds all declare their section with ``params``.
 
 Registering makes the name valid in every scenario loaded afterwards. The bundled components come
 first in the allowed values (``aac-sumo keys``, error messages), then the others as registered.
@@ -60,6 +62,9 @@ class RegisteredCoordinator:
 
 
 EXPERIMENTS: dict[str, Callable] = {}
+#: The parameter dataclass of every section that a registered experiment declares with one (its
+#: own, ``params``, and further ``sections``): ``{section: dataclass}``, the section's schema.
+SECTION_PARAMS: dict[str, type] = {}
 COORDINATORS: dict[str, RegisteredCoordinator] = {}
 
 
@@ -88,19 +93,23 @@ def _allow(section: str, key: str, value: str, module: str, doc: str = "") -> No
 
 
 def register_experiment(kind: str, build: Callable | None = None, *, keys: dict[str, config.Key] | None = None,
-                        params: type | None = None, sections: dict[str, dict[str, config.Key]] | None = None):
+                        params: type | None = None, sections: dict[str, dict[str, config.Key] | type] | None = None):
     """Register ``build(scenario) -> Setup`` for ``scenario.kind = kind`` (see the module); a
-    decorator without ``build``. Omit ``keys`` and ``params`` for a kind whose section
-    :mod:`aac_sumo.config.keys` declares; ``sections`` declares further sections the kind reads
-    (as lane_change reads ``[sumo]``)."""
+    decorator without ``build``. Omit ``keys`` and ``params`` for a kind without keys of its own;
+    ``sections`` declares further sections the kind reads (as lane_change reads ``[sumo]``), each
+    a key table or a dataclass of ``param`` fields. A section keeps its place in the listings
+    when :mod:`aac_sumo.config.keys` names it (``KIND_SECTIONS``), else it comes last."""
 
     def decorate(builder: Callable) -> Callable:
         if params is not None:
             config.KIND_SECTIONS[kind] = schema.keys_of(params)
+            SECTION_PARAMS[kind] = params
         elif keys is not None or kind not in config.KIND_SECTIONS:
             config.KIND_SECTIONS[kind] = dict(keys or {})
         if sections:
-            config.KIND_EXTRA_SECTIONS[kind] = dict(sections)
+            config.KIND_EXTRA_SECTIONS[kind] = {name: schema.keys_of(table) if isinstance(table, type) else dict(table)
+                                                for name, table in sections.items()}
+            SECTION_PARAMS.update({name: table for name, table in sections.items() if isinstance(table, type)})
         _allow("scenario", "kind", kind, builder.__module__)
         EXPERIMENTS[kind] = builder
         return builder

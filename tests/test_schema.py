@@ -1,16 +1,21 @@
 """One declaration per parameter: the parameter dataclasses are the schema of their sections
-(aac_sumo.config.schema). Every key of a dataclass-backed section has its field, with the same
-default; every field has a doc; a scenario builds each dataclass by the generic from_section."""
+(aac_sumo.config.schema): the planner's and the coordinators' (``@section``), each experiment
+kind's own and the further sections a kind reads (``register_experiment(params=..., sections=...)``).
+Every key of a dataclass-backed section has its field, with the same default; every key a bundled
+scenario sets has one; every field has a doc; a scenario builds each dataclass by the generic
+from_section; config/keys.py writes no key table for them."""
 
 from __future__ import annotations
 
 import dataclasses
 import importlib.util
+import re
 import runpy
+import tomllib
 
 import pytest
 
-from aac_sumo import config
+from aac_sumo import config, registry
 from aac_sumo.config import ScenarioError, schema
 from aac_sumo.coordination.aac import AacParams
 from aac_sumo.coordination.lfc import LfcParams
@@ -18,9 +23,20 @@ from aac_sumo.experiments import common
 from aac_sumo.mpc.problem import N_WEIGHTS, WEIGHTS
 from aac_sumo.mpc.settings import MpcConfig
 
-SECTIONS = config.common() and dict(schema.SECTIONS)  # the providers loaded, then their sections
+config.common()  # the providers loaded, then their sections
+#: Every dataclass-backed section: ``{section: [dataclass, ...]}``.
+SECTIONS = dict(schema.SECTIONS) | {name: [cls] for name, cls in registry.SECTION_PARAMS.items()}
 #: Keys of those sections that no dataclass declares: a registry choice, not a parameter.
 NOT_PARAMETERS = {("controller", "coordinator")}
+#: Sections that stay key tables in config/keys.py: the config's own.
+KEY_TABLES = {"scenario"}
+BUNDLED = sorted(config.BUNDLED_DIR.glob("*.toml"))
+
+
+def loaded(section: str) -> dict[str, config.Key]:
+    """The key table of ``section`` as the loaded config holds it (what ``aac-sumo keys`` lists)."""
+    tables = [config.COMMON, config.KIND_SECTIONS, *config.KIND_EXTRA_SECTIONS.values()]
+    return next(t[section] for t in tables if section in t)
 
 
 def declared_fields(section):
@@ -33,13 +49,18 @@ def declared_fields(section):
 
 
 def test_the_dataclass_sections_are_the_ones_expected():
-    assert set(SECTIONS) == {"controller", "aac", "lfc", "orca", "cbf_qp"}
+    assert set(SECTIONS) == {"controller", "robot", "aac", "lfc", "metrics", "orca", "cbf_qp", "sumo", *registry.kinds()}
 
 
-@pytest.mark.parametrize("section", ["controller", "aac", "lfc", "orca", "cbf_qp"])
+def test_every_section_but_the_key_tables_is_declared_by_dataclasses():
+    every = {section for kind in registry.kinds() for section in config.schema_for(kind)}
+    assert every - set(SECTIONS) == KEY_TABLES
+
+
+@pytest.mark.parametrize("section", sorted(SECTIONS))
 def test_every_key_of_a_dataclass_section_has_its_field_with_the_same_default(section):
     fields = declared_fields(section)
-    for key, declared in config.common()[section].items():
+    for key, declared in loaded(section).items():
         if (section, key) in NOT_PARAMETERS:
             continue
         assert key in fields, f"{section}.{key} has no dataclass field"
@@ -47,15 +68,45 @@ def test_every_key_of_a_dataclass_section_has_its_field_with_the_same_default(se
             assert schema.key_default(f, p) == declared.default, f"{cls.__name__}.{f.name}: {schema.key_default(f, p)!r} != {declared.default!r}"
             if p.parse is not None:
                 assert p.parse(declared.default) == f.default, f"{cls.__name__}.{f.name}"
-    assert set(fields) <= set(config.common()[section]), "a field declares a key the section lacks"
+    assert set(fields) <= set(loaded(section)), "a field declares a key the section lacks"
+
+
+@pytest.mark.parametrize("path", BUNDLED, ids=lambda p: p.stem)
+def test_every_key_a_bundled_scenario_sets_has_its_dataclass_field(path):
+    for section, table in tomllib.loads(path.read_text()).items():
+        if section in KEY_TABLES:
+            continue
+        assert section in SECTIONS, f"{path.name}: [{section}] has no dataclass"
+        fields = declared_fields(section)
+        for key in table:
+            assert (section, key) in NOT_PARAMETERS or key in fields, f"{path.name}: {section}.{key} has no dataclass field"
 
 
 def test_no_key_table_is_hand_written_for_a_dataclass_section():
-    """config/keys.py, run afresh (the loaded COMMON has the derived sections filled in), holds
+    """config/keys.py, run afresh (the loaded tables have the derived sections filled in), holds
     no key of a dataclass-backed section but the registry's choice."""
-    fresh = runpy.run_path(importlib.util.find_spec("aac_sumo.config.keys").origin)["COMMON"]
+    path = importlib.util.find_spec("aac_sumo.config.keys").origin
+    fresh = runpy.run_path(path)
+    tables = [fresh["COMMON"], fresh["KIND_SECTIONS"], *fresh["KIND_EXTRA_SECTIONS"].values()]
     for section in SECTIONS:
-        assert {(section, key) for key in fresh.get(section, {})} <= NOT_PARAMETERS
+        for table in tables:
+            assert {(section, key) for key in table.get(section, {})} <= NOT_PARAMETERS, section
+    written = len(re.findall(r"\bKey\(", open(path).read()))  # the source itself: no Key( beyond the key tables'
+    assert written == sum(len(fresh["COMMON"][section]) for section in KEY_TABLES) + len(NOT_PARAMETERS)
+
+
+@pytest.mark.parametrize("section", ["robot", "metrics", "sumo", *registry.kinds()])
+def test_a_scenario_of_defaults_builds_its_dataclass_defaults(section):
+    kind = next(k for k in registry.kinds() if section in config.schema_for(k))
+    scenario = config.Scenario.from_dict({"scenario": {"kind": kind}})
+    (cls,) = SECTIONS[section]
+    assert schema.from_section(cls, scenario, section) == cls()
+
+
+def test_a_set_list_key_reaches_its_field_as_a_tuple():
+    scenario = config.load("lane_change", ["lane_change.exit_lanes=[1, 2]", "sumo.outputs=fcd,summary"])
+    assert schema.from_section(registry.SECTION_PARAMS["lane_change"], scenario, "lane_change").exit_lanes == (1, 2)
+    assert schema.from_section(registry.SECTION_PARAMS["sumo"], scenario, "sumo").outputs == ("fcd", "summary")
 
 
 def test_fields_read_from_another_section_have_its_default():

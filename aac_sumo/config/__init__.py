@@ -2,7 +2,8 @@
 
 A scenario is a TOML file of sections (``[scenario]``, ``[controller]``, ``[robot]``,
 ``[metrics]`` and one section named after the scenario's ``kind``). Keys left out take the
-defaults declared in :mod:`aac_sumo.config.keys`; any key not declared there is an error. ``--set section.key=value`` overrides a
+defaults declared by the sections' parameter dataclasses (:mod:`aac_sumo.config.schema`; ``[scenario]``
+in :mod:`aac_sumo.config.keys`); any key not declared is an error. ``--set section.key=value`` overrides a
 key after loading, with the same type checks. Every error is a :class:`ScenarioError` whose
 message is one line naming the file, the key and what was expected.
 """

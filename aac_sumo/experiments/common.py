@@ -9,7 +9,8 @@ from typing import Callable
 import numpy as np
 
 from aac_sumo.config import Scenario, ScenarioError
-from aac_sumo.config.schema import from_section
+from aac_sumo.config.keys import P
+from aac_sumo.config.schema import from_section, param, section
 from aac_sumo.coordination.aac import AacParams
 from aac_sumo.coordination.anticipation import Anticipation
 from aac_sumo.coordination.base import Coordinator, Finished
@@ -52,16 +53,41 @@ class Setup:
     figures: Callable[[], dict] | None = None
 
 
+@section("robot")
+@dataclass(frozen=True)
+class RobotParams:
+    """Section ``[robot]``: every controlled robot's footprint [m] (a rectangle centred half the
+    wheelbase ahead of the rear axle) and its kinematic bicycle's limits
+    (:class:`~aac_sumo.dynamics.VehicleLimits`)."""
+
+    length: float = param(1.0, "footprint length [m]", **P)
+    width: float = param(0.6, "footprint width [m]", **P)
+    wheelbase: float = param(0.8, "wheelbase L [m]", **P)
+    a_min: float = param(-6.0, "strongest braking [m/s^2]", check=lambda a: a < 0, expect="< 0")
+    a_max: float = param(3.0, "strongest acceleration [m/s^2]", **P)
+    steer_max: float = param(0.6, "steering limit [rad]", check=lambda s: 0 < s < 1.5, expect="in (0, 1.5)")
+    v_max: float = param(30.0, "speed limit [m/s]", **P)
+    allow_reverse: bool = param(False, "allow negative speed down to -v_max")
+    a_lat_max: float = param(3.0, "friction/comfort limit on the lateral acceleration v^2 |tan(steer)| / wheelbase [m/s^2]", **P)
+    steer_rate_max: float = param(0.5, "how fast the steering angle may change [rad/s]", **P)
+    a_comfort: float = param(3.0, "deceleration used unless an emergency needs more (capped at |a_min|) [m/s^2]", **P)
+
+
+def robot_params(scenario: Scenario) -> RobotParams:
+    """Section ``[robot]`` of ``scenario``."""
+    return from_section(RobotParams, scenario, "robot")
+
+
 def robot_spec(scenario: Scenario, name: str, length: float | None = None, width: float | None = None) -> RobotSpec:
     """A controlled robot with the scenario's ``[robot]`` limits and footprint (``length`` and
     ``width`` [m] instead, when given: a SUMO vType's)."""
-    r = scenario.data["robot"]
-    length = r["length"] if length is None else length
-    if r["wheelbase"] > length:
-        raise ScenarioError(scenario.source, "robot.wheelbase", f"at most robot.length ({length})", r["wheelbase"])
-    limits = VehicleLimits(r["a_min"], r["a_max"], r["steer_max"], -r["v_max"] if r["allow_reverse"] else 0.0, r["v_max"],
-                           r["a_lat_max"], r["steer_rate_max"], r["a_comfort"])
-    return RobotSpec(name, length, r["width"] if width is None else width, BicycleModel(r["wheelbase"], limits))
+    r = robot_params(scenario)
+    length = r.length if length is None else length
+    if r.wheelbase > length:
+        raise ScenarioError(scenario.source, "robot.wheelbase", f"at most robot.length ({length})", r.wheelbase)
+    limits = VehicleLimits(r.a_min, r.a_max, r.steer_max, -r.v_max if r.allow_reverse else 0.0, r.v_max,
+                           r.a_lat_max, r.steer_rate_max, r.a_comfort)
+    return RobotSpec(name, length, r.width if width is None else width, BicycleModel(r.wheelbase, limits))
 
 
 def mpc_config(scenario: Scenario) -> MpcConfig:

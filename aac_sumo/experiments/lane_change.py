@@ -39,12 +39,13 @@ from aac_sumo.config import Scenario, ScenarioError
 from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_spec, simulator_drives
 from aac_sumo.experiments.sumo_driver import lane_indices
 from aac_sumo.experiments.routed_cars import build_routed
+from aac_sumo.experiments.lane_change_params import LaneChangeParams, lane_change_params
 from aac_sumo.experiments.lane_geometry import (
     BAND_SETTLE, MIN_LANES, ROAD_MARGIN, along, blend, lane_edges, smooth_reference,
 )
 from aac_sumo.references import LateralBand, PathReference
 from aac_sumo.registry import register_experiment
-from aac_sumo.sim.sumo_options import LaneOrder, SumoOptions
+from aac_sumo.sim.sumo_options import LaneOrder, SumoOptions, SumoParams, sumo_params
 from aac_sumo.sim.sumo import sumo_simulator
 from aac_sumo.sim.sumo_config import SumoConfig, read_config, xml_problem
 from aac_sumo.world import RobotSpec, WorldState
@@ -101,15 +102,15 @@ def scenario_file(scenario: Scenario, text: str, key: str) -> Path:
 def network_files(scenario: Scenario) -> tuple[Path, list[Path]]:
     """The network and route files of ``[sumo]`` (:func:`scenario_file`), those of ``sumo.config``
     included; route files that are not well-formed XML are an exit-2 error naming their key."""
-    su = scenario.data["sumo"]
-    routes = [route_file(scenario, scenario_file(scenario, r, "sumo.routes"), "sumo.routes") for r in su["routes"].split(",") if r.strip()]
-    if su["config"].strip():
+    su = sumo_params(scenario)
+    routes = [route_file(scenario, scenario_file(scenario, r, "sumo.routes"), "sumo.routes") for r in su.routes.split(",") if r.strip()]
+    if su.config.strip():
         cfg = sumo_config(scenario)
-        if su["net"].strip() and cfg.net is not None:
+        if su.net.strip() and cfg.net is not None:
             raise ScenarioError(scenario.source, "sumo.net", f"empty when sumo.config names the network ({cfg.path} has net-file {cfg.net})",
-                                su["net"])
-        if cfg.net is None and not su["net"].strip():
-            raise ScenarioError(scenario.source, "sumo.config", f"a net-file in {cfg.path} (or sumo.net)", su["config"])
+                                su.net)
+        if cfg.net is None and not su.net.strip():
+            raise ScenarioError(scenario.source, "sumo.config", f"a net-file in {cfg.path} (or sumo.net)", su.config)
         missing = [p for p in [cfg.net, *cfg.routes] if p is not None and not p.is_file()]
         if missing:
             sources = missing[0] == cfg.net and (any(missing[0].parent.glob("*.netccfg")) or any(missing[0].parent.glob("*.edg.xml")))
@@ -117,10 +118,10 @@ def network_files(scenario: Scenario) -> tuple[Path, list[Path]]:
             raise ScenarioError(scenario.source, "sumo.config", f"the files {cfg.path} names to exist{build}", str(missing[0]))
         for path in cfg.routes:
             route_file(scenario, path, "sumo.config")
-        return (cfg.net or scenario_file(scenario, su["net"], "sumo.net")), cfg.routes + routes
-    if not su["net"].strip():
-        return BUNDLED_NET, BUNDLED_ROUTES if not su["routes"].strip() else routes
-    return scenario_file(scenario, su["net"], "sumo.net"), routes
+        return (cfg.net or scenario_file(scenario, su.net, "sumo.net")), cfg.routes + routes
+    if not su.net.strip():
+        return BUNDLED_NET, BUNDLED_ROUTES if not su.routes.strip() else routes
+    return scenario_file(scenario, su.net, "sumo.net"), routes
 
 
 def route_file(scenario: Scenario, path: Path, key: str) -> Path:
@@ -163,19 +164,19 @@ def scenario_road(scenario: Scenario, net_path: Path) -> network.Road:
 def sumo_options(scenario: Scenario, net_path: Path, routes: list[Path]) -> SumoOptions:
     """How to start SUMO for ``scenario`` (``[sumo]``); a user's ``sumo.config`` that sets one
     of the options the co-simulation sets itself gets a one-line note."""
-    su = scenario.data["sumo"]
-    outputs = tuple(dict.fromkeys((["fcd"] if su["fcd"] else []) + list(su["outputs"])))
+    su = sumo_params(scenario)
+    outputs = tuple(dict.fromkeys((["fcd"] if su.fcd else []) + list(su.outputs)))
     out = None
-    if su["output_dir"].strip() or outputs:
-        out = Path(su["output_dir"]) if su["output_dir"].strip() else Path("out") / scenario["scenario.name"]
+    if su.output_dir.strip() or outputs:
+        out = Path(su.output_dir) if su.output_dir.strip() else Path("out") / scenario["scenario.name"]
         out.mkdir(parents=True, exist_ok=True)
-    config = sumo_config(scenario) if su["config"].strip() else None
-    if su["gui"] and not has_display():
+    config = sumo_config(scenario) if su.config.strip() else None
+    if su.gui and not has_display():
         raise ScenarioError(scenario.source, "sumo.gui", "a display for sumo-gui (DISPLAY or WAYLAND_DISPLAY set); without one, "
                             "run without --gui, or under xvfb-run", "no display")
-    options = SumoOptions(net_path, routes, tuple(t.strip() for t in su["cone_types"].split(",") if t.strip()),
-                          su["gui"], scenario["scenario.seed"], su["delay"], out, outputs, config.path if config else None,
-                          tuple(shlex.split(su["extra_args"])), su["lateral_resolution"], simulator_drives(scenario))
+    options = SumoOptions(net_path, routes, tuple(t.strip() for t in su.cone_types.split(",") if t.strip()),
+                          su.gui, scenario["scenario.seed"], su.delay, out, outputs, config.path if config else None,
+                          tuple(shlex.split(su.extra_args)), su.lateral_resolution, simulator_drives(scenario))
     if config is not None:
         overridden = config.overridden(options.our_options(scenario["scenario.dt"]))
         if overridden:
@@ -184,27 +185,27 @@ def sumo_options(scenario: Scenario, net_path: Path, routes: list[Path]) -> Sumo
     return options
 
 
-@register_experiment("lane_change")
+@register_experiment("lane_change", params=LaneChangeParams, sections={"sumo": SumoParams})
 def build_lane_change(scenario: Scenario) -> Setup:
-    lc, su = scenario.data["lane_change"], scenario.data["sumo"]
+    lc, su = lane_change_params(scenario), sumo_params(scenario)
     src = scenario.source
     net_path, routes = network_files(scenario)
     scenario = with_resolved_paths(scenario)
-    bare = not any(has_obstacles(path, su["cone_types"]) for path in routes)
-    if su["controlled_types"] or su["controlled_ids"]:
+    bare = not any(has_obstacles(path, su.cone_types) for path in routes)
+    if su.controlled_types or su.controlled_ids:
         return _noted(build_routed(scenario, net_path, routes, sumo_options(scenario, net_path, routes)), bare)
     rd = scenario_road(scenario, net_path)
-    n, lanes = lc["vehicles"], rd.n_lanes
+    n, lanes = lc.vehicles, rd.n_lanes
     robots = [robot_spec(scenario, f"veh{k}") for k in range(n)]
-    if lc["speed"] > robots[0].model.limits.v_max:
-        raise ScenarioError(src, "lane_change.speed", f"at most robot.v_max ({robots[0].model.limits.v_max})", lc["speed"])
+    if lc.speed > robots[0].model.limits.v_max:
+        raise ScenarioError(src, "lane_change.speed", f"at most robot.v_max ({robots[0].model.limits.v_max})", lc.speed)
 
     rng = np.random.default_rng(scenario["scenario.seed"])
     start_lane = np.arange(n) % lanes
-    s0 = (lc["start_s"] + (np.arange(n) // lanes) * lc["spacing"] + start_lane * lc["spacing"] / lanes
-          + rng.uniform(-lc["start_jitter"], lc["start_jitter"], n))
+    s0 = (lc.start_s + (np.arange(n) // lanes) * lc.spacing + start_lane * lc.spacing / lanes
+          + rng.uniform(-lc.start_jitter, lc.start_jitter, n))
     s0 = np.maximum(s0, 0.0)
-    change_end = s0 + lc["change_start"] + lc["change_length"]
+    change_end = s0 + lc.change_start + lc.change_length
     for k in range(n):
         if change_end[k] > rd.length(start_lane[k]):
             raise ScenarioError(src, "sumo.net", f"a road long enough for lane_change: lane {start_lane[k]} of edges "
@@ -212,9 +213,9 @@ def build_lane_change(scenario: Scenario) -> Setup:
     states = np.zeros((n, 4))
     for k in range(n):
         point, heading = along(rd.lanes[start_lane[k]], s0[k])
-        states[k] = [point[0, 0], point[0, 1], heading[0], lc["speed"]]
+        states[k] = [point[0, 0], point[0, 1], heading[0], lc.speed]
 
-    sim = sumo_simulator(robots, states, scenario["scenario.dt"], rd.edges, sumo_options(scenario, net_path, routes), su["isolate"])
+    sim = sumo_simulator(robots, states, scenario["scenario.dt"], rd.edges, sumo_options(scenario, net_path, routes), su.isolate)
     try:
         world = sim.observe()
         check_start(scenario, world, "lane_change.spacing")
@@ -224,20 +225,20 @@ def build_lane_change(scenario: Scenario) -> Setup:
         targets = [target_lane(int(a), cone_lane, lanes) for a in start_lane]
         if simulator_drives(scenario):  # SUMO's driver: each car is asked for its target lane once it has driven change_start
             net = network.read(net_path, "sumo.net", src)
-            speed = lc["speed"] if su["driver_speed"] < 0.0 else su["driver_speed"]
+            speed = lc.speed if su.driver_speed < 0.0 else su.driver_speed
             for k, b in enumerate(targets):
-                sim.order_lanes(k, [LaneOrder(lc["change_start"], lane_indices(net, rd.edges, b))])
+                sim.order_lanes(k, [LaneOrder(lc.change_start, lane_indices(net, rd.edges, b))])
                 if speed > 0.0:  # as fast as our references cruise, unless asked otherwise
                     sim.limit_speed(k, speed)
-        run_on = lc["speed"] * scenario["scenario.duration"]  # beyond the road's end, along it: farther than any car gets
-        tasks = [smooth_reference(lane_change_path(rd, int(a), b, s0[k], lc["change_start"], lc["change_length"]), lc["speed"],
-                                  min(lc["curve_lat_accel"], scenario["robot.a_lat_max"]), run_on)
+        run_on = lc.speed * scenario["scenario.duration"]  # beyond the road's end, along it: farther than any car gets
+        tasks = [smooth_reference(lane_change_path(rd, int(a), b, s0[k], lc.change_start, lc.change_length), lc.speed,
+                                  min(lc.curve_lat_accel, scenario["robot.a_lat_max"]), run_on)
                  for k, (a, b) in enumerate(zip(start_lane, targets))]
         finish_s = []
         for k, b in enumerate(targets):
             line = centre_lines[b]
             done = change_end[k] * rd.length(b) / rd.length(start_lane[k])
-            beyond_cones = max((line.project(c.centre)[0] for c in cones), default=-np.inf) + lc["finish_margin"]
+            beyond_cones = max((line.project(c.centre)[0] for c in cones), default=-np.inf) + lc.finish_margin
             finish_s.append(max(done, beyond_cones))
             if finish_s[-1] > rd.length(b):
                 raise ScenarioError(src, "lane_change.finish_margin", f"a finish within the road: lane {b} is {rd.length(b):.0f} m, "
@@ -247,11 +248,11 @@ def build_lane_change(scenario: Scenario) -> Setup:
         def finished(w: WorldState) -> np.ndarray:
             for k in np.flatnonzero(~done):
                 s, lateral = centre_lines[targets[k]].project(w.states[k, :2])
-                done[k] = (s >= finish_s[k] and lateral <= lc["lane_tolerance"]) or robots[k].name in sim.removed
+                done[k] = (s >= finish_s[k] and lateral <= lc.lane_tolerance) or robots[k].name in sim.removed
             return done.copy()
 
         finish_points = [along(rd.lanes[b], finish_s[k])[0][0] for k, b in enumerate(targets)]
-        free_flow = np.array([task.project(p)[0] for task, p in zip(tasks, finish_points)]) / lc["speed"]
+        free_flow = np.array([task.project(p)[0] for task, p in zip(tasks, finish_points)]) / lc.speed
         bands = [lane_change_band(rd, int(a), b, change_end[k], 0.5 * robots[0].width + ROAD_MARGIN)
                  for k, (a, b) in enumerate(zip(start_lane, targets))]
         prepare = None if simulator_drives(scenario) else road_end_arrivals(sim, robots, [centre_lines[b] for b in targets],

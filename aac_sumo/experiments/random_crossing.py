@@ -42,8 +42,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from aac_sumo.config import Scenario, ScenarioError
-from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_spec
-from aac_sumo.experiments.swarm import GOAL_APPROACH, turn_radius
+from aac_sumo.config.keys import MAX_ROBOTS, NN, P
+from aac_sumo.config.schema import from_section, param
+from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_params, robot_spec
+from aac_sumo.experiments.swarm import GOAL_APPROACH, cruise_speed_param, goal_tolerance_param, turn_radius
 from aac_sumo.geometry import pairwise_rect_clearance, rect_corners
 from aac_sumo.references import PathReference
 from aac_sumo.registry import register_experiment
@@ -65,6 +67,34 @@ REASONS = {
 }
 
 
+@dataclass(frozen=True)
+class RandomCrossingParams:
+    """Section ``[random_crossing]``: how many robots, the area per robot [m^2], the draw's
+    checks (travel fraction of the side, clearances [m]), the debris (pieces per 100 m^2, sizes
+    [m]) and the goal-reaching settings (see the module)."""
+
+    n_robots: int = param(20, "robots, each with a seeded random start and a goal far across the area",
+                          check=lambda n: 2 <= n <= MAX_ROBOTS, expect=f"in 2..{MAX_ROBOTS}")
+    area_per_robot: float = param(6.0, "the square area's side is sqrt(n_robots * area_per_robot): the density stays "
+                                  "constant as n grows [m^2]", **P)
+    min_travel_fraction: float = param(0.6, "each goal is at least this fraction of the area side from its start, so "
+                                       "paths cross the middle", check=lambda f: 0 <= f <= 1.2, expect="in [0, 1.2]")
+    clearance: float = param(0.5, "gap kept between start footprints, between goals' reach discs (the footprint at the goal "
+                             "in any heading) and from every debris footprint [m]", **NN)
+    path_clearance: float = param(0.5, "distance every straight start-goal path (rear-axle line) keeps from every debris "
+                                  "footprint [m]", **NN)
+    debris_density: float = param(2.0, "random debris rectangles per 100 m^2 of area (rounded)", **NN)
+    debris_min_size: float = param(0.4, "smallest debris length or width [m]", **P)
+    debris_max_size: float = param(1.2, "largest debris length or width [m]", **P)
+    cruise_speed: float = cruise_speed_param()
+    goal_tolerance: float = goal_tolerance_param()
+
+
+def params(scenario: Scenario) -> RandomCrossingParams:
+    """Section ``[random_crossing]`` of ``scenario``."""
+    return from_section(RandomCrossingParams, scenario, SECTION)
+
+
 @dataclass
 class Draw:
     """One random-crossing instance: area side [m], rear-axle starts (n, 3) ``[x, y, heading]``,
@@ -78,33 +108,32 @@ class Draw:
 
 def area_side(scenario: Scenario) -> float:
     """Side of the square area [m]: ``sqrt(n_robots * area_per_robot)``."""
-    p = scenario.data[SECTION]
-    return float(np.sqrt(p["n_robots"] * p["area_per_robot"]))
+    p = params(scenario)
+    return float(np.sqrt(p.n_robots * p.area_per_robot))
 
 
 def debris_count(scenario: Scenario) -> int | float:
     """Debris pieces of the draw: ``round(debris_density * side^2 / 100)`` (inf when it overflows)."""
     side = area_side(scenario)
-    count = scenario.data[SECTION]["debris_density"] * side * side / 100.0
+    count = params(scenario).debris_density * side * side / 100.0
     return round(count) if math.isfinite(count) else math.inf
 
 
 def draw(scenario: Scenario) -> Draw:
     """The seeded random starts, goals and debris of ``scenario`` (see the module docstring)."""
-    p = scenario.data[SECTION]
-    r = scenario.data["robot"]
-    if p["debris_max_size"] < p["debris_min_size"]:
-        raise ScenarioError(scenario.source, f"{SECTION}.debris_max_size", f"at least debris_min_size ({p['debris_min_size']})",
-                            p["debris_max_size"])
+    p, r = params(scenario), robot_params(scenario)
+    if p.debris_max_size < p.debris_min_size:
+        raise ScenarioError(scenario.source, f"{SECTION}.debris_max_size", f"at least debris_min_size ({p.debris_min_size})",
+                            p.debris_max_size)
     rng = np.random.default_rng(scenario["scenario.seed"])
     side = area_side(scenario)
-    reach = float(np.hypot(0.5 * r["length"] + 0.5 * r["wheelbase"], 0.5 * r["width"]))  # rear axle to the farthest corner
+    reach = float(np.hypot(0.5 * r.length + 0.5 * r.wheelbase, 0.5 * r.width))  # rear axle to the farthest corner
     if 0.5 * side <= reach:
         raise ScenarioError(scenario.source, f"{SECTION}.area_per_robot",
-                            f"an area whose side ({side:.2f} m) exceeds twice the robot's reach ({reach:.2f} m)", p["area_per_robot"])
+                            f"an area whose side ({side:.2f} m) exceeds twice the robot's reach ({reach:.2f} m)", p.area_per_robot)
     if debris_count(scenario) > MAX_DEBRIS:
         raise ScenarioError(scenario.source, f"{SECTION}.debris_density", f"at most {MAX_DEBRIS} debris pieces in the "
-                            f"{side:.3g} m x {side:.3g} m area (debris_density * side^2 / 100)", p["debris_density"])
+                            f"{side:.3g} m x {side:.3g} m area (debris_density * side^2 / 100)", p.debris_density)
 
     failures = []
     for _ in range(ATTEMPTS):
@@ -118,19 +147,19 @@ def draw(scenario: Scenario) -> Draw:
 
 def _attempt(scenario: Scenario, rng: np.random.Generator, side: float, reach: float) -> Draw | tuple[int, int, dict]:
     """One fresh draw of debris and robots; on a dead end, (robot index, candidates, tally)."""
-    p, r = scenario.data[SECTION], scenario.data["robot"]
+    p, r = params(scenario), robot_params(scenario)
     half, margin = 0.5 * side, 0.5 * side - reach
-    length, width, offset = r["length"], r["width"], 0.5 * r["wheelbase"]
+    length, width, offset = r.length, r.width, 0.5 * r.wheelbase
     n_debris = debris_count(scenario)
     debris = np.column_stack([
         rng.uniform(-half, half, size=(n_debris, 2)),
-        rng.uniform(p["debris_min_size"], p["debris_max_size"], size=(n_debris, 2)),
+        rng.uniform(p.debris_min_size, p.debris_max_size, size=(n_debris, 2)),
         rng.uniform(0.0, np.pi, size=n_debris),
     ]) if n_debris else np.zeros((0, 5))
     debris_corners = rect_corners(debris)
 
-    n, gap = p["n_robots"], p["clearance"]
-    min_travel = max(p["min_travel_fraction"] * side, 2.0 * p["goal_tolerance"])
+    n, gap = p.n_robots, p.clearance
+    min_travel = max(p.min_travel_fraction * side, 2.0 * p.goal_tolerance)
     starts, goals, footprints = np.zeros((n, 3)), np.zeros((n, 2)), np.zeros((n, 5))
     for i in range(n):
         tally = dict.fromkeys(REASONS, 0)
@@ -151,7 +180,7 @@ def _attempt(scenario: Scenario, rng: np.random.Generator, side: float, reach: f
             if len(debris):
                 bad["debris"] |= pairwise_rect_clearance(rows, debris).min(axis=1) < gap
                 bad["debris"] |= _point_rects(g_xy, debris).min(axis=1) < reach + gap
-                bad["path"] |= _segment_rects(s_xy, g_xy, debris, debris_corners).min(axis=1) < p["path_clearance"]
+                bad["path"] |= _segment_rects(s_xy, g_xy, debris, debris_corners).min(axis=1) < p.path_clearance
             rejected = np.logical_or.reduce(list(bad.values()))
             ok = np.flatnonzero(~rejected)
             used = ok[0] if len(ok) else BATCH
@@ -167,16 +196,16 @@ def _attempt(scenario: Scenario, rng: np.random.Generator, side: float, reach: f
 
 
 def _give_up(scenario: Scenario, i: int, side: float, tries: int, tally: dict[str, int]) -> None:
-    p = scenario.data[SECTION]
-    n = p["n_robots"]
+    p = params(scenario)
+    n = p.n_robots
     worst = max(tally, key=tally.get)  # ties: the first in REASONS
     shares = ", ".join(f"{100 * c / tries:.0f}% {what}" for what, c in sorted(tally.items(), key=lambda kv: -kv[1]) if c)
     key = REASONS[worst]
     raise ScenarioError(
         scenario.source, f"{SECTION}.{key}",
-        f"robots that fit the {side:.1f} m x {side:.1f} m area (area_per_robot {p['area_per_robot']} m^2, "
-        f"clearance {p['clearance']} m, debris_density {p['debris_density']}): could not place robot {i} of {n} "
-        f"in {tries} candidates (failed: {shares}; best of {ATTEMPTS} fresh draws)", p[key])
+        f"robots that fit the {side:.1f} m x {side:.1f} m area (area_per_robot {p.area_per_robot} m^2, "
+        f"clearance {p.clearance} m, debris_density {p.debris_density}): could not place robot {i} of {n} "
+        f"in {tries} candidates (failed: {shares}; best of {ATTEMPTS} fresh draws)", getattr(p, key))
 
 
 def _pair_dist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -227,12 +256,12 @@ def _segment_rects(p0: np.ndarray, p1: np.ndarray, rects: np.ndarray, corners: n
     return np.where(meets, 0.0, np.minimum(ends, corner))
 
 
-@register_experiment("random_crossing")
+@register_experiment("random_crossing", params=RandomCrossingParams)
 def build_random_crossing(scenario: Scenario) -> Setup:
     """The drawn robots, each on a straight path to its goal, on the internal simulator."""
-    p = scenario.data[SECTION]
+    p = params(scenario)
     limits = robot_spec(scenario, "robot").model.limits
-    speed, tol = p["cruise_speed"], p["goal_tolerance"]
+    speed, tol = p.cruise_speed, p.goal_tolerance
     if speed > limits.v_max:
         raise ScenarioError(scenario.source, f"{SECTION}.cruise_speed", f"at most robot.v_max ({limits.v_max})", speed)
     d = draw(scenario)

@@ -59,11 +59,12 @@ from aac_sumo import network
 from aac_sumo.config import Scenario, ScenarioError
 from aac_sumo.experiments.common import Setup, coordinator, robot_spec, simulator_drives
 from aac_sumo.experiments.sumo_driver import lane_indices
+from aac_sumo.experiments.lane_change_params import lane_change_params
 from aac_sumo.experiments.lane_gaps import GapRule, GapVerdict, judge_gap
 from aac_sumo.experiments.lane_plans import END_MARGIN, Change, LanePlan, closures, crossed_lanes, lane_plan, planned_band, planned_path
 from aac_sumo.experiments.lane_geometry import CURVE_DECEL, MIN_LANES, ROAD_MARGIN, lane_reference, smooth_road
 from aac_sumo.references import PathReference
-from aac_sumo.sim.sumo_options import LaneOrder, SumoOptions
+from aac_sumo.sim.sumo_options import LaneOrder, SumoOptions, sumo_params
 from aac_sumo.sim.sumo import sumo_simulator
 from aac_sumo.sim.base import Simulator
 from aac_sumo.sim.sumo_routes import RoutedVehicle, RoutesError, controlled, read_routes
@@ -78,17 +79,17 @@ KEYS = "sumo.controlled_types"
 def routed_vehicles(scenario: Scenario, routes: list) -> list[RoutedVehicle]:
     """The controlled vehicles of the route files ``routes`` departing within the run; exit-2
     errors naming the key when none is, or a file cannot be read."""
-    su = scenario.data["sumo"]
+    su = sumo_params(scenario)
     try:
         everyone = read_routes(routes, scenario["scenario.duration"])
     except RoutesError as exc:
         raise ScenarioError(scenario.source, KEYS, "route files whose controlled vehicles can be known before the run", str(exc)) from None
-    chosen = controlled(everyone, su["controlled_types"], su["controlled_ids"])
+    chosen = controlled(everyone, su.controlled_types, su.controlled_ids)
     if not chosen:
         types = sorted({v.vtype for v in everyone})
         raise ScenarioError(scenario.source, KEYS, "vTypes (or ids in sumo.controlled_ids) of vehicles in the route files that depart "
                             f"within scenario.duration (vTypes there: {', '.join(types) or 'none'})",
-                            ", ".join(su["controlled_types"] + su["controlled_ids"]))
+                            ", ".join(su.controlled_types + su.controlled_ids))
     return chosen
 
 
@@ -99,21 +100,21 @@ class RoutedCars:
 
     def __init__(self, scenario: Scenario, net, vehicles: list[RoutedVehicle], robots, sim: Simulator | None):
         self.scenario, self.net, self.vehicles, self.robots, self.sim = scenario, net, vehicles, robots, sim
-        lc = scenario.data["lane_change"]
+        lc = lane_change_params(scenario)
         self.lc = lc
         self.roads: dict[tuple[str, ...], tuple[network.Road, list[PathReference]]] = {}
         self.edges = [self.route(v) for v in vehicles]
         rng = np.random.default_rng(scenario["scenario.seed"])
-        exits = lc["exit_lanes"]
+        exits = lc.exit_lanes
         self.exit = [int(rng.choice(exits)) if exits else None for _ in vehicles]
-        self.exit_at = lc["finish_margin"] + rng.uniform(0.0, lc["exit_spread"], len(vehicles))
+        self.exit_at = lc.finish_margin + rng.uniform(0.0, lc.exit_spread, len(vehicles))
         for k, v in enumerate(vehicles):
             lanes = self.road(self.edges[k], v).n_lanes
             if self.exit[k] is not None and self.exit[k] >= lanes:
                 raise ScenarioError(scenario.source, "lane_change.exit_lanes", f"lanes of every controlled car's road "
                                     f"({v.id}'s route has {lanes} car lanes, 0..{lanes - 1})", self.exit[k])
         n = len(vehicles)
-        self.tasks = [PathReference([parking_spot(k)[:2], parking_spot(k)[:2] + [1.0, 0.0]], lc["speed"], stop_at_end=False)
+        self.tasks = [PathReference([parking_spot(k)[:2], parking_spot(k)[:2] + [1.0, 0.0]], lc.speed, stop_at_end=False)
                       for k in range(n)]
         self.bands: list = [None] * n
         self.finish: list[tuple[PathReference, float] | None] = [None] * n
@@ -124,11 +125,11 @@ class RoutedCars:
         self.cone_centres: list[np.ndarray] | None = None
         self.coordinator = None
         self.sumo_drives = False  # SUMO's own driver moves the cars: it gets each car's lanes, and judges the gaps itself
-        self.rule = GapRule(lc["gap_time"], lc["gap_decel"], lc["gap_min"]) if lc["gap_acceptance"] else None
+        self.rule = GapRule(lc.gap_time, lc.gap_decel, lc.gap_min) if lc.gap_acceptance else None
         #: how far the tracking law looks ahead [m], and from how far before a change its gap is judged [m]:
         #: beyond where the MPC's reference (the horizon at the cruise speed) and that law reach
         self.lookahead = max(scenario["aac.lookahead"], scenario["lfc.lookahead"])
-        self.preview = lc["speed"] * scenario["controller.horizon"] * scenario["scenario.dt"] + self.lookahead
+        self.preview = lc.speed * scenario["controller.horizon"] * scenario["scenario.dt"] + self.lookahead
         self.counts = dict(lane_changes=0, lane_change_waits=0, lane_change_aborts=0, exits_missed=0)
         self._s: dict[int, float] = {}  # arc lengths of this period's cars along their start lanes
 
@@ -191,13 +192,13 @@ class RoutedCars:
         lines = self.lines(k)
         start = int(np.argmin([line.project(state[:2])[1] for line in lines]))
         s0 = lines[start].project(state[:2])[0]
-        changes = lane_plan(rd, start, s0, closed, self.exit[k], lc["change_start"], lc["change_length"], lc["closure_lead"],
-                            self.exit_at[k], lc["closure_window"])
+        changes = lane_plan(rd, start, s0, closed, self.exit[k], lc.change_start, lc.change_length, lc.closure_lead,
+                            self.exit_at[k], lc.closure_window)
         self.plans[k] = LanePlan(rd, start, s0, ahead=changes)
         self.rebuild(k)
         self.admitted[k] = True
         line, end_s = self.finish[k]
-        self.free_flow[k] = world.t + self.tasks[k].project(line.pose_at(end_s)[0, :2])[0] / lc["speed"]
+        self.free_flow[k] = world.t + self.tasks[k].project(line.pose_at(end_s)[0, :2])[0] / lc.speed
         self.coordinator.admit(world, k)
         if self.sumo_drives:  # each change asked once the car has driven to its begin (its start lane's metres)
             self.sim.order_lanes(k, [LaneOrder(max(c.begin - s0, 0.0), lane_indices(self.net, self.edges[k], c.lane)) for c in changes])
@@ -215,14 +216,14 @@ class RoutedCars:
         caps = None
         if p.waiting and p.ahead:
             c = p.ahead[0]
-            caps = np.where(s <= c.begin + c.length, lc["gap_speed"] * lc["speed"] if p.slow else np.inf, np.inf)
+            caps = np.where(s <= c.begin + c.length, lc.gap_speed * lc.speed if p.slow else np.inf, np.inf)
             if c.kind == "closure" and not p.accepted:
                 stand = max(c.begin, c.latest) - self.lookahead
                 caps = np.minimum(caps, np.sqrt(2.0 * CURVE_DECEL * np.clip(stand - s, 0.0, None)))
         if p.courtesy_for >= 0:
             merge = np.sqrt(p.courtesy_v**2 + 2.0 * CURVE_DECEL * np.clip(p.courtesy - s, 0.0, None))
             caps = merge if caps is None else np.minimum(caps, merge)
-        self.tasks[k] = lane_reference(points, lc["speed"], min(lc["curve_lat_accel"], self.scenario["robot.a_lat_max"]), caps)
+        self.tasks[k] = lane_reference(points, lc.speed, min(lc.curve_lat_accel, self.scenario["robot.a_lat_max"]), caps)
         self.bands[k] = planned_band(p.road, p.start, changes, 0.5 * self.robots[k].width + ROAD_MARGIN)
         line = self.lines(k)[p.final()]
         self.finish[k] = line, max(line.length - END_MARGIN, line.project(points[0])[0])
@@ -260,7 +261,7 @@ class RoutedCars:
         behind ``k`` begins (along ``j``'s start lane); not when ``k`` stands and ``j`` can no
         longer stop before that point at its comfort deceleration (it would stop beside it)."""
         p, rule = self.plans[j], self.rule
-        v = min(max(float(world.states[k, 3]), 0.0), self.lc["gap_speed"] * self.lc["speed"])
+        v = min(max(float(world.states[k, 3]), 0.0), self.lc.gap_speed * self.lc.speed)
         ahead = self.lines(j)[p.start].project(world.states[k, :2])[0]  # k's rear axle along j's start lane
         robot_j, robot_k = self.robots[j], self.robots[k]
         merge = (ahead - (robot_j.centre_offset + 0.5 * robot_j.length) - (0.5 * robot_k.length - robot_k.centre_offset)
@@ -349,7 +350,7 @@ class RoutedCars:
         for k in np.flatnonzero(~self.done & world.on_road):
             line, end_s = self.finish[k]
             s, lateral = line.project(world.states[k, :2])
-            self.done[k] = s >= end_s and lateral <= self.lc["lane_tolerance"]
+            self.done[k] = s >= end_s and lateral <= self.lc.lane_tolerance
         for k in np.flatnonzero(~self.done & ~world.on_road):
             self.done[k] = self.robots[k].name in self.sim.removed
         return self.done.copy()
@@ -366,8 +367,9 @@ def build_routed(scenario: Scenario, net_path: Path, routes: list[Path], options
         except ScenarioError:
             raise ScenarioError(scenario.source, KEYS, f"vTypes at least robot.wheelbase long ({v.vtype} is {v.length:g} m)") from None
     v_max = robots[0].model.limits.v_max
-    if scenario["lane_change.speed"] > v_max:
-        raise ScenarioError(scenario.source, "lane_change.speed", f"at most robot.v_max ({v_max})", scenario["lane_change.speed"])
+    speed = lane_change_params(scenario).speed
+    if speed > v_max:
+        raise ScenarioError(scenario.source, "lane_change.speed", f"at most robot.v_max ({v_max})", speed)
     states = np.array([parking_spot(k) for k in range(len(robots))])
     cars = RoutedCars(scenario, net, vehicles, robots, None)
     cars.sumo_drives = simulator_drives(scenario)

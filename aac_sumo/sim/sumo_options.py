@@ -7,6 +7,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from aac_sumo.config.keys import NN
+from aac_sumo.config.schema import from_section, param
 from aac_sumo.network import sumo_binary
 
 
@@ -28,6 +30,54 @@ OUTPUTS = {
     "summary": ("--summary-output", "summary.xml"),
     "lanechange": ("--lanechange-output", "lanechange.xml"),
 }
+
+
+def _names(v) -> bool:
+    return all(isinstance(x, str) and x.strip() for x in v)
+
+
+@dataclass(frozen=True)
+class SumoParams:
+    """Section ``[sumo]`` of the kinds that co-simulate with SUMO (lane_change): the network and
+    route files (paths relative to the scenario file), which of SUMO's vehicles we control, the
+    GUI, SUMO's own outputs and options; the experiment turns them into :class:`SumoOptions`."""
+
+    config: str = param("", "a SUMO configuration (.sumocfg): its net-file, route-files, additional files and options are used "
+                        "(the scenario's step length, seed and collision options still apply; empty: none)")
+    extra_args: str = param("", "more SUMO command-line options, passed through (e.g. \"--default.speeddev 0\"); ours apply after them")
+    net: str = param("", "SUMO .net.xml (empty: the bundled sumo_networks/lane_change network, or sumo.config's net-file)")
+    routes: str = param("", "comma-separated SUMO route files with cones, pedestrians, other traffic (empty: the bundled ones "
+                        "with the bundled net, none otherwise)")
+    edges: str = param("", "edge ids of the road in driving order, separated by spaces or commas (empty: the longest chain "
+                       "with the car lanes the scenario needs; aac-sumo net info NET lists them)")
+    cone_types: str = param("cone", "comma-separated vType ids whose vehicles are cones (static obstacles)")
+    controlled_types: tuple[str, ...] = param((), "vType ids of SUMO's own vehicles (route files, sumo.config) that we control "
+                                              "from their departure on, on their own routes; instead of lane_change.vehicles "
+                                              "(empty: none)", parse=tuple, raw_default=[], check=_names, expect="a list of vType ids")
+    controlled_ids: tuple[str, ...] = param((), "as controlled_types, for SUMO's vehicles whose id matches one of these globs "
+                                            "(e.g. \"aac.*\")", parse=tuple, raw_default=[], check=_names, expect="a list of id globs")
+    gui: bool = param(False, "show the run in sumo-gui (set by aac-sumo run --gui)")
+    delay: float = param(0.0, "sumo-gui's pause per simulation step, to watch a run (set by aac-sumo run --delay) [ms]", **NN)
+    fcd: bool = param(False, "write SUMO's floating-car-data trajectories, fcd.xml, into sumo.output_dir (as sumo.outputs = [\"fcd\"])")
+    outputs: tuple[str, ...] = param((), "SUMO's own output files to write into sumo.output_dir, any of fcd, tripinfo, collision, "
+                                     "summary, lanechange (fcd.xml, tripinfo.xml, collision.xml, summary.xml, lanechange.xml)",
+                                     parse=tuple, raw_default=[], check=lambda v: all(x in OUTPUTS for x in v),
+                                     expect="a list of " + ", ".join(OUTPUTS))
+    isolate: bool = param(True, "run SUMO in a process of its own, so that a SUMO crash (a segfault in libsumo) ends the run with "
+                          "its error and everything recorded until then, not the whole command (false: in aac-sumo's process; "
+                          "sumo-gui always runs in its own)")
+    driver_speed: float = param(-1.0, "controller.coordinator = sumo on kind lane_change: the most SUMO's driver drives the cars "
+                                "at [m/s]; -1: lane_change.speed, our references' cruise speed (a like-for-like comparison); 0: "
+                                "SUMO's own desired speed (the lane's limit times the vType's speed factor, 13.9 m/s on the bundled road)")
+    lateral_resolution: float = param(0.0, "SUMO's sublane model: --lateral-resolution for SUMO's own traffic [m] (0: off, "
+                                      "the lane-based model, unless sumo.config or sumo.extra_args set it)", **NN)
+    output_dir: str = param("", "directory of SUMO's own output files and of its message log sumo.log (aac-sumo run sets it to "
+                            "--out; empty: out/<scenario name> when outputs are asked for, else no files and SUMO's warnings off)")
+
+
+def sumo_params(scenario) -> SumoParams:
+    """Section ``[sumo]`` of a validated scenario (:class:`aac_sumo.config.Scenario`)."""
+    return from_section(SumoParams, scenario, "sumo")
 
 
 @dataclass
