@@ -7,7 +7,6 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-import pytest
 
 PACKAGE = Path(__file__).resolve().parent.parent / "aac_sumo"
 
@@ -35,8 +34,6 @@ ALLOWED: dict[str, set[str]] = {
 MAX_TOP_LEVEL = 12
 #: No module is longer than this [lines] ...
 MAX_LINES = 400
-#: ... but these, each with the reason it is not split yet.
-TOO_LONG: dict[str, str] = {}
 
 
 def module_name(path: Path) -> str:
@@ -140,12 +137,6 @@ def test_the_top_level_stays_small():
     assert len(top) <= MAX_TOP_LEVEL, top
 
 
-def test_no_module_is_too_long_but_the_named_exceptions():
+def test_no_module_is_too_long():
     lengths = {str(p.relative_to(PACKAGE)): len(p.read_text().splitlines()) for p in PACKAGE.rglob("*.py")}
-    assert {f: n for f, n in lengths.items() if n > MAX_LINES and f not in TOO_LONG} == {}
-
-
-@pytest.mark.parametrize("path", sorted(TOO_LONG))
-def test_each_named_exception_is_still_needed(path):
-    """An exception whose file was split (or removed) leaves the list."""
-    assert len((PACKAGE / path).read_text().splitlines()) > MAX_LINES
+    assert {f: n for f, n in lengths.items() if n > MAX_LINES} == {}
