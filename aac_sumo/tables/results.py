@@ -61,6 +61,11 @@ JOBS = (
         (("bench.md", ".md"), ("bench.json", ".json")), parallel=False),
     Job("cbf_qp_seeds0-4", (), (("cbf_qp_seeds0-4.md", ".md"), ("cbf_qp_seeds0-4.csv", ".csv"),
                                 ("cbf_qp_seeds0-4_runs.csv", "_runs.csv")), module="aac_sumo.tables.cbf_qp"),
+    Job("orca_circle_swap", (), tuple((f"orca_circle_swap_{v}_seeds0-4{ext}", f"_{v}_seeds0-4{ext}")
+                                      for v in ("plain", "margin", "noise", "halfplanes") for ext in (".md", ".csv")),
+        parallel=False, module="aac_sumo.tables.orca_circle_swap"),
+    Job("orca_rvo2_discs_seeds0-4", (), (("orca_rvo2_discs_seeds0-4.md", ".md"), ("orca_rvo2_discs_seeds0-4.csv", ".csv")),
+        parallel=False, module="aac_sumo.tables.orca_discs"),
 )
 
 
