@@ -46,6 +46,7 @@ def add_commands(sub, positive_int) -> None:
     p.add_argument("--format", choices=ANIMATION_FORMATS, default="gif", help="gif (Pillow, default) or mp4 (ffmpeg from imageio-ffmpeg)")
     add_animation_options(p, positive_int)
     p.add_argument("--still", type=_time, metavar="T", help="write only the frame nearest to time T [s], as RUN_DIR/frame_T.png")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
     p = sub.add_parser("compare", help="several runs side by side: metrics table and overlaid plots",
                        description="Writes OUT/compare.md and OUT/compare.csv (every metric of every run) and OUT/compare.png "
@@ -66,7 +67,7 @@ def write_animation(result, out: Path, fmt: str, args) -> Path:
     from aac_sumo.views.animate import animate
 
     path = out / f"animation.{fmt}"
-    frames = animate(result, path, fps=args.fps, every=args.every, ellipses=args.ellipses)
+    frames = animate(result, path, fps=args.fps, every=args.every, ellipses=args.ellipses, progress=not getattr(args, "no_progress", False))
     print(f"animation: {path} ({frames} frames)")
     return path
 

@@ -13,6 +13,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.animation import FFMpegWriter, FuncAnimation, PillowWriter  # noqa: E402
+from PIL import Image  # noqa: E402
 from matplotlib.collections import PolyCollection  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
@@ -70,15 +71,20 @@ def frame_notes(steps) -> dict[float, tuple[list[str], set[str], set[str]]]:
     return notes
 
 
-def animate(result, path: Path, fps: float | None = None, every: int = 1, ellipses: bool = False, dpi: int = 100) -> int:
+def animate(result, path: Path, fps: float | None = None, every: int = 1, ellipses: bool = False, dpi: int = 100,
+            progress: bool = False) -> int:
     """Write the animation of ``result`` (a :class:`~aac_sumo.runs.recording.RunResult`) to ``path``
     (``.gif`` or ``.mp4``): one frame per ``every`` recorded periods, ``fps`` frames per second
-    (default: real time). Returns the number of frames."""
+    (default: real time), with a progress bar when ``progress``. Returns the number of frames."""
+    from tqdm import tqdm
+
     fig, draw, times = scene(result, ellipses, dpi)
     times = times[::every]
     fps = fps or 1.0 / (result.scenario["scenario.dt"] * every)
     animation = FuncAnimation(fig, draw, frames=list(times), blit=False, cache_frame_data=False)
-    animation.save(str(path), writer=_writer(Path(path).suffix.lstrip("."), fps), dpi=dpi)
+    with tqdm(total=len(times), desc=f"animate {Path(path).name}", unit="frame", disable=not progress, dynamic_ncols=True) as bar:
+        animation.save(str(path), writer=_writer(Path(path).suffix.lstrip("."), fps), dpi=dpi,
+                       progress_callback=lambda i, n: bar.update(1))
     plt.close(fig)
     return len(times)
 
@@ -185,6 +191,18 @@ def _figure(traj, dpi: int):
     return fig, ax, window
 
 
+class PaletteGifWriter(PillowWriter):
+    """matplotlib's GIF writer, keeping each frame as it comes in GIF's own 256-colour palette
+    form (one byte a pixel) instead of RGB (three): the GIF holds no more colours than that
+    anyway, and a 337-frame lane change then needs a third of the memory."""
+
+    def grab_frame(self, **savefig_kwargs):
+        super().grab_frame(**savefig_kwargs)
+        frame = self._frames[-1]
+        if frame.mode == "RGB":
+            self._frames[-1] = frame.quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+
+
 def _writer(fmt: str, fps: float):
     if fmt not in ("gif", "mp4"):
         raise ValueError(f"animation format {fmt!r}: expected gif or mp4")
@@ -193,4 +211,4 @@ def _writer(fmt: str, fps: float):
 
         matplotlib.rcParams["animation.ffmpeg_path"] = imageio_ffmpeg.get_ffmpeg_exe()
         return FFMpegWriter(fps=fps, codec="libx264", extra_args=["-pix_fmt", "yuv420p"])
-    return PillowWriter(fps=fps)
+    return PaletteGifWriter(fps=fps)
