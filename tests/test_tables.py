@@ -144,6 +144,21 @@ def test_circle_swap_table_grid(planned, capsys, tmp_path):
     assert len(tasks) == 12
     _check_equal_layers(tasks)
 
+    planned.clear()  # the full grid: every count on every radius, the dense pairings too
+    assert main(["table", "circle-swap", "--grid", "full", "--out", str(tmp_path / "full"), "--no-progress"]) == 0
+    ((tasks, _),) = planned
+    assert sorted((t.scenario["circle_swap.n_robots"], t.scenario["circle_swap.radius"], t.scenario["controller.coordinator"])
+                  for t in tasks) == sorted(itertools.product((8, 16, 24), (4.0, 6.0, 8.0), ("aac", "lfc")))
+    _, rows = read_rows(tmp_path / "full" / "table.csv")
+    assert len(rows) == 18
+
+
+def test_only_the_circle_swap_table_takes_a_grid(planned, capsys, tmp_path):
+    assert main(["table", "swarm", "--grid", "full", "--out", str(tmp_path / "t"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--grid" in err[0] and "circle-swap" in err[0], err
+    assert planned == []
+
 
 def test_table_rows_give_yes_no_metrics_as_shares_and_paper_values_to_off_rows_only():
     base = {"controller.horizon": 5, "controller.coordinator": "lfc", "status": "ok", "collisions": 0}

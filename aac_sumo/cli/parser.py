@@ -96,6 +96,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sensitivity", action="store_true",
                    help="braking: also each barrier over gamma (and F-CBF over mu1) on the next K seeds, "
                    "into sensitivity.md and sensitivity.csv")
+    p.add_argument("--grid", choices=("paired", "full"), default=None,
+                   help="circle-swap: paired (8 robots on 4 m, 16 on 6 m, 24 on 8 m; the default) or full "
+                   "(8, 16 and 24 robots on each of 4, 6 and 8 m)")
     add_set(p)
     p.add_argument("--out", type=Path, help="output directory (default out/table/<name>)")
     add_executor(p, resume=True)

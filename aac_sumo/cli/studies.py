@@ -94,6 +94,10 @@ def cmd_table(args) -> int:
         if args.name != "braking":
             raise UsageError(f"table {args.name}: --sensitivity: expected table braking (the only table with a sensitivity grid)")
         extra["sensitivity"] = True
+    if args.grid is not None:
+        if args.name != "circle-swap":
+            raise UsageError(f"table {args.name}: --grid: expected table circle-swap (the only table with a choice of grid)")
+        extra["grid"] = args.grid
     check_out(out)
     _, text, runs = tables.BUILDERS[args.name](args.seeds, args.workers, out, list(args.sets), progress=not args.no_progress,
                                                 scheduler=args.scheduler, resume=args.resume, **extra)

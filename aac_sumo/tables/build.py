@@ -157,8 +157,10 @@ def swarm_table(seeds: int, workers: int | None, out: Path, sets: list[str] | No
 
 # --- Circle swap: AAC against LFC over the number of robots ------------------------------------
 
-#: (robots, circle radius [m]) of the circle-swap table.
-CIRCLE_SIZES = ((8, 4.0), (16, 6.0), (24, 8.0))
+#: (robots, circle radius [m]) of the circle-swap table: ``paired`` (each count on the radius that
+#: keeps its crowd as dense as the 8 robots on 4 m, the default) or ``full`` (every count on every radius).
+CIRCLE_GRIDS = {"paired": ((8, 4.0), (16, 6.0), (24, 8.0)),
+                "full": tuple((n, r) for n in (8, 16, 24) for r in (4.0, 6.0, 8.0))}
 
 CIRCLE_KEYS = ("circle_swap.n_robots", "circle_swap.radius")
 
@@ -212,15 +214,15 @@ def circle_markdown(rows: list[dict], scenario: config.Scenario, seeds: int) -> 
 
 def circle_swap_table(seeds: int, workers: int | None, out: Path, sets: list[str] | None = None,
                       progress: bool = True, scheduler: str | None = None, resume: bool = False,
-                      layers: str = "off", baselines: bool = False) -> tuple[list[dict], str, list[dict]]:
-    """Run the circle-swap table (safety layers x (robots, radius) of :data:`CIRCLE_SIZES` x
+                      layers: str = "off", baselines: bool = False, grid: str = "paired") -> tuple[list[dict], str, list[dict]]:
+    """Run the circle-swap table (safety layers x (robots, radius) of ``CIRCLE_GRIDS[grid]`` x
     coordinators x seeds) and write results.csv, table.csv and table.md. ``layers`` (``off``
     by default, ``on`` or ``both``) sets ``aac.safety_stop`` and ``lfc.safety_stop`` together."""
     sets = list(sets or [])
     check_table_sets(sets, LAYER_KEYS + CIRCLE_KEYS, "circle-swap")
     bundles = [((("safety_layers", layer), ("circle_swap.n_robots", n), ("circle_swap.radius", radius)),
                 layer_sets(layer) + [f"circle_swap.n_robots={n}", f"circle_swap.radius={radius}"])
-               for layer in layers_of(layers) for n, radius in CIRCLE_SIZES]
+               for layer in layers_of(layers) for n, radius in CIRCLE_GRIDS[grid]]
     grid = [("controller.coordinator", list(COORDINATORS))]
     runs = run_grid("circle_swap", grid, seeds, workers, out, sets, progress, "table circle-swap", scheduler, resume, bundles)
     if baselines:
