@@ -91,6 +91,16 @@ def test_area_grows_with_n_at_constant_density():
     assert np.abs(d.goals).max() < sides[0] / 2
 
 
+def test_a_density_sets_the_area_instead_of_the_area_per_robot():
+    """5 robots per 100 m^2: 20 m^2 a robot, so 20 robots take a 20 m x 20 m square (6 m^2 a
+    robot, the scenario's own, gives sqrt(120) m); 0, the default, leaves area_per_robot in charge."""
+    assert area_side(scenario("random_crossing.density=5")) == pytest.approx(20.0)
+    assert area_side(scenario("random_crossing.density=5", "random_crossing.area_per_robot=1.0")) == pytest.approx(20.0)
+    assert area_side(scenario()) == pytest.approx(np.sqrt(120.0))
+    d = draw(scenario("random_crossing.density=5"))
+    assert np.abs(d.starts[:, :2]).max() < 10.0 and np.abs(d.goals).max() < 10.0
+
+
 @pytest.mark.parametrize("sets, key", [
     (["random_crossing.n_robots=200", "random_crossing.area_per_robot=0.5"], "random_crossing.n_robots"),
     (["random_crossing.debris_density=30.0", "random_crossing.debris_min_size=4.0",
@@ -98,6 +108,7 @@ def test_area_grows_with_n_at_constant_density():
     (["random_crossing.min_travel_fraction=1.2"], "random_crossing.min_travel_fraction"),
     (["random_crossing.path_clearance=5.0"], "random_crossing.path_clearance"),
     (["random_crossing.n_robots=2", "random_crossing.area_per_robot=0.5"], "random_crossing.area_per_robot"),
+    (["random_crossing.n_robots=2", "random_crossing.density=200"], "random_crossing.density"),
     (["random_crossing.debris_max_size=0.3"], "random_crossing.debris_max_size"),
     (["random_crossing.cruise_speed=5.0"], "random_crossing.cruise_speed"),
 ])

@@ -77,6 +77,8 @@ class RandomCrossingParams:
                           check=lambda n: 2 <= n <= MAX_ROBOTS, expect=f"in 2..{MAX_ROBOTS}")
     area_per_robot: float = param(6.0, "the square area's side is sqrt(n_robots * area_per_robot): the density stays "
                                   "constant as n grows [m^2]", **P)
+    density: float = param(0.0, "robots per 100 m^2 of area; above 0 it sets the area instead of area_per_robot "
+                           "(100 / density m^2 a robot) [1/(100 m^2)]", **NN)
     min_travel_fraction: float = param(0.6, "each goal is at least this fraction of the area side from its start, so "
                                        "paths cross the middle", check=lambda f: 0 <= f <= 1.2, expect="in [0, 1.2]")
     clearance: float = param(0.5, "gap kept between start footprints, between goals' reach discs (the footprint at the goal "
@@ -107,9 +109,20 @@ class Draw:
 
 
 def area_side(scenario: Scenario) -> float:
-    """Side of the square area [m]: ``sqrt(n_robots * area_per_robot)``."""
+    """Side of the square area [m]: ``sqrt(n_robots * a)``, ``a`` the area a robot has
+    (:func:`area_per_robot`)."""
     p = params(scenario)
-    return float(np.sqrt(p.n_robots * p.area_per_robot))
+    return float(np.sqrt(p.n_robots * area_per_robot(p)))
+
+
+def area_per_robot(p: RandomCrossingParams) -> float:
+    """The area [m^2] a robot has: ``100 / density`` when ``density`` is set, else ``area_per_robot``."""
+    return 100.0 / p.density if p.density > 0.0 else p.area_per_robot
+
+
+def _area_key(p: RandomCrossingParams) -> tuple[str, float]:
+    """The key that sets the area, and its value (for error messages)."""
+    return ("density", p.density) if p.density > 0.0 else ("area_per_robot", p.area_per_robot)
 
 
 def debris_count(scenario: Scenario) -> int | float:
@@ -129,8 +142,9 @@ def draw(scenario: Scenario) -> Draw:
     side = area_side(scenario)
     reach = float(np.hypot(0.5 * r.length + 0.5 * r.wheelbase, 0.5 * r.width))  # rear axle to the farthest corner
     if 0.5 * side <= reach:
-        raise ScenarioError(scenario.source, f"{SECTION}.area_per_robot",
-                            f"an area whose side ({side:.2f} m) exceeds twice the robot's reach ({reach:.2f} m)", p.area_per_robot)
+        key, value = _area_key(p)
+        raise ScenarioError(scenario.source, f"{SECTION}.{key}",
+                            f"an area whose side ({side:.2f} m) exceeds twice the robot's reach ({reach:.2f} m)", value)
     if debris_count(scenario) > MAX_DEBRIS:
         raise ScenarioError(scenario.source, f"{SECTION}.debris_density", f"at most {MAX_DEBRIS} debris pieces in the "
                             f"{side:.3g} m x {side:.3g} m area (debris_density * side^2 / 100)", p.debris_density)
@@ -203,7 +217,7 @@ def _give_up(scenario: Scenario, i: int, side: float, tries: int, tally: dict[st
     key = REASONS[worst]
     raise ScenarioError(
         scenario.source, f"{SECTION}.{key}",
-        f"robots that fit the {side:.1f} m x {side:.1f} m area (area_per_robot {p.area_per_robot} m^2, "
+        f"robots that fit the {side:.1f} m x {side:.1f} m area ({area_per_robot(p):g} m^2 a robot, "
         f"clearance {p.clearance} m, debris_density {p.debris_density}): could not place robot {i} of {n} "
         f"in {tries} candidates (failed: {shares}; best of {ATTEMPTS} fresh draws)", getattr(p, key))
 
