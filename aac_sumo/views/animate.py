@@ -12,7 +12,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib.animation import FFMpegWriter, FuncAnimation, PillowWriter  # noqa: E402
+from matplotlib.animation import FFMpegWriter, PillowWriter  # noqa: E402
 from PIL import Image  # noqa: E402
 from matplotlib.collections import PolyCollection  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
@@ -81,10 +81,12 @@ def animate(result, path: Path, fps: float | None = None, every: int = 1, ellips
     fig, draw, times = scene(result, ellipses, dpi)
     times = times[::every]
     fps = fps or 1.0 / (result.scenario["scenario.dt"] * every)
-    animation = FuncAnimation(fig, draw, frames=list(times), blit=False, cache_frame_data=False)
-    with tqdm(total=len(times), desc=f"animate {Path(path).name}", unit="frame", disable=not progress, dynamic_ncols=True) as bar:
-        animation.save(str(path), writer=_writer(Path(path).suffix.lstrip("."), fps), dpi=dpi,
-                       progress_callback=lambda i, n: bar.update(1))
+    writer = _writer(Path(path).suffix.lstrip("."), fps)
+    with writer.saving(fig, str(path), dpi), tqdm(times, desc=f"animate {Path(path).name}", unit="frame", disable=not progress,
+                                                  dynamic_ncols=True) as frames:
+        for t in frames:  # one render a frame, the writer's (matplotlib's FuncAnimation renders each twice)
+            draw(t)
+            writer.grab_frame()
     plt.close(fig)
     return len(times)
 
@@ -200,7 +202,7 @@ class PaletteGifWriter(PillowWriter):
         super().grab_frame(**savefig_kwargs)
         frame = self._frames[-1]
         if frame.mode == "RGB":
-            self._frames[-1] = frame.quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
+            self._frames[-1] = frame.quantize(colors=256, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
 
 
 def _writer(fmt: str, fps: float):
