@@ -204,6 +204,18 @@ class PaletteGifWriter(PillowWriter):
         if frame.mode == "RGB":
             self._frames[-1] = frame.quantize(colors=256, method=Image.Quantize.FASTOCTREE, dither=Image.Dither.NONE)
 
+    def finish(self):
+        """Write the GIF, handing each frame over as Pillow takes its own copy of it (it keeps
+        every frame until the file is written), so that the frames are not held twice."""
+        frames = self._frames
+
+        def rest():
+            for k in range(1, len(frames)):
+                frame, frames[k] = frames[k], None
+                yield frame
+
+        frames[0].save(self.outfile, save_all=True, append_images=rest(), duration=int(1000 / self.fps), loop=0)
+
 
 def _writer(fmt: str, fps: float):
     if fmt not in ("gif", "mp4"):
