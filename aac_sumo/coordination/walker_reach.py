@@ -13,7 +13,8 @@ commitment's whole course.
 
 A course passes when, at every period from now until it stands, its footprint keeps outside
 every walker's region of that moment, and where it stands keeps ``pedestrian_margin`` from
-every crossing's strip (a car never waits on a crossing: the walkers to come walk there). Frames and units: world frame [m], periods of ``dt`` [s].
+every crossing's strip (a car never waits on a crossing: the walkers to come walk there).
+Frames and units: world frame [m], periods of ``dt`` [s].
 """
 
 from __future__ import annotations
