@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from aac_sumo.geometry import OrientedRect, point_rect_signed_distance
 from aac_sumo.world import WorldState
 
 #: Spacing [m] of the points that stand for a walker's segment; the gap is taken half a spacing
@@ -102,12 +103,9 @@ class WalkerReach:
         return float(gap.min())
 
 
+
 def box_distance(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
     """Signed distance [m] (K, m, S) from points (K, m, S, 2) to the footprints ``rows`` (K, 5)
-    ``[cx, cy, length, width, heading]``: outside, to the nearest point of the rectangle; inside,
-    minus the depth to its nearest side."""
-    d = points - rows[:, None, None, :2]
-    cos, sin = np.cos(rows[:, 4])[:, None, None], np.sin(rows[:, 4])[:, None, None]
-    along = np.abs(d[..., 0] * cos + d[..., 1] * sin) - 0.5 * rows[:, 2, None, None]
-    across = np.abs(-d[..., 0] * sin + d[..., 1] * cos) - 0.5 * rows[:, 3, None, None]
-    return np.hypot(np.maximum(along, 0.0), np.maximum(across, 0.0)) + np.minimum(np.maximum(along, across), 0.0)
+    ``[cx, cy, length, width, heading]``, negative inside: :func:`~aac_sumo.geometry.point_rect_signed_distance`
+    with each footprint broadcast over its points."""
+    return point_rect_signed_distance(points, OrientedRect(*(rows[:, j, None, None] for j in range(5))))

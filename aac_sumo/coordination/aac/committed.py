@@ -74,15 +74,15 @@ class CommittedAac(AacCoordinator):
         self.period += 1
         statics = np.array([o.footprint() for o in world.obstacles if o.kind in ("static", "cone")]).reshape(-1, 5)
         walkers = WalkerReach.of(world, cfg.pedestrian_margin, cfg.pedestrian_reach, cfg.walkway_time, cfg.dt)
-        if self.book is None:
+        first = self.book is None
+        if first:
             self.book = CommitmentBook(fleet, [self.commitment(world, i, period, np.zeros((0, 2))) for i in range(n)],
                                        self.params.commit_margin)
-            self.book.walkers = walkers
-            for i in range(n):  # with cruise, every car drives on from the start where the exact check lets it (not a tail)
-                start = self.continued_commitment(world, i, period, np.zeros((0, 2)), statics)
-                if start is not None:
-                    self.book.replace(i, start, period)
         self.book.walkers = walkers
+        for i in range(n) if first else ():  # with cruise, every car drives on from the start where the exact check lets it
+            start = self.continued_commitment(world, i, period, np.zeros((0, 2)), statics)
+            if start is not None:
+                self.book.replace(i, start, period)
         done = self.finished(world)
         parked = self.parked(world, done)
         records = [RobotDecision(False, mode=c.stage(period)) for c in self.book.items]
