@@ -103,3 +103,21 @@ def test_a_car_may_not_come_to_stand_within_the_margin_of_a_crossing_strip():
     for row, exact in ((before, 0.0), (before + [2.0, 0, 0, 0, 0], -2.0)):  # front at 238: 1 m into the 2 m half width
         assert exact - 0.5 * SEGMENT_STEP - 1e-9 <= reach.stand_slack(row) <= exact + 1e-9
     assert reach.slack(standing_course([234.0, -4.8])) == np.inf  # no walker: no region
+
+
+def test_a_walker_crossing_the_road_keeps_to_her_way_and_a_standing_one_may_turn():
+    """A crossing along x = 239 m from y = 0 to y = -9.6 m (4 m wide). A walker at y = -6 m walks
+    south at 1.2 m/s: she has cleared the lane at y = -2 m, and a car standing there beside the
+    crossing keeps its slack; the same walker standing still may turn back at the reach speed."""
+    from aac_sumo.world import Crossing
+    crossing = (Crossing("c", np.array([[239.0, 0.0], [239.0, -9.6]]), 4.0, 3.2),)
+    car = standing_course([234.0, -2.0], periods=50)  # front at x = 236, 3 m from her way at x = 239
+    radius = 0.5 * np.hypot(0.5, 0.5) + 1.0
+    slacks = []
+    for velocity in ([0.0, -1.2], [0.0, 0.0]):
+        world = WorldState(0.0, np.zeros((0, 4)), [], [walker([239.0, -6.0], velocity)], crossings=crossing)
+        slacks.append(WalkerReach.of(world, 1.0, 1.5, 10.0, DT).slack(car))
+    walking, standing = slacks
+    exact = np.hypot(3.0, 4.0 - 0.9) - radius  # her nearest point to the car is where she is now
+    assert exact - 0.5 * SEGMENT_STEP - 1e-9 <= walking <= exact + 1e-9
+    assert standing < walking - 1.5 * 5.0 + 1.0  # 5 s at 1.5 m/s in any direction

@@ -3,9 +3,11 @@
 A walker seen now at centre ``c`` [m] with velocity ``v`` [m/s] walks at most at ``V`` =
 max(``|v|``, ``pedestrian_reach``) [m/s]. ``t`` [s] later she is taken to be
 * within ``V t`` of ``c`` in any direction: she may start, stop or turn at any moment; or,
-* on a walkway of her own whose ends she cannot reach within ``walkway_time``
-  (:meth:`~aac_sumo.world.Obstacle.step_out_speed` is 0: SUMO's walkers leave a footpath only at
-  its end), on the segment from ``c`` to ``c + V t v/|v|`` along her way.
+* on the segment from ``c`` to ``c + V t v/|v|`` along her way (she may stop or slow down, she
+  does not turn back) when she walks on a walkway of her own whose ends she cannot reach within
+  ``walkway_time`` (:meth:`~aac_sumo.world.Obstacle.step_out_speed` is 0: SUMO's walkers leave a
+  footpath only at its end), or walks across a crossing's strip at ``CROSSING_WALK`` or faster
+  (SUMO's walkers cross to the far side; a car goes once she has cleared its lane and margin).
 Every car keeps ``radius`` from that region: her footprint's half diagonal plus
 ``pedestrian_margin``. Unlike the planner's regions over its short horizon (constant velocity,
 grown by the reach on every side), this is a bound on her speed, so it stays true over a
@@ -29,6 +31,8 @@ from aac_sumo.world import WorldState
 #: Spacing [m] of the points that stand for a walker's segment; the gap is taken half a spacing
 #: smaller, so the check never passes what the exact segment would refuse.
 SEGMENT_STEP = 0.25
+#: A walker on a crossing's strip who walks at least this fast [m/s] keeps to her way across it.
+CROSSING_WALK = 0.3
 #: Walkers whose region stays this far [m] from a course's footprints by the centres alone are
 #: not measured exactly: the slack is exact below it.
 FAR = 5.0
@@ -57,15 +61,17 @@ class WalkerReach:
         velocity = np.array([o.velocity for o in walkers], dtype=float).reshape(-1, 2)
         speed = np.hypot(*velocity.T)
         top = np.maximum(speed, reach)
-        bound = np.array([o.step_out_speed(reach, walkway_time) == 0.0 for o in walkers], dtype=bool)  # stays on her walkway
-        way = velocity / np.maximum(speed, 1e-9)[:, None] * top[:, None]
         segments = [(c.shape[k:k + 2], 0.5 * c.width + margin) for c in world.crossings for k in range(len(c.shape) - 1)]
-        return cls(np.array([o.centre for o in walkers], dtype=float).reshape(-1, 2),
-                   np.where(bound[:, None], way, 0.0),
+        strips = np.array([seg for seg, _ in segments], dtype=float).reshape(-1, 2, 2)
+        half = np.array([r - margin for _, r in segments], dtype=float)
+        centres = np.array([o.centre for o in walkers], dtype=float).reshape(-1, 2)
+        crossing = (speed >= CROSSING_WALK) & np.any(segment_distance(centres, strips) <= half[None, :], axis=1)
+        bound = crossing | np.array([o.step_out_speed(reach, walkway_time) == 0.0 for o in walkers], dtype=bool)  # keeps to her way
+        way = velocity / np.maximum(speed, 1e-9)[:, None] * top[:, None]
+        return cls(centres, np.where(bound[:, None], way, 0.0),
                    np.array([0.5 * np.hypot(o.length, o.width) + margin for o in walkers], dtype=float),
                    np.where(bound, 0.0, top), float(dt),
-                   np.array([seg for seg, _ in segments], dtype=float).reshape(-1, 2, 2),
-                   np.array([r for _, r in segments], dtype=float))
+                   strips, np.array([r for _, r in segments], dtype=float))
 
     def slack(self, rows: np.ndarray) -> float:
         """Least gap [m] between the footprints ``rows`` (K, 5) ``[cx, cy, length, width,
@@ -109,3 +115,10 @@ def box_distance(points: np.ndarray, rows: np.ndarray) -> np.ndarray:
     ``[cx, cy, length, width, heading]``, negative inside: :func:`~aac_sumo.geometry.point_rect_signed_distance`
     with each footprint broadcast over its points."""
     return point_rect_signed_distance(points, OrientedRect(*(rows[:, j, None, None] for j in range(5))))
+
+
+def segment_distance(points: np.ndarray, segments: np.ndarray) -> np.ndarray:
+    """Distance [m] (p, s) from points (p, 2) to segments (s, 2, 2)."""
+    a, d = segments[None, :, 0], segments[None, :, 1] - segments[None, :, 0]
+    u = np.clip(np.sum((points[:, None] - a) * d, axis=2) / np.maximum(np.sum(d * d, axis=2), 1e-12), 0.0, 1.0)
+    return np.hypot(*(points[:, None] - a - u[..., None] * d).transpose(2, 0, 1))
