@@ -33,8 +33,14 @@ EXTENSION_RETRY = 3
 #: With ``cruise`` (a road), a robot without authority renews its continuation every
 #: RENEW_EVERY periods where the new one passes the exact check and ends at least RENEW_GAIN [m]
 #: further along its path than its commitment: a car whose queue has set off follows it at once.
+#: A car slower than its path's speed by more than RENEW_SLOW [m/s] renews every period (a queue
+#: setting off: each car renews after the one ahead of it, front first, in the same period).
 RENEW_EVERY = 5
 RENEW_GAIN = 0.5
+RENEW_SLOW = 1.0
+#: A continuation aims at the anticipation's speed cap where the car will be CONTINUATION_LAG [s]
+#: on, and reaches it in that time (within the comfort envelope).
+CONTINUATION_LAG = 0.3
 #: Grid cell [m] of the detour planner, and how often [s] a robot checks its reference for standing footprints.
 DETOUR_CELL = 0.1
 DETOUR_CHECK = 1.0
@@ -141,11 +147,11 @@ class CommittedAac(AacCoordinator):
     def continued_commitment(self, world: WorldState, i: int, period: int, head: np.ndarray, statics: np.ndarray):
         """Robot ``i``'s commitment to ``head`` (m, 2) continued along its path before its
         stopping tail, for ``cruise`` [s], else half or a quarter of it: the longest that passes
-        the exact check. The continuation is the tracking law aiming at the anticipation's speed
-        cap a second ahead (:mod:`~aac_sumo.coordination.anticipation`: it stays behind what is
-        ahead on its path and stops before a walker who counts, as the MPC's reference does),
-        with what moves along the path going on at its speed now (as the planner predicts it),
-        braking at most at the comfort envelope and speeding up at most at the anticipation's
+        the exact check. The continuation is the tracking law's steering with the speed that
+        reaches, in ``CONTINUATION_LAG``, the anticipation's speed cap where the car will be then
+        (:mod:`~aac_sumo.coordination.anticipation`: it stays behind what is ahead on its path
+        and stops before a walker who counts, as the MPC's reference does), with what moves
+        along the path going on at its speed now (as the planner predicts it), braking at most at the comfort envelope and speeding up at most at the anticipation's
         ``accel``. None without ``cruise``, without anticipation, on a path that ends in a stop, or
         when nothing passes (a car on a road does not crawl between its turns: a tail right
         after each plan braked it at every turn it did not get)."""
@@ -164,11 +170,11 @@ class CommittedAac(AacCoordinator):
         for k in range(periods):
             t = (len(head) + k) * cfg.dt
             moved = stops + np.column_stack([stops[:, 1] * t, np.zeros((len(stops), 2))])  # what moves goes on at its speed
-            s_here = task.project(state[:2])[0]
-            ahead = s_here + max(float(state[3]), 0.0) / self.params.speed_gain  # where it is a second on (gain 1/s)
+            ahead = task.project(state[:2])[0] + max(float(state[3]), 0.0) * CONTINUATION_LAG
             target = min(float(speed_cap(moved, [ahead], rules.decel)[0]), float(task.speed_at(ahead)))
             more[k] = track(robot, state, task, self.params.lookahead, self.params.speed_gain, steer, cfg.dt, shift,
                             target_speed=target, a_lat=self.tracking_lat())
+            more[k, 0] = (target - float(state[3])) / CONTINUATION_LAG
             more[k, 0] = min(max(more[k, 0], -calm), rules.accel)  # brakes within the comfort envelope, speeds up as the reference does
             state = self.fleet.rollout(np.array([i]), state[None], more[None, k:k + 1], cfg.dt)[0, -1]
             steer = float(more[k, 1])
@@ -300,8 +306,9 @@ class CommittedAac(AacCoordinator):
         law ignores obstacles, and uncontrolled vehicles are not in the check (walkers are), so a
         robot that such a vehicle (growing at the walkers' reach) may reach meanwhile is not
         extended. With ``cruise``, a robot renews its continuation every ``RENEW_EVERY``
-        periods where the new one passes and ends at least ``RENEW_GAIN`` further along its path.
-        Returns how many robots extended their commitment."""
+        periods (every period while it is ``RENEW_SLOW`` below its path's speed) where the new
+        one passes and ends at least ``RENEW_GAIN`` further along its path, the robots furthest
+        along their paths first. Returns how many robots extended their commitment."""
         cfg, book = self.planner.config, self.book
         extended = 0
         movers = [o for o in world.obstacles if o.kind not in ("static", "cone", "pedestrian")]  # walkers: in the exact check
@@ -311,14 +318,18 @@ class CommittedAac(AacCoordinator):
         mover_speed = np.array([(o.step_out_speed(cfg.pedestrian_reach, cfg.walkway_time) if o.kind == "pedestrian" else cfg.pedestrian_reach)
                                 + np.hypot(*o.velocity) for o in movers])
         centres = world.robot_centres()
-        for j in range(len(world.robots)):
+        order = range(len(world.robots))
+        if self.params.cruise > 0.0:  # a road: front first, so that a car renews after the one ahead of it
+            order = np.argsort([-self.path(j).project(world.states[j, :2])[0] for j in order], kind="stable")
+        for j in order:
             c = book.items[j]
             if parked[j] or world.robots[j].name in holders or self.next_extension[j] > period:
                 continue
             if self.room is not None and j in self.room.targets:
                 continue  # making room: it moves aside on its turns, not back onto its path
             renewing = c.stage(period) == "plan" and c.start + c.planned - period > 1
-            if renewing and not (self.params.cruise > 0.0 and (period + j) % RENEW_EVERY == 0):
+            due = (period + j) % RENEW_EVERY == 0 or world.states[j, 3] < self.path(j).speed - RENEW_SLOW
+            if renewing and not (self.params.cruise > 0.0 and due):
                 continue
             longer = self.continued_commitment(world, j, period, np.zeros((0, 2)), statics)  # with cruise: on as anticipated
             if renewing and (longer is None or self.path(j).project(longer.states[-1, :2])[0]
