@@ -21,7 +21,7 @@ from aac_sumo.coordination.base import Decision, RobotDecision
 from aac_sumo.coordination.commitments import CommitmentBook, reach_radii, stopping_commitment
 from aac_sumo.coordination.detour import Detours
 from aac_sumo.coordination.make_room import STILL_SPEED, MakeRoom
-from aac_sumo.coordination.anticipation import speed_cap, stop_points
+from aac_sumo.coordination.anticipation import near_pedestrian, speed_cap, stop_points
 from aac_sumo.coordination.tracking import track, track_course
 from aac_sumo.coordination.walker_reach import WalkerReach
 from aac_sumo.kernels.motion import limited_steer
@@ -129,6 +129,14 @@ class CommittedAac(AacCoordinator):
                      safety_stops=stopped, authorities=len(holders), commit_cuts=cuts, commit_kept=kept, extensions=extended)
         return Decision(inputs, records, notes=notes)
 
+    def yielding(self, world: WorldState, i: int) -> bool:
+        """Whether robot ``i`` keeps to its lane (:meth:`Coordinator.yielding`) for its whole plan:
+        within ``yield_distance`` of a walker, plus how far it drives over the horizon at its speed
+        now (a committed plan is driven to its end, not only its first input)."""
+        rules, cfg = self.anticipation, self.planner.config
+        reach = abs(float(world.states[i, 3])) * cfg.horizon * cfg.dt
+        return rules is not None and near_pedestrian(world, i, rules.yield_distance + reach)
+
     def path(self, i: int) -> PathReference:
         """Robot ``i``'s reference path: its detour (``detour``), else its task."""
         return self.tasks[i] if self.detours is None else self.detours.path(i)
@@ -216,15 +224,18 @@ class CommittedAac(AacCoordinator):
             inputs = self.tracking_inputs(world, i, cfg.horizon)
             guess = (self.fleet.rollout(np.array([i]), world.states[[i]], inputs[None], cfg.dt)[0], inputs)
         plan = self.planner.plan(world.robots[i], world.states[i], ref, self.last_inputs[i], obstacles, None,
-                                 self.corridors[i], guess=guess)
+                                 self.corridor(world, i), guess=guess)
         self.plans[i] = plan
         record = RobotDecision(True, plan.status, plan.solve_ms, plan.solver, ref, reason=reason, mode=own.stage(period),
                                iterations=plan.iterations, capped=plan.capped)
         # a failed solve: the braking fallback; with cruise (a road), nothing: the car drives on its commitment (braking
         # at 6 m/s^2 on every failed solve stopped cars on the crossing, where a walker then came within 0.46 m)
         cuts = range(cfg.horizon, -1, -1) if plan.status == "solved" else [cfg.horizon] if self.params.cruise <= 0.0 else []
+        calm = self.comfortable_steps(i, plan) if self.params.cruise > 0.0 and plan.status == "solved" else cfg.horizon
+        if calm < cfg.horizon:  # on a road, a plan beyond the comfort envelope is never needed: the commitment is safe
+            cuts = range(calm, -1, -1)
         passed, m = None, cfg.horizon
-        if plan.status == "solved":
+        if plan.status == "solved" and calm == cfg.horizon:
             passed = self.continued_commitment(world, i, period, plan.inputs, statics)
         for m in cuts if passed is None else ():
             candidate = self.commitment(world, i, period, plan.inputs[:m])
@@ -239,6 +250,16 @@ class CommittedAac(AacCoordinator):
         book.replace(i, passed, period)
         record.mode = "mpc"
         return record, int(m < cfg.horizon), 0
+
+    def comfortable_steps(self, i: int, plan) -> int:
+        """How many of ``plan``'s first inputs keep within the planner's comfort envelope
+        (``controller.comfort_accel`` and ``comfort_lat`` [m/s^2]; all of them without one)."""
+        cfg, wheelbase = self.planner.config, float(self.fleet.wheelbase[i])
+        accel = cfg.comfort_accel if cfg.comfort_accel > 0.0 else np.inf
+        lat = cfg.comfort_lat if cfg.comfort_lat > 0.0 else np.inf
+        lateral = plan.states[:-1, 3] ** 2 * np.abs(np.tan(plan.inputs[:, 1])) / wheelbase
+        beyond = (np.abs(plan.inputs[:, 0]) > accel + 1e-6) | (lateral > lat + 1e-6)
+        return int(np.argmax(beyond)) if beyond.any() else len(plan.inputs)
 
     def creep(self, world: WorldState, i: int, period: int, ref: np.ndarray, planned, statics: np.ndarray) -> bool:
         """Robot ``i`` stands, and its MPC's course ``planned`` (a commitment that passed the
