@@ -546,3 +546,15 @@ def test_the_comfort_envelope_is_kept_unless_only_the_vehicles_limits_allow_a_pl
         assert all(p.status == "solved" for p in plans)
         assert (plans[0].inputs[:, 0].min() >= -2.0 - 1e-6) == within
         assert plans[1].inputs[:, 0].min() < -2.4
+
+
+def test_a_plan_is_comfortable_up_to_its_first_input_beyond_the_envelope():
+    """At 10 m/s on a 2.6 m wheelbase, a steering of atan(0.078) gives 3 m/s^2 of lateral
+    acceleration: beyond a 2 m/s^2 envelope from that input on, as braking at 2.5 m/s^2 is."""
+    inputs = np.array([[1.0, 0.0], [-2.0, 0.0], [0.0, np.arctan(3.0 * 2.6 / 100.0)], [-2.5, 0.0]])
+    states = np.zeros((5, 4))
+    states[:, 3] = 10.0
+    plan = Plan(states, inputs, "solved", 0.0, "fatrop")
+    assert plan.comfortable_steps(2.0, 2.0, 2.6) == 2
+    assert plan.comfortable_steps(2.0, np.inf, 2.6) == 3
+    assert plan.comfortable_steps(np.inf, np.inf, 2.6) == 4

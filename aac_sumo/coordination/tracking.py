@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from aac_sumo.kernels.motion import tracking_course
+from aac_sumo.kernels.motion import limited_steer, tracking_course
 from aac_sumo.references import PathReference
 from aac_sumo.world import RobotSpec
 
@@ -38,3 +38,17 @@ def track_course(robot: RobotSpec, state: np.ndarray, task: PathReference, looka
                            float(lim.comfort_decel), float(previous_steer), *task.arrays(), float(task.speed), float(task.decel),
                            bool(task.stop_at_end), float(task.approach), float(lookahead), float(speed_gain), float(offset),
                            np.nan if target_speed is None else float(target_speed))
+
+
+def creep_inputs(v: float, speed: float, steer: float, previous_steer: float, a_min: float, a_max: float, wheelbase: float,
+                 steer_limits: np.ndarray, dt: float, steps: int) -> np.ndarray:
+    """Inputs (steps, 2) of a robot at speed ``v`` [m/s] towards ``speed`` [m/s] (accelerating
+    within [``a_min``, ``a_max``] [m/s^2]) and ``steer`` [rad], within its ``steer_limits`` from
+    the steering it applied last, ``previous_steer`` [rad]; ``dt`` [s] the period."""
+    out = np.zeros((steps, 2))
+    for k in range(steps):
+        accel = float(np.clip((speed - v) / dt, a_min, a_max))
+        previous_steer = limited_steer(steer, v, accel, previous_steer, wheelbase, steer_limits, dt)
+        out[k] = accel, previous_steer
+        v += accel * dt
+    return out

@@ -14,6 +14,8 @@ exact check allows; detours route robots round standing footprints.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from aac_sumo.coordination.aac.authority import SHIFT_DECAY, SHIFT_GROWTH, SLOW_SHARE, AacCoordinator
@@ -22,9 +24,8 @@ from aac_sumo.coordination.commitments import CommitmentBook, reach_radii, stopp
 from aac_sumo.coordination.detour import Detours
 from aac_sumo.coordination.make_room import STILL_SPEED, MakeRoom
 from aac_sumo.coordination.anticipation import near_pedestrian, speed_cap, stop_points
-from aac_sumo.coordination.tracking import track, track_course
+from aac_sumo.coordination.tracking import creep_inputs, track, track_course
 from aac_sumo.coordination.walker_reach import WalkerReach
-from aac_sumo.kernels.motion import limited_steer
 from aac_sumo.references import PathReference
 from aac_sumo.world import WorldState
 
@@ -41,6 +42,9 @@ RENEW_SLOW = 1.0
 #: A continuation aims at the anticipation's speed cap where the car will be CONTINUATION_LAG [s]
 #: on, and reaches it in that time (within the comfort envelope).
 CONTINUATION_LAG = 0.3
+#: A continuation sees every other robot at the speed its commitment has LEAD_LOOK [s] on (a
+#: queue's cars follow the one ahead as it has committed to set off, not as it stands now).
+LEAD_LOOK = 1.0
 #: Grid cell [m] of the detour planner, and how often [s] a robot checks its reference for standing footprints.
 DETOUR_CELL = 0.1
 DETOUR_CHECK = 1.0
@@ -159,8 +163,9 @@ class CommittedAac(AacCoordinator):
         reaches, in ``CONTINUATION_LAG``, the anticipation's speed cap where the car will be then
         (:mod:`~aac_sumo.coordination.anticipation`: it stays behind what is ahead on its path
         and stops before a walker who counts, as the MPC's reference does), with what moves
-        along the path going on at its speed now (as the planner predicts it), braking at most at the comfort envelope and speeding up at most at the anticipation's
-        ``accel``. None without ``cruise``, without anticipation, on a path that ends in a stop, or
+        along the path going on at its speed, for the other robots the speed their commitments
+        have ``LEAD_LOOK`` on, braking at most at the comfort envelope and speeding up at most
+        at the anticipation's ``accel``. None without ``cruise``, without anticipation, on a path that ends in a stop, or
         when nothing passes (a car on a road does not crawl between its turns: a tail right
         after each plan braked it at every turn it did not get)."""
         cfg, task = self.planner.config, self.path(i)
@@ -169,7 +174,11 @@ class CommittedAac(AacCoordinator):
             return None
         head = np.asarray(head, dtype=float).reshape(-1, 2)
         rules, robot = self.anticipation, world.robots[i]
-        stops = stop_points(world, i, task, rules, self.held[i], courses=self.courses)  # [s_stop, v_lead, grow]: what it must stay behind, as now
+        states, look = world.states.copy(), int(round(LEAD_LOOK / cfg.dt))
+        others = np.flatnonzero(np.arange(len(states)) != i)
+        states[others, 3] = self.book.courses(period, others, look)[:, look, 3]
+        seen = dataclasses.replace(world, states=states)  # the others at their committed speeds LEAD_LOOK on
+        stops = stop_points(seen, i, task, rules, self.held[i], courses=self.courses)  # [s_stop, v_lead, grow]: what it must stay behind
         state = self.fleet.rollout(np.array([i]), world.states[[i]], head[None], cfg.dt)[0, -1]
         steer = float(head[-1, 1]) if len(head) else float(self.last_inputs[i, 1])
         shift = self.keep_right_shift(world, i)
@@ -231,7 +240,9 @@ class CommittedAac(AacCoordinator):
         # a failed solve: the braking fallback; with cruise (a road), nothing: the car drives on its commitment (braking
         # at 6 m/s^2 on every failed solve stopped cars on the crossing, where a walker then came within 0.46 m)
         cuts = range(cfg.horizon, -1, -1) if plan.status == "solved" else [cfg.horizon] if self.params.cruise <= 0.0 else []
-        calm = self.comfortable_steps(i, plan) if self.params.cruise > 0.0 and plan.status == "solved" else cfg.horizon
+        calm = cfg.horizon
+        if self.params.cruise > 0.0 and plan.status == "solved":
+            calm = plan.comfortable_steps(cfg.comfort_accel or np.inf, cfg.comfort_lat or np.inf, float(self.fleet.wheelbase[i]))
         if calm < cfg.horizon:  # on a road, a plan beyond the comfort envelope is never needed: the commitment is safe
             cuts = range(calm, -1, -1)
         passed, m = None, cfg.horizon
@@ -250,16 +261,6 @@ class CommittedAac(AacCoordinator):
         book.replace(i, passed, period)
         record.mode = "mpc"
         return record, int(m < cfg.horizon), 0
-
-    def comfortable_steps(self, i: int, plan) -> int:
-        """How many of ``plan``'s first inputs keep within the planner's comfort envelope
-        (``controller.comfort_accel`` and ``comfort_lat`` [m/s^2]; all of them without one)."""
-        cfg, wheelbase = self.planner.config, float(self.fleet.wheelbase[i])
-        accel = cfg.comfort_accel if cfg.comfort_accel > 0.0 else np.inf
-        lat = cfg.comfort_lat if cfg.comfort_lat > 0.0 else np.inf
-        lateral = plan.states[:-1, 3] ** 2 * np.abs(np.tan(plan.inputs[:, 1])) / wheelbase
-        beyond = (np.abs(plan.inputs[:, 0]) > accel + 1e-6) | (lateral > lat + 1e-6)
-        return int(np.argmax(beyond)) if beyond.any() else len(plan.inputs)
 
     def creep(self, world: WorldState, i: int, period: int, ref: np.ndarray, planned, statics: np.ndarray) -> bool:
         """Robot ``i`` stands, and its MPC's course ``planned`` (a commitment that passed the
@@ -294,7 +295,8 @@ class CommittedAac(AacCoordinator):
         backing = self.room is not None and self.room.backing_off(i) and fleet.v_min[i] < 0.0
         for speed in ((-CREEP_SPEED,) if backing else (CREEP_SPEED,)):
             for share in CREEP_STEER:
-                head = self.creep_inputs(world, i, speed, share * fleet.steer_limits[i, 0], cfg.horizon)
+                head = creep_inputs(float(world.states[i, 3]), speed, share * fleet.steer_limits[i, 0], float(self.last_inputs[i, 1]),
+                                    fleet.a_min[i], fleet.a_max[i], fleet.wheelbase[i], fleet.steer_limits[i], cfg.dt, cfg.horizon)
                 candidate = self.commitment(world, i, period, head)
                 gap = float(np.hypot(*(candidate.states[-1, :2] - target)))
                 if gap < best and book.clearance(i, candidate, period, statics) >= book.margin:
@@ -303,20 +305,6 @@ class CommittedAac(AacCoordinator):
             return False
         book.replace(i, choice, period)
         return True
-
-    def creep_inputs(self, world: WorldState, i: int, speed: float, steer: float, steps: int) -> np.ndarray:
-        """Inputs (steps, 2) of robot ``i`` from where it is towards ``speed`` [m/s] (at most
-        its strongest acceleration or braking) and ``steer`` [rad], within its steering limits
-        from the steering it applied last."""
-        fleet, dt = self.fleet, self.planner.config.dt
-        out = np.zeros((steps, 2))
-        v, previous = float(world.states[i, 3]), float(self.last_inputs[i, 1])
-        for k in range(steps):
-            accel = float(np.clip((speed - v) / dt, fleet.a_min[i], fleet.a_max[i]))
-            previous = limited_steer(steer, v, accel, previous, fleet.wheelbase[i], fleet.steer_limits[i], dt)
-            out[k] = accel, previous
-            v += accel * dt
-        return out
 
     def extend_by_tracking(self, world: WorldState, period: int, parked: np.ndarray, holders: list[str],
                            records: list[RobotDecision], statics: np.ndarray) -> int:
