@@ -550,7 +550,8 @@ def test_the_comfort_envelope_is_kept_unless_only_the_vehicles_limits_allow_a_pl
 
 def test_a_plan_is_comfortable_up_to_its_first_input_beyond_the_envelope():
     """At 10 m/s on a 2.6 m wheelbase, a steering of atan(0.078) gives 3 m/s^2 of lateral
-    acceleration: beyond a 2 m/s^2 envelope from that input on, as braking at 2.5 m/s^2 is."""
+    acceleration: beyond a 2 m/s^2 envelope from that input on, as braking at 2.5 m/s^2 is; at a
+    crawl it is beyond it only when judged at a speed of 10 m/s."""
     inputs = np.array([[1.0, 0.0], [-2.0, 0.0], [0.0, np.arctan(3.0 * 2.6 / 100.0)], [-2.5, 0.0]])
     states = np.zeros((5, 4))
     states[:, 3] = 10.0
@@ -558,3 +559,6 @@ def test_a_plan_is_comfortable_up_to_its_first_input_beyond_the_envelope():
     assert plan.comfortable_steps(2.0, 2.0, 2.6) == 2
     assert plan.comfortable_steps(2.0, np.inf, 2.6) == 3
     assert plan.comfortable_steps(np.inf, np.inf, 2.6) == 4
+    plan.states[:, 3] = 1.0  # at 1 m/s that steering gives 0.03 m/s^2; not at least 10 m/s
+    assert plan.comfortable_steps(np.inf, 2.0, 2.6) == 4
+    assert plan.comfortable_steps(np.inf, 2.0, 2.6, speed=10.0) == 2

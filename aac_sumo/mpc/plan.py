@@ -35,9 +35,12 @@ class Plan:
         states[0] = state
         return states, inputs
 
-    def comfortable_steps(self, accel: float, lateral: float, wheelbase: float) -> int:
+    def comfortable_steps(self, accel: float, lateral: float, wheelbase: float, speed: float = 0.0) -> int:
         """How many of the first inputs keep |acceleration| <= ``accel`` and the lateral
-        acceleration v^2 |tan(steer)| / ``wheelbase`` <= ``lateral`` [m/s^2, m] (inf: no bound)."""
-        lat = self.states[:-1, 3] ** 2 * np.abs(np.tan(self.inputs[:, 1])) / wheelbase
+        acceleration v^2 |tan(steer)| / ``wheelbase`` <= ``lateral`` [m/s^2, m] (inf: no bound),
+        with v at least ``speed`` [m/s] (a steering that would not be comfortable at that speed is
+        not, when the robot drives slower)."""
+        v = np.maximum(np.abs(self.states[:-1, 3]), speed)
+        lat = v ** 2 * np.abs(np.tan(self.inputs[:, 1])) / wheelbase
         beyond = (np.abs(self.inputs[:, 0]) > accel + 1e-6) | (lat > lateral + 1e-6)
         return int(np.argmax(beyond)) if beyond.any() else len(self.inputs)

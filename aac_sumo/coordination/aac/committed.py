@@ -134,11 +134,12 @@ class CommittedAac(AacCoordinator):
         return Decision(inputs, records, notes=notes)
 
     def yielding(self, world: WorldState, i: int) -> bool:
-        """Whether robot ``i`` keeps to its lane (:meth:`Coordinator.yielding`) for its whole plan:
-        within ``yield_distance`` of a walker, plus how far it drives over the horizon at its speed
-        now (a committed plan is driven to its end, not only its first input)."""
+        """Whether robot ``i`` keeps to its lane (:meth:`Coordinator.yielding`) for its whole
+        commitment: within ``yield_distance`` of a walker, plus how far it drives over the horizon
+        and ``cruise`` at its speed now (a committed plan is driven to its end, not only its first
+        input, and its continuation goes on from where the plan leaves the car)."""
         rules, cfg = self.anticipation, self.planner.config
-        reach = abs(float(world.states[i, 3])) * cfg.horizon * cfg.dt
+        reach = abs(float(world.states[i, 3])) * (cfg.horizon * cfg.dt + self.params.cruise)
         return rules is not None and near_pedestrian(world, i, rules.yield_distance + reach)
 
     def path(self, i: int) -> PathReference:
@@ -242,7 +243,8 @@ class CommittedAac(AacCoordinator):
         cuts = range(cfg.horizon, -1, -1) if plan.status == "solved" else [cfg.horizon] if self.params.cruise <= 0.0 else []
         calm = cfg.horizon
         if self.params.cruise > 0.0 and plan.status == "solved":
-            calm = plan.comfortable_steps(cfg.comfort_accel or np.inf, cfg.comfort_lat or np.inf, float(self.fleet.wheelbase[i]))
+            calm = plan.comfortable_steps(cfg.comfort_accel or np.inf, cfg.comfort_lat or np.inf, float(self.fleet.wheelbase[i]),
+                                          self.path(i).speed)  # no full lock at a crawl: a car sets off from it across its lane
         if calm < cfg.horizon:  # on a road, a plan beyond the comfort envelope is never needed: the commitment is safe
             cuts = range(calm, -1, -1)
         passed, m = None, cfg.horizon
