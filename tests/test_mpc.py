@@ -11,6 +11,9 @@ What a user of :class:`MpcPlanner` may rely on:
 """
 
 import dataclasses
+import os
+import subprocess
+import sys
 from functools import lru_cache
 
 import numpy as np
@@ -21,6 +24,7 @@ from hypothesis import strategies as st
 from aac_sumo.barriers import barrier_value, inactive_slot, safety_ellipses
 from aac_sumo.dynamics import BicycleModel, VehicleLimits, bicycle_step
 from aac_sumo.geometry import ellipse_signed_distance
+from aac_sumo.mpc import problem
 from aac_sumo.mpc.plan import STATUSES, Plan
 from aac_sumo.mpc.settings import MpcConfig
 from aac_sumo.mpc.planner import MpcPlanner, ego_discs
@@ -498,30 +502,72 @@ def test_a_standing_robot_on_its_band_edge_can_plan():
     assert plan.states[-1, 0] > 0.1  # it drives off
 
 
+TINY = dict(horizon=3, slots=1, discs=1, solver="fatrop", dt=DT)  # a problem that compiles in about a second
+
+
+def tiny_solve(prob: problem.MpcProblem) -> problem.SolveOutcome:
+    """One cold solve of a ``TINY`` problem: a robot at 1 m/s, 0.1 m beside a reference at 1 m/s, no obstacle."""
+    params = prob.parameters(wheelbase=0.8, gamma=0.3, disc_offsets=[0.4], weights=np.ones(12),
+                             x_ref=np.column_stack([np.arange(4.0), np.zeros((4, 2)), np.ones(4)]),
+                             obstacles=inactive_slot(3)[:, None, :], band=np.zeros(0), limits=np.full(2, problem.NO_LIMIT),
+                             terminal=np.zeros(0), stop_decel=np.zeros(0))
+    x0 = np.array([0.0, 0.1, 0.0, 1.0])
+    lbx, ubx = prob.bounds(x0, np.zeros(2), [-np.inf, -np.inf, -np.inf, 0.0], [np.inf, np.inf, np.inf, 5.0], [-3.0, -0.5], [3.0, 0.5])
+    return prob.solve(params, prob.pack(np.tile(x0, (4, 1)), np.zeros((3, 2)), np.zeros(2)), lbx, ubx)
+
+
 def test_a_compiled_problem_is_reused_without_building_it_again(tmp_path, monkeypatch):
     """With ``codegen`` the problem's functions are compiled once into a library keyed by the
     shape, casadi's version and the problem's source; a second build of the same shape loads
     that library without building the symbolic problem, and solves to the same plan. Another
     shape gets another library."""
-    from aac_sumo.mpc import problem
-
     monkeypatch.setenv("AAC_SUMO_CACHE", str(tmp_path))
-    shape = problem.ProblemShape(horizon=3, slots=1, discs=1, solver="fatrop", dt=DT, codegen=True)
+    shape = problem.ProblemShape(**TINY, codegen=True)
     first = problem.MpcProblem(shape)
     assert problem.library_path(shape).exists()
     monkeypatch.setattr(problem.MpcProblem, "_symbolic", lambda self: pytest.fail("built the problem again"))
     again = problem.MpcProblem(shape)
-    params = first.parameters(wheelbase=0.8, gamma=0.3, disc_offsets=[0.4], weights=np.ones(12),
-                              x_ref=np.column_stack([np.arange(4.0), np.zeros((4, 2)), np.ones(4)]),
-                              obstacles=inactive_slot(3)[:, None, :], band=np.zeros(0), limits=np.full(2, problem.NO_LIMIT),
-                              terminal=np.zeros(0), stop_decel=np.zeros(0))
-    x0 = np.array([0.0, 0.1, 0.0, 1.0])
-    lbx, ubx = first.bounds(x0, np.zeros(2), [-np.inf, -np.inf, -np.inf, 0.0], [np.inf, np.inf, np.inf, 5.0], [-3.0, -0.5], [3.0, 0.5])
-    w0 = first.pack(np.tile(x0, (4, 1)), np.zeros((3, 2)), np.zeros(2))
-    a, b = first.solve(params, w0, lbx, ubx), again.solve(params, w0, lbx, ubx)
+    a, b = tiny_solve(first), tiny_solve(again)
     assert a.status == b.status == "solved"
     np.testing.assert_allclose(a.inputs, b.inputs, atol=1e-9)
     assert problem.library_path(shape) != problem.library_path(dataclasses.replace(shape, horizon=4))
+
+
+def test_the_compiled_problem_solves_as_the_interpreted_one_bit_for_bit(tmp_path, monkeypatch):
+    """Compiling the problem's functions to C (at ``problem.CFLAGS``) changes how fast they
+    evaluate, never what they give: the same solve ends at the same iterate, bit for bit, after
+    as many iterations."""
+    monkeypatch.setenv("AAC_SUMO_CACHE", str(tmp_path))
+    compiled, interpreted = (tiny_solve(problem.MpcProblem(problem.ProblemShape(**TINY, codegen=c))) for c in (True, False))
+    assert compiled.status == interpreted.status == "solved"
+    np.testing.assert_array_equal(compiled.states, interpreted.states)
+    np.testing.assert_array_equal(compiled.inputs, interpreted.inputs)
+    assert compiled.iterations == interpreted.iterations
+
+
+def test_two_processes_compiling_one_library_at_once_leave_a_whole_one(tmp_path, monkeypatch):
+    """Two processes compiling the same library at the same time (two sweep workers on an empty
+    cache) each rename a finished file over it: the library left loads and solves, and neither
+    leaves a temporary file behind."""
+    monkeypatch.setenv("AAC_SUMO_CACHE", str(tmp_path))
+    compile_one = ("from aac_sumo.mpc import problem as p\n"
+                   f"shape = p.ProblemShape(**{TINY!r}, codegen=True)\n"
+                   "p.compile_library(p.MpcProblem(p.ProblemShape(**{**shape.__dict__, 'codegen': False})).solver, p.library_path(shape))\n")
+    workers = [subprocess.Popen([sys.executable, "-c", compile_one], env=os.environ) for _ in range(2)]
+    assert [w.wait(timeout=300) for w in workers] == [0, 0]
+    shape = problem.ProblemShape(**TINY, codegen=True)
+    assert list(tmp_path.iterdir()) == [problem.library_path(shape)]
+    assert tiny_solve(problem.MpcProblem(shape)).status == "solved"
+
+
+def test_a_failed_compile_leaves_the_cache_as_it_was(tmp_path, monkeypatch):
+    """A compile that fails (here gcc rejects a flag) raises, and leaves neither a library nor a
+    temporary file in the cache: the next run compiles afresh."""
+    monkeypatch.setenv("AAC_SUMO_CACHE", str(tmp_path))
+    monkeypatch.setattr(problem, "CFLAGS", ("-fno-such-option",))
+    with pytest.raises(subprocess.CalledProcessError):
+        problem.MpcProblem(problem.ProblemShape(**TINY, codegen=True))
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_the_comfort_envelope_is_kept_unless_only_the_vehicles_limits_allow_a_plan():

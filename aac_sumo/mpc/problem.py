@@ -331,8 +331,13 @@ def library_path(shape: ProblemShape) -> Path:
     return cache_dir() / f"mpc_{hashlib.sha256(key).hexdigest()[:16]}.so"
 
 
-#: gcc's flags for the generated C.
-CFLAGS = ("-O1",)
+#: gcc's flags for the generated C. At -Og the problem's functions compile about three times
+#: faster than at -O1, whose register allocation takes most of its time in these long
+#: straight-line functions, and a solve takes 1-1.5 % longer; -O0 compiles a little faster
+#: still but makes a solve 20-55 % slower. No flag here changes a floating-point result (no
+#: -ffast-math; the default x86-64 target has no fused multiply-add): the solves are -O1's bit
+#: for bit (docs/benchmarks.md).
+CFLAGS = ("-Og",)
 
 
 def compile_library(solver: ca.Function, library: Path) -> None:
