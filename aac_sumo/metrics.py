@@ -121,8 +121,12 @@ def compute_metrics(steps: pd.DataFrame, periods: pd.DataFrame, info: dict) -> d
     ``completed``, ``task_duration_s``, ``collisions``, ``sim_collisions``, ``wall_s``, the
     aggressive-driving thresholds, ``wheelbase`` per robot, and optionally ``comfort_decel`` per robot, ``ttc_max``, ``delay_jain``,
     ``delay_max_s``, ``safety_stops``, ``deadlock``, ``setup_s`` (the one-off set-up before the
-    first period, which ``periods``' ``compute_ms`` leaves out) and ``pedestrian_wait_s``
-    (:func:`pedestrian_waits` summed; needs the walkers, which ``steps`` lacks).
+    first period [s], which ``periods``' ``compute_ms`` and ``realtime_factor`` leave out) and
+    ``pedestrian_wait_s`` (:func:`pedestrian_waits` summed; needs the walkers, which ``steps`` lacks).
+
+    ``realtime_factor`` is the simulated time [s] over the run's wall time ``wall_s`` [s] less
+    ``setup_s``: how fast the run went once set up (a first run on a machine compiles its
+    problems and kernels in the set-up; later runs load them).
 
     ``accel_p95``, ``lat_accel_p95`` and ``jerk_p95`` are the 95th percentiles of the absolute
     ``accel``, ``lat_accel`` and ``jerk`` columns over every row of ``steps`` (:func:`smoothness`).
@@ -137,6 +141,7 @@ def compute_metrics(steps: pd.DataFrame, periods: pd.DataFrame, info: dict) -> d
     solves = int(len(solved))
     bad = int((solved["status"] != "solved").sum())
     sim_time = float(periods["t"].max() + info["dt"]) if len(periods) else 0.0
+    after_setup_s = info["wall_s"] - (info.get("setup_s") or 0.0) if info.get("wall_s") else None
     m = {k: info.get(k) for k in ("scenario", "coordinator", "barrier", "horizon", "seed", "n_robots")}
     m.update(
         completed=bool(info["completed"]),
@@ -157,7 +162,7 @@ def compute_metrics(steps: pd.DataFrame, periods: pd.DataFrame, info: dict) -> d
         authority_jain=authority_jain(steps) if len(steps) else None,
         delay_jain=info.get("delay_jain"),
         delay_max_s=info.get("delay_max_s"),
-        realtime_factor=_finite(sim_time / info["wall_s"]) if info.get("wall_s") else None,
+        realtime_factor=_finite(sim_time / after_setup_s) if after_setup_s else None,
         safety_stops=int(info.get("safety_stops", 0)),
         deadlock=bool(info.get("deadlock", False)),
         min_pedestrian_clearance_m=_finite(steps["pedestrian_clearance_m"].min()) if "pedestrian_clearance_m" in steps and len(steps) else None,

@@ -227,6 +227,14 @@ def test_capped_solves_count_the_solves_stopped_at_their_iteration_cap_and_setup
     assert metrics_of(steps_table())["capped_solves"] == 0
 
 
+def test_the_realtime_factor_leaves_the_setup_out():
+    """Two periods (0.2 s simulated) in a run of 1.5 s wall time, 1.25 s of it set-up (a first
+    run compiling its problems): the real-time factor is 0.2 s over the 0.25 s after set-up;
+    a run reporting no set-up is timed whole."""
+    assert metrics_of(steps_table(), wall_s=1.5, setup_s=1.25)["realtime_factor"] == pytest.approx(0.8)
+    assert metrics_of(steps_table(), wall_s=1.5)["realtime_factor"] == pytest.approx(0.2 / 1.5)
+
+
 def documented_metric_keys() -> list[str]:
     """The keys of the README's "Metric keys" table, in its order (each row's first cell may name several)."""
     text = (Path(__file__).resolve().parents[1] / "README.md").read_text()

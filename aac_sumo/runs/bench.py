@@ -191,8 +191,9 @@ def write(out: Path, mpc: BenchReport | None = None, aac: BenchReport | None = N
             "Full runs of each bundled scenario with its own settings, AAC then LFC, each repeated in this process (the "
             "runs are identical but for their timing). The time is the coordinator's wall time per period: authority "
             "choice, predictions and every MPC solve (LFC solves once per unfinished robot); the medians pool the periods "
-            "of all runs. The real-time factor is simulated time over the whole run's wall time (start-up and simulator "
-            "included): the median over the runs, and its range. AAC speed-up = LFC median / AAC median. The "
+            "of all runs. The real-time factor is simulated time over the run's wall time after its set-up (`setup_s`: "
+            "building the experiment, loading or compiling its problems; the simulator is included): the median over "
+            "the runs, and its range. AAC speed-up = LFC median / AAC median. The "
             f"random_crossing_<n> rows are AAC alone with one authority per cluster (`aac.authorities = \"clusters\"`), "
             f"N = 10, over the first {SCALING_SECONDS:.0f} s of each run; growth = that row's median over the smallest one's.\n\n"
             + markdown_aac(aac)
@@ -278,7 +279,8 @@ def _coordinator_record(name: str, scenario: str, horizon: int, repeats: int, no
     all runs and the medians pool them; ``failures`` counts the infeasible or failed MPC solves
     of one run; ``proximity_median_ms`` is the median time of the proximity decision over the
     periods that ran one; ``realtime_factor`` is the median over the runs of simulated time over
-    the run's wall time (simulator included), ``realtime_factor_range`` its least and greatest.
+    the run's wall time after its set-up (the metric of that name; simulator included),
+    ``realtime_factor_range`` its least and greatest.
     ``sets`` are further ``--set`` assignments, and ``label_as`` names the record instead of the
     scenario."""
     from aac_sumo import config
