@@ -343,8 +343,8 @@ CFLAGS = ("-Og",)
 def compile_library(solver: ca.Function, library: Path) -> None:
     """Compile what ``solver`` evaluates into the shared library ``library``: its oracle ``nlp``
     and the functions it derived from it at construction (objective, constraints, their
-    derivatives, the Lagrangian's Hessian, and ``nlp_grad``, which fills in ``f`` and ``g``
-    after every fatrop solve).
+    derivatives, the Lagrangian's Hessian, and ``nlp_grad``, which casadi evaluates after every
+    solve for the parameters' multipliers and, with fatrop, for ``f`` and ``g``): none can go.
 
     Each function's generated C is a translation unit of its own, and the units are compiled by
     as many gcc processes at once as this process may use cores, largest first, then linked. The
