@@ -24,7 +24,7 @@ from hypothesis import strategies as st
 from aac_sumo.barriers import barrier_value, inactive_slot, safety_ellipses
 from aac_sumo.dynamics import BicycleModel, VehicleLimits, bicycle_step
 from aac_sumo.geometry import ellipse_signed_distance
-from aac_sumo.mpc import problem
+from aac_sumo.mpc import codegen, problem
 from aac_sumo.mpc.plan import STATUSES, Plan
 from aac_sumo.mpc.settings import MpcConfig
 from aac_sumo.mpc.planner import MpcPlanner, ego_discs
@@ -534,7 +534,7 @@ def test_a_compiled_problem_is_reused_without_building_it_again(tmp_path, monkey
 
 
 def test_the_compiled_problem_solves_as_the_interpreted_one_bit_for_bit(tmp_path, monkeypatch):
-    """Compiling the problem's functions to C (at ``problem.CFLAGS``) changes how fast they
+    """Compiling the problem's functions to C (at ``codegen.CFLAGS``) changes how fast they
     evaluate, never what they give: the same solve ends at the same iterate, bit for bit, after
     as many iterations."""
     monkeypatch.setenv("AAC_SUMO_CACHE", str(tmp_path))
@@ -550,9 +550,10 @@ def test_two_processes_compiling_one_library_at_once_leave_a_whole_one(tmp_path,
     cache) each rename a finished file over it: the library left loads and solves, and neither
     leaves a temporary file behind."""
     monkeypatch.setenv("AAC_SUMO_CACHE", str(tmp_path))
-    compile_one = ("from aac_sumo.mpc import problem as p\n"
+    compile_one = ("from aac_sumo.mpc import codegen, problem as p\n"
                    f"shape = p.ProblemShape(**{TINY!r}, codegen=True)\n"
-                   "p.compile_library(p.MpcProblem(p.ProblemShape(**{**shape.__dict__, 'codegen': False})).solver, p.library_path(shape))\n")
+                   "interpreted = p.MpcProblem(p.ProblemShape(**{**shape.__dict__, 'codegen': False}))\n"
+                   "codegen.compile_library(interpreted.solver, p.library_path(shape))\n")
     workers = [subprocess.Popen([sys.executable, "-c", compile_one], env=os.environ) for _ in range(2)]
     assert [w.wait(timeout=300) for w in workers] == [0, 0]
     shape = problem.ProblemShape(**TINY, codegen=True)
@@ -564,7 +565,7 @@ def test_a_failed_compile_leaves_the_cache_as_it_was(tmp_path, monkeypatch):
     """A compile that fails (here gcc rejects a flag) raises, and leaves neither a library nor a
     temporary file in the cache: the next run compiles afresh."""
     monkeypatch.setenv("AAC_SUMO_CACHE", str(tmp_path))
-    monkeypatch.setattr(problem, "CFLAGS", ("-fno-such-option",))
+    monkeypatch.setattr(codegen, "CFLAGS", ("-fno-such-option",))
     with pytest.raises(subprocess.CalledProcessError):
         problem.MpcProblem(problem.ProblemShape(**TINY, codegen=True))
     assert list(tmp_path.iterdir()) == []
