@@ -243,8 +243,10 @@ class CommittedAac(AacCoordinator):
         cuts = range(cfg.horizon, -1, -1) if plan.status == "solved" else [cfg.horizon] if self.params.cruise <= 0.0 else []
         calm = cfg.horizon
         if self.params.cruise > 0.0 and plan.status == "solved":
-            calm = plan.comfortable_steps(cfg.comfort_accel or np.inf, cfg.comfort_lat or np.inf, float(self.fleet.wheelbase[i]),
-                                          self.path(i).speed)  # no full lock at a crawl: a car sets off from it across its lane
+            envelope = (cfg.comfort_accel or np.inf, cfg.comfort_lat or np.inf, float(self.fleet.wheelbase[i]))
+            calm = plan.comfortable_steps(*envelope, self.path(i).speed)  # no full lock at a crawl: a car sets off from it across its lane
+            if calm == 0:  # unless it must steer more to go anywhere (standing before a merge): comfort at its own speed
+                calm = plan.comfortable_steps(*envelope)
         if calm < cfg.horizon:  # on a road, a plan beyond the comfort envelope is never needed: the commitment is safe
             cuts = range(calm, -1, -1)
         passed, m = None, cfg.horizon
