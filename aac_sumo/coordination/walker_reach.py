@@ -61,9 +61,9 @@ class WalkerReach:
         velocity = np.array([o.velocity for o in walkers], dtype=float).reshape(-1, 2)
         speed = np.hypot(*velocity.T)
         top = np.maximum(speed, reach)
-        segments = [(c.shape[k:k + 2], 0.5 * c.width + margin) for c in world.crossings for k in range(len(c.shape) - 1)]
+        segments = [(c.shape[k:k + 2], 0.5 * c.width) for c in world.crossings for k in range(len(c.shape) - 1)]
         strips = np.array([seg for seg, _ in segments], dtype=float).reshape(-1, 2, 2)
-        half = np.array([r - margin for _, r in segments], dtype=float)
+        half = np.array([h for _, h in segments], dtype=float)  # half the strip's width [m]
         centres = np.array([o.centre for o in walkers], dtype=float).reshape(-1, 2)
         crossing = (speed >= CROSSING_WALK) & np.any(segment_distance(centres, strips) <= half[None, :], axis=1)
         bound = crossing | np.array([o.step_out_speed(reach, walkway_time) == 0.0 for o in walkers], dtype=bool)  # keeps to her way
@@ -71,7 +71,7 @@ class WalkerReach:
         return cls(centres, np.where(bound[:, None], way, 0.0),
                    np.array([0.5 * np.hypot(o.length, o.width) + margin for o in walkers], dtype=float),
                    np.where(bound, 0.0, top), float(dt),
-                   strips, np.array([r for _, r in segments], dtype=float))
+                   strips, half + margin)
 
     def slack(self, rows: np.ndarray) -> float:
         """Least gap [m] between the footprints ``rows`` (K, 5) ``[cx, cy, length, width,

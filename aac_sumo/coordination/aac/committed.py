@@ -166,9 +166,9 @@ class CommittedAac(AacCoordinator):
         and stops before a walker who counts, as the MPC's reference does), with what moves
         along the path going on at its speed, for the other robots the speed their commitments
         have ``LEAD_LOOK`` on, braking at most at the comfort envelope and speeding up at most
-        at the anticipation's ``accel``. None without ``cruise``, without anticipation, on a path that ends in a stop, or
-        when nothing passes (a car on a road does not crawl between its turns: a tail right
-        after each plan braked it at every turn it did not get)."""
+        at the anticipation's ``accel``. None without ``cruise``, without anticipation, on a
+        path that ends in a stop, or when nothing passes (a car on a road does not crawl between
+        its turns: a tail right after each plan braked it at every turn it did not get)."""
         cfg, task = self.planner.config, self.path(i)
         periods = int(round(self.params.cruise / cfg.dt))
         if periods <= 0 or self.anticipation is None or task.stop_at_end or task.heading_free(world.states[i]):
