@@ -295,3 +295,25 @@ def test_a_check_after_a_replacement_in_the_same_period_meets_the_new_commitment
     assert gap < book.margin and blocker == 1
     assert book.check(0, stopping_commitment(fleet, 0, 0, np.array([2.4, 0.0, 0.0, 0.0]), np.zeros((0, 2)), 0.0, 1.0, 0.0, dt),
                       0, statics)[0] >= book.margin  # where robot 1 stood before is free
+
+
+def test_a_robot_taken_off_the_road_leaves_no_commitment_behind():
+    """A car that finished and was taken off the road (parked far away) no longer holds the
+    place where its commitment ended: a car behind it drives through that place, and the parked
+    car's commitment is where it stands now. A robot still on the road keeps its commitment."""
+    robots = [small_robot(i) for i in range(3)]
+    fleet, dt = Fleet(robots), 0.1
+    states = np.array([[0.0, 0.0, 0.0, 0.0], [1.5, 0.0, 0.0, 1.0], [0.0, 5.0, 0.0, 0.0]])
+    ahead = stopping_commitment(fleet, 1, 0, states[1], np.tile([0.0, 0.0], (10, 1)), 0.0, 1.0, 0.0, dt)
+    stand = [stopping_commitment(fleet, 0, 0, states[0], np.zeros((0, 2)), 0.0, 1.0, 0.0, dt), ahead,
+             stopping_commitment(fleet, 2, 0, states[2], np.zeros((0, 2)), 0.0, 1.0, 0.0, dt)]
+    book, statics = CommitmentBook(fleet, stand, 0.05), np.empty((0, 5))
+    forward = stopping_commitment(fleet, 0, 3, states[0], np.tile([1.0, 0.0], (20, 1)), 0.0, 1.0, 0.0, dt)
+    gap, blocker = book.check(0, forward, 3, statics)
+    assert gap < book.margin and blocker == 1  # robot 1's commitment ends 2.5 m on, in robot 0's way
+    parked = states.copy()
+    parked[1] = [-1000.0, 0.0, 0.0, 0.0]
+    book.park(np.array([False, True, False]), parked, 3)
+    assert book.check(0, forward, 3, statics)[0] >= book.margin
+    np.testing.assert_array_equal(book.courses(3, np.array([1]), 5)[0, :, :2], np.tile([-1000.0, 0.0], (6, 1)))
+    assert book.items[2] is stand[2]

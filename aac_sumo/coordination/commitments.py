@@ -151,6 +151,13 @@ class CommitmentBook:
             boxes[i] = course_boxes(rows, np.zeros(1, dtype=np.int64), lengths[i: i + 1])[0]
             self._flat = (np.concatenate([flat, rows]), starts, lengths, statics, boxes)
 
+    def park(self, off_road: np.ndarray, states: np.ndarray, period: int) -> None:
+        """Robots ``off_road`` (n,) bool, taken off the road, stand at their ``states`` (n, 4)
+        (their parking spots) from ``period`` on: a finished car's commitment goes with it."""
+        for i in np.flatnonzero(off_road):
+            if np.any(self.items[i].course(period, 0)[0, :2] != states[i, :2]):
+                self.replace(int(i), Commitment(period, np.array(states[i:i + 1], dtype=float), np.zeros((0, 2)), 0), period)
+
     def footprints(self, i: int, commitment: Commitment, period: int) -> np.ndarray:
         """Footprint rows (remaining + 1, 5) of robot ``i`` along ``commitment`` from ``period``
         to the stage where it stands (rows of the whole commitment, computed once, then sliced)."""

@@ -89,6 +89,7 @@ class CommittedAac(AacCoordinator):
             self.book = CommitmentBook(fleet, [self.commitment(world, i, period, np.zeros((0, 2))) for i in range(n)],
                                        self.params.commit_margin)
         self.book.walkers = walkers
+        self.book.park(~world.on_road, world.states, period)
         for i in range(n) if first else ():  # with cruise, every car drives on from the start where the exact check lets it
             start = self.continued_commitment(world, i, period, np.zeros((0, 2)), statics)
             if start is not None:
@@ -322,8 +323,7 @@ class CommittedAac(AacCoordinator):
         periods (every period while it is ``RENEW_SLOW`` below its path's speed) where the new
         one passes and ends at least ``RENEW_GAIN`` further along its path, the robots furthest
         along their paths first. Returns how many robots extended their commitment."""
-        cfg, book = self.planner.config, self.book
-        extended = 0
+        cfg, book, extended = self.planner.config, self.book, 0
         movers = [o for o in world.obstacles if o.kind not in ("static", "cone", "pedestrian")]  # walkers: in the exact check
         reach = reach_radii(self.fleet, world.states, cfg.horizon, cfg.dt, self.tail_decel()) if movers else None
         mover_centres = np.array([o.centre for o in movers]).reshape(-1, 2)
