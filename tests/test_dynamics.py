@@ -389,7 +389,11 @@ def _pure_pursuit(robot, state, task, lookahead, speed_gain, previous_steer, dt,
     if target_speed is not None and not near_goal:
         speed = target_speed
     lim = robot.model.limits
-    accel = min(max(speed_gain * (speed - state[3]), -lim.comfort_decel), lim.a_max)
+    accel = speed_gain * (speed - state[3])
+    if task.stop_at_end and state[3] > max(speed, 0.0):  # above the stopping profile: at least what stops it at the goal
+        rest = dist if near_goal else max(task.length - s0, 0.0)
+        accel = min(accel, -state[3] ** 2 / (2.0 * max(rest, 1e-6)))
+    accel = min(max(accel, -lim.comfort_decel), lim.a_max)
     return np.array([accel, float(robot.model.limit_steer(steer, state[3], previous_steer, dt, accel))])
 
 
@@ -419,3 +423,25 @@ def test_compiled_tracking_course_is_the_pure_pursuit_law_applied_period_after_p
         want = _pure_pursuit(robot, state, task, lookahead, 1.0, previous, dt, offset, target)
         np.testing.assert_allclose(got[k], want, rtol=1e-9, atol=1e-9)
         previous, state = want[1], robot.model.step(state, want, dt)
+
+
+@pytest.mark.parametrize("speed_gain", [0.5, 1.0, 3.0])
+def test_the_tracking_law_stops_at_the_goal_of_a_path_that_stops(speed_gain):
+    """On a straight 10 m path that stops (braking profile 0.5 m/s^2), a robot starting at the
+    cruise speed of 1 m/s comes to rest at the goal, not beyond it: the proportional speed loop
+    alone lags the profile by decel / gain and overshot by up to 0.9 m (swarm rescue, seed 2)
+    before it brakes at least as hard as stops it at the goal."""
+    from aac_sumo.coordination.tracking import track_course
+    from aac_sumo.references import PathReference
+    from aac_sumo.world import RobotSpec
+
+    limits = VehicleLimits(a_min=-2.0, a_max=1.0, steer_max=0.6, v_max=1.5, a_comfort=2.0)
+    robot = RobotSpec("r", 0.6, 0.4, BicycleModel(0.45, limits))
+    task = PathReference(np.array([[0.0, 0.0], [10.0, 0.0]]), 1.0, 0.5, approach=0.15, arrive=0.3)
+    state = np.array([0.0, 0.0, 0.0, 1.0])
+    inputs = track_course(robot, state, task, 0.8, speed_gain, 0.0, 0.1, 200)
+    for u in inputs:
+        state = robot.model.step(state, u, 0.1)
+        if state[3] <= 0.0:
+            break
+    assert state[3] == 0.0 and 10.0 - 0.3 <= state[0] <= 10.0 + 0.05

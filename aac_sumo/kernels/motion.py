@@ -131,7 +131,8 @@ def tracking_course(x, y, h, v, steps, dt, wheelbase, a_min, a_max, steer_max, v
     ``approach`` [m] of the goal of a path that stops, straight at the goal at the speed that
     stops there. The speed loop drives towards the path's speed at the projection (its
     ``limits`` (M,) over ``cum`` when non-empty, its stopping profile at ``decel``), or
-    ``target_speed`` when that is not NaN, braking at most at ``comfort``; the steering keeps
+    ``target_speed`` when that is not NaN, braking at most at ``comfort``; above a stopping
+    profile it brakes at least as hard as stops it at the goal (the loop alone lags it); the steering keeps
     the rate limit from the one before and the lateral limit ``a_lat_max`` at the larger of the
     speeds now and after the period, and comes within the comfort limit ``a_lat_comfort`` as
     far as the rate limit lets it (a car beyond it, on a plan made within the car's full limits,
@@ -157,14 +158,18 @@ def tracking_course(x, y, h, v, steps, dt, wheelbase, a_min, a_max, steer_max, v
         rx, ry = tx - x, ty - y
         dist = math.hypot(rx, ry)
         steer = 0.0 if dist < 1e-6 else math.atan2(2.0 * wheelbase * math.sin(math.atan2(ry, rx) - h), dist)
+        rest = dist if near_goal else max(length - s0, 0.0)  # to the goal of a path that stops [m]
         if near_goal:
             want = min(speed, math.sqrt(2.0 * decel * dist))
         else:
             cap = speed if limits.shape[0] == 0 else np.interp(s0, cum, limits)
-            want = min(speed, cap) if not stop_at_end else min(cap, math.sqrt(2.0 * decel * max(length - s0, 0.0)))
+            want = min(speed, cap) if not stop_at_end else min(cap, math.sqrt(2.0 * decel * rest))
             if not math.isnan(target_speed):
                 want = target_speed
-        accel = min(max(speed_gain * (want - v), -comfort), a_max)
+        accel = speed_gain * (want - v)
+        if stop_at_end and v > want and v > 0.0:  # the proportional loop lags the stopping profile: brake to stop at the goal
+            accel = min(accel, -v * v / (2.0 * max(rest, 1e-6)))
+        accel = min(max(accel, -comfort), a_max)
         rate = steer_rate_max * dt
         lo, hi = steer_prev - rate, steer_prev + rate
         steer = min(max(steer, lo), hi)
