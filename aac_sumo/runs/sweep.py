@@ -37,7 +37,8 @@ from aac_sumo.runs.provenance import PROVENANCE_KEYS
 #: Metrics shown in ``summary.md`` (those that are null in every run are left out).
 SUMMARY_METRICS = (
     "completed", "task_duration_s", "compute_ms_mean", "infeasibility_rate", "min_distance_m",
-    "min_clearance_m", "collisions", "ttc_mean_s", "tracking_error_m", "aggressive_driving_rate",
+    "min_clearance_m", "collisions", "sim_collisions", "safety_stops", "ttc_mean_s", "tracking_error_m",
+    "aggressive_driving_rate", "accel_p95", "jerk_p95",
 )
 @dataclass(frozen=True)
 class Task:
