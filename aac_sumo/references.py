@@ -17,8 +17,8 @@ PROJECTION_CHUNK = 16
 #: A robot backing off from a goal inside its turning circle goes on until the goal lies this
 #: many turning radii from both circles' centres.
 BACK_OFF_HYSTERESIS = 1.5
-#: A goal within ALIGNED * arrive of the robot's heading line is reached by driving straight on
-#: or back (the approach), never by backing off: a robot that stopped just past its goal.
+#: A goal inside a turning circle but within ALIGNED * arrive of it is reached by the tightest
+#: turn on or back (the approach), not by backing off: a robot that stopped just past its goal.
 ALIGNED = 0.8
 
 
@@ -164,8 +164,8 @@ class PathReference:
         its heading held along the path, where a short horizon cannot undo a sideways error of
         a car-like robot. A robot that can reverse (``turn_radius`` [m] > 0, its tightest turning
         radius) and whose goal lies inside one of its turning circles, where no arc gets it closer,
-        farther than ``arrive`` [m] (where it has arrived) and not within ``ALIGNED * arrive`` of
-        its heading line (straight on or back gets it there), first moves straight away from it
+        farther than ``arrive`` [m] (where it has arrived) and more than ``ALIGNED * arrive``
+        inside the circle (the tightest turn on or back gets it there), first moves straight away from it
         (backwards from a goal in front, forwards from one behind) at half the cruise speed, until the goal lies
         ``BACK_OFF_HYSTERESIS`` turning radii from both circles' centres.
         """
@@ -206,12 +206,12 @@ class PathReference:
         s0, off = self.project(state[:2])
         if not (self.stop_at_end and 1e-9 < dist and self.approach > 0.0 and (dist <= self.approach or self.length - s0 <= off)):
             return rel, dist, s0, "path"
-        left = np.array([-np.sin(state[2]), np.cos(state[2])])
-        if self.turn_radius > 0.0 and dist > self.arrive and abs(rel @ left) >= ALIGNED * self.arrive:
+        if self.turn_radius > 0.0 and dist > self.arrive:
+            left = np.array([-np.sin(state[2]), np.cos(state[2])])
             gap = np.hypot(*(np.asarray(state[:2], dtype=float) + self.turn_radius * np.array([left, -left]) - goal).T).min()
             ahead_of = rel @ np.array([np.cos(state[2]), np.sin(state[2])]) >= 0.0  # the goal lies in front
             backing = state[3] < 0.0 if ahead_of else state[3] > 0.0
-            if gap < self.turn_radius * (BACK_OFF_HYSTERESIS if backing else 1.0):
+            if gap < (self.turn_radius * BACK_OFF_HYSTERESIS if backing else self.turn_radius - ALIGNED * self.arrive):
                 return rel, dist, s0, "back_off"
         return rel, dist, s0, "approach"
 
