@@ -57,8 +57,6 @@ JOBS = (
     Job("ablation_seeds0-4", ("table", "ablation", "--seeds", "5")),
     Job("highway_work_zone_seeds0-4", ("sweep", "highway_work_zone", "--grid", "controller.coordinator=aac", "--seeds", "5"),
         SWEEP_OUTPUTS),
-    Job("highway_work_zone_single_seeds0-4", ("sweep", "highway_work_zone", "--set", "aac.authorities=1", "--grid",
-                                              "controller.coordinator=aac", "--seeds", "5"), SWEEP_OUTPUTS),
     Job("bench_lane_change_n10", ("bench", "aac", "--scenarios", "lane_change", "--horizons", "10"),
         (("bench.md", ".md"), ("bench.json", ".json")), parallel=False),
     Job("cbf_qp_seeds0-4", (), (("cbf_qp_seeds0-4.md", ".md"), ("cbf_qp_seeds0-4.csv", ".csv"),
