@@ -46,11 +46,17 @@ class Job:
 
 HELD_OUT = ("--set", "scenario.seed=5")
 SWEEP_OUTPUTS = (("summary.md", ".md"), ("results.csv", ".csv"))
+#: LFC on committed plans with AAC's road settings and no emergency layer: the same layers as AAC in Table II.
+LFC_COMMITTED = ("sweep", "lane_change", "--set", "controller.coordinator=lfc", "--set", "lfc.commit=true", "--set",
+                 "lfc.safety_stop=false", "--set", "lfc.fallback=brake", "--set", "lfc.ignore_followers=false", "--grid",
+                 "controller.horizon=5,10,15", "--seeds", "5")
 JOBS = (
     Job("swarm_table1_seeds0-4", ("table", "swarm", "--seeds", "5", "--baselines")),
     Job("swarm_table1_seeds5-9", ("table", "swarm", "--seeds", "5", "--baselines") + HELD_OUT),
     Job("lane_change_table2_seeds0-4", ("table", "lane-change", "--seeds", "5", "--baselines")),
     Job("lane_change_table2_seeds5-9", ("table", "lane-change", "--seeds", "5", "--baselines") + HELD_OUT),
+    Job("lane_change_lfc_committed_seeds0-4", LFC_COMMITTED, SWEEP_OUTPUTS),
+    Job("lane_change_lfc_committed_seeds5-9", LFC_COMMITTED + HELD_OUT, SWEEP_OUTPUTS),
     Job("braking_table3_seeds0-4", ("table", "braking", "--seeds", "5", "--sensitivity"),
         (("table.md", ".md"), ("table.csv", ".csv"), ("sensitivity.md", "_sensitivity.md"), ("sensitivity.csv", "_sensitivity.csv"))),
     Job("circle_swap_seeds0-4", ("table", "circle-swap", "--seeds", "5", "--baselines")),
