@@ -165,8 +165,9 @@ class PathReference:
         a car-like robot. A robot that can reverse (``turn_radius`` [m] > 0, its tightest turning
         radius) and whose goal lies inside one of its turning circles, where no arc gets it closer,
         farther than ``arrive`` [m] (where it has arrived) and more than ``ALIGNED * arrive``
-        inside the circle (the tightest turn on or back gets it there), first moves straight away from it
-        (backwards from a goal in front, forwards from one behind) at half the cruise speed, until the goal lies
+        inside the circle (else the tightest turn on or back gets it there), first moves straight
+        away from it (backwards from a goal in front, forwards from one behind) at half the cruise
+        speed, until the goal lies
         ``BACK_OFF_HYSTERESIS`` turning radii from both circles' centres.
         """
         rel, dist, s0, mode = self._goal_mode(state)

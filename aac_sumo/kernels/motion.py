@@ -132,8 +132,8 @@ def tracking_course(x, y, h, v, steps, dt, wheelbase, a_min, a_max, steer_max, v
     stops there. The speed loop drives towards the path's speed at the projection (its
     ``limits`` (M,) over ``cum`` when non-empty, its stopping profile at ``decel``), or
     ``target_speed`` when that is not NaN, braking at most at ``comfort``; above a stopping
-    profile it brakes at least as hard as stops it at the goal (the loop alone lags it); the steering keeps
-    the rate limit from the one before and the lateral limit ``a_lat_max`` at the larger of the
+    profile it brakes at least as hard as stops it at the goal (the loop alone lags it); the
+    steering keeps the rate limit from the one before and the lateral limit ``a_lat_max`` at the larger of the
     speeds now and after the period, and comes within the comfort limit ``a_lat_comfort`` as
     far as the rate limit lets it (a car beyond it, on a plan made within the car's full limits,
     is brought back within it at the steering rate, not in one period)."""
