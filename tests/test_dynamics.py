@@ -445,3 +445,45 @@ def test_the_tracking_law_stops_at_the_goal_of_a_path_that_stops(speed_gain):
         if state[3] <= 0.0:
             break
     assert state[3] == 0.0 and 10.0 - 0.3 <= state[0] <= 10.0 + 0.05
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 100_000), steps=st.integers(1, 40), t0=st.integers(0, 10), n_stops=st.integers(0, 4))
+def test_compiled_continuation_is_the_loop_of_the_anticipated_speed_law(seed, steps, t0, n_stops):
+    """:func:`~aac_sumo.kernels.motion.continuation_inputs` on random roads (with curve speed
+    limits or not), robots, stop rows and keep-right shifts gives, bit for bit, the loop it
+    replaced in ``CommittedAac.continued_commitment``: each period the target speed is the lower
+    of the path's speed where the car will be ``lag`` on and the anticipation's
+    :func:`~aac_sumo.coordination.anticipation.speed_cap` of the stops (each moved on at its
+    speed), the acceleration reaches it in ``lag`` within the comfort envelope and the
+    anticipation's ``accel``, the steering is :func:`~aac_sumo.coordination.tracking.track`'s
+    with that target, and the robot's model steps."""
+    from aac_sumo.coordination.anticipation import speed_cap
+    from aac_sumo.coordination.tracking import track
+    from aac_sumo.kernels.motion import continuation_inputs
+    from aac_sumo.references import PathReference
+    from aac_sumo.world import RobotSpec
+
+    rng = np.random.default_rng(seed)
+    limits = VehicleLimits(a_min=-6.0, a_max=3.0, steer_max=0.5, v_max=20.0, a_lat_max=3.0, steer_rate_max=0.5, a_comfort=3.0)
+    robot = RobotSpec("r", 4.0, 1.8, BicycleModel(2.6, limits))
+    points = np.column_stack([np.linspace(0.0, 300.0, 31), np.cumsum(rng.uniform(-1.0, 1.0, 31))])
+    task = PathReference(points, 10.0, stop_at_end=False, limits=rng.uniform(4.0, 12.0, 31) if rng.integers(2) else None)
+    state = np.r_[points[0] + rng.uniform(-1.0, 1.0, 2), rng.uniform(-0.2, 0.2), rng.uniform(0.0, 12.0)]
+    stops = np.column_stack([rng.uniform(-5.0, 120.0, n_stops), rng.uniform(0.0, 10.0, n_stops), rng.uniform(0.0, 1.5, n_stops)])
+    dt, lag, decel, accel_up, calm = 0.1, 0.3, 1.5, 1.5, 2.0
+    lookahead, gain, shift, lat, steer0 = 10.0, 1.0, float(rng.choice([0.0, 0.5])), 2.0, float(rng.uniform(-0.05, 0.05))
+    lim = robot.model.limits
+    got = continuation_inputs(*(float(c) for c in state), steps, t0, dt, stops, decel, accel_up, calm, lag, robot.model.wheelbase,
+                              lim.a_min, lim.a_max, lim.steer_max, lim.v_min, lim.v_max, lim.a_lat_max, min(lim.a_lat_max, lat),
+                              lim.steer_rate_max, lim.comfort_decel, steer0, *task.arrays(), task.speed, task.decel, lookahead, gain, shift)
+    steer = steer0
+    for k in range(steps):
+        t = (t0 + k) * dt
+        moved = stops + np.column_stack([stops[:, 1] * t, np.zeros((len(stops), 2))])
+        ahead = task.project(state[:2])[0] + max(float(state[3]), 0.0) * lag
+        target = min(float(speed_cap(moved, [ahead], decel)[0]), float(task.speed_at(ahead)))
+        want = track(robot, state, task, lookahead, gain, steer, dt, shift, target_speed=target, a_lat=lat)
+        want[0] = min(max((target - float(state[3])) / lag, -calm), accel_up)
+        np.testing.assert_array_equal(got[k], want)
+        state, steer = robot.model.step(state, want, dt), float(want[1])

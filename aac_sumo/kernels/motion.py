@@ -186,3 +186,38 @@ def tracking_course(x, y, h, v, steps, dt, wheelbase, a_min, a_max, steer_max, v
                                    v_min, v_max)
         steer_prev = steer
     return out
+
+
+@numba.njit(cache=True)
+def continuation_inputs(x, y, h, v, steps, t0, dt, stops, cap_decel, accel_up, calm, lag, wheelbase, a_min, a_max, steer_max, v_min, v_max,
+                        a_lat_max, a_lat_comfort, steer_rate_max, comfort, previous_steer, points, seg_len, cum, seg_dir, seg_heading, t_max,
+                        chunk_centre, chunk_radius, chunk, limits, speed, decel, lookahead, speed_gain, offset):
+    """Inputs (steps, 2) of a continuation along a path that does not stop, from the rear-axle
+    state ``(x, y, h, v)`` reached ``t0`` periods of ``dt`` [s] from now: each period the speed
+    that reaches, in ``lag`` [s], the lower of the path's speed and the anticipation's speed cap
+    (braking at ``cap_decel`` [m/s^2] to every stop row ``[s_stop, v_lead, grow]`` of ``stops``
+    (K, 3), each moving on at its ``v_lead`` meanwhile) where the car will be ``lag`` on, within
+    [-``calm``, ``accel_up``]; the steering of one period of :func:`tracking_course` with that
+    target speed; then one :func:`_bicycle_step`. The compiled loop of
+    :meth:`~aac_sumo.coordination.aac.committed.CommittedAac.continued_commitment`."""
+    out = np.empty((steps, 2))
+    steer = previous_steer
+    for k in range(steps):
+        t = (t0 + k) * dt
+        i, f, _ = closest_on_polyline(points, seg_len, t_max, x, y, chunk_centre, chunk_radius, chunk)
+        ahead = (cum[i] + f * seg_len[i]) + max(v, 0.0) * lag
+        cap = math.inf
+        for r in range(stops.shape[0]):
+            room = (stops[r, 0] + stops[r, 1] * t) - ahead
+            lead, bk = stops[r, 1], cap_decel * stops[r, 2]
+            cap = min(cap, max(math.sqrt(max(bk**2 + lead**2 + 2.0 * cap_decel * room, 0.0)) - bk, 0.0))
+        path_speed = speed if limits.shape[0] == 0 else min(speed, np.interp(ahead, cum, limits))
+        target = min(cap, path_speed)
+        row = tracking_course(x, y, h, v, 1, dt, wheelbase, a_min, a_max, steer_max, v_min, v_max, a_lat_max, a_lat_comfort,
+                              steer_rate_max, comfort, steer, points, seg_len, cum, seg_dir, seg_heading, t_max, chunk_centre,
+                              chunk_radius, chunk, limits, speed, decel, False, 0.0, lookahead, speed_gain, offset, target)
+        accel = min(max((target - v) / lag, -calm), accel_up)
+        out[k, 0], out[k, 1] = accel, row[0, 1]
+        x, y, h, v = _bicycle_step(x, y, h, v, accel, row[0, 1], dt, wheelbase, v_min, v_max)
+        steer = row[0, 1]
+    return out

@@ -23,9 +23,10 @@ from aac_sumo.coordination.base import Decision, RobotDecision
 from aac_sumo.coordination.commitments import CommitmentBook, reach_radii, stopping_commitment
 from aac_sumo.coordination.detour import Detours
 from aac_sumo.coordination.make_room import STILL_SPEED, MakeRoom
-from aac_sumo.coordination.anticipation import near_pedestrian, speed_cap, stop_points
-from aac_sumo.coordination.tracking import creep_inputs, track, track_course
+from aac_sumo.coordination.anticipation import near_pedestrian, stop_points
+from aac_sumo.coordination.tracking import creep_inputs, track_course
 from aac_sumo.coordination.walker_reach import WalkerReach
+from aac_sumo.kernels.motion import continuation_inputs
 from aac_sumo.references import PathReference
 from aac_sumo.world import WorldState
 
@@ -181,22 +182,16 @@ class CommittedAac(AacCoordinator):
         states[others, 3] = self.book.courses(period, others, look)[:, look, 3]
         seen = dataclasses.replace(world, states=states)  # the others at their committed speeds LEAD_LOOK on
         stops = stop_points(seen, i, task, rules, self.held[i], courses=self.courses)  # [s_stop, v_lead, grow]: what it must stay behind
-        state = self.fleet.rollout(np.array([i]), world.states[[i]], head[None], cfg.dt)[0, -1]
+        x, y, h, v = self.fleet.rollout(np.array([i]), world.states[[i]], head[None], cfg.dt)[0, -1]
         steer = float(head[-1, 1]) if len(head) else float(self.last_inputs[i, 1])
-        shift = self.keep_right_shift(world, i)
-        calm = cfg.comfort_accel if cfg.comfort_accel > 0.0 else float(self.fleet.comfort[i])
-        more = np.zeros((periods, 2))
-        for k in range(periods):
-            t = (len(head) + k) * cfg.dt
-            moved = stops + np.column_stack([stops[:, 1] * t, np.zeros((len(stops), 2))])  # what moves goes on at its speed
-            ahead = task.project(state[:2])[0] + max(float(state[3]), 0.0) * CONTINUATION_LAG
-            target = min(float(speed_cap(moved, [ahead], rules.decel)[0]), float(task.speed_at(ahead)))
-            more[k] = track(robot, state, task, self.params.lookahead, self.params.speed_gain, steer, cfg.dt, shift,
-                            target_speed=target, a_lat=self.tracking_lat())
-            more[k, 0] = (target - float(state[3])) / CONTINUATION_LAG
-            more[k, 0] = min(max(more[k, 0], -calm), rules.accel)  # brakes within the comfort envelope, speeds up as the reference does
-            state = self.fleet.rollout(np.array([i]), state[None], more[None, k:k + 1], cfg.dt)[0, -1]
-            steer = float(more[k, 1])
+        calm = cfg.comfort_accel if cfg.comfort_accel > 0.0 else float(self.fleet.comfort[i])  # brakes within the comfort envelope
+        lim, lat = robot.model.limits, self.tracking_lat()
+        bounds = (robot.model.wheelbase, lim.a_min, lim.a_max, lim.steer_max, lim.v_min, lim.v_max, lim.a_lat_max,
+                  lim.a_lat_max if lat is None else min(lim.a_lat_max, lat), lim.steer_rate_max, lim.comfort_decel)
+        more = continuation_inputs(float(x), float(y), float(h), float(v), periods, len(head), cfg.dt, np.ascontiguousarray(stops, dtype=float),
+                                   float(rules.decel), float(rules.accel), float(calm), CONTINUATION_LAG, *(float(b) for b in bounds), steer,
+                                   *task.arrays(), float(task.speed), float(task.decel), float(self.params.lookahead),
+                                   float(self.params.speed_gain), float(self.keep_right_shift(world, i)))
         for k in (periods, periods // 2, periods // 4):
             if k <= 0:
                 continue
