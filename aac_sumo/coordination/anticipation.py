@@ -172,7 +172,7 @@ def _step_out_speeds(world: WorldState, params: Anticipation) -> np.ndarray:
     key = ("_step_out", params.pedestrian_reach, params.walkway_time)
     cached = world.__dict__.get(key)
     if cached is None:
-        first = int(np.sum(agents(world)[0] >= 0))
+        first = int(np.count_nonzero(world.on_road))
         cached = np.zeros(first + len(world.obstacles))
         cached[first:] = [o.step_out_speed(params.pedestrian_reach, params.walkway_time) if o.kind == "pedestrian" else 0.0
                           for o in world.obstacles]
@@ -184,7 +184,7 @@ def _walker_rows(world: WorldState) -> list[tuple[int, str]]:
     """``(row, name)`` of every walker among :func:`agents`' rows (cached per world)."""
     cached = world.__dict__.get("_walker_rows")
     if cached is None:
-        first = int(np.sum(agents(world)[0] >= 0))  # agents: the robots on the road, then the obstacles
+        first = int(np.count_nonzero(world.on_road))  # agents: the robots on the road, then the obstacles
         cached = [(first + k, o.name) for k, o in enumerate(world.obstacles) if o.kind == "pedestrian"]
         world.__dict__["_walker_rows"] = cached
     return cached
