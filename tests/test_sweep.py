@@ -209,6 +209,34 @@ def test_crashed_worker_costs_only_its_run(tmp_path):
     assert [(r["seed"], r["status"]) for r in written] == [("0", "ok"), ("1", "error"), ("2", "ok")]
 
 
+def _square(x: int) -> int:
+    return x * x
+
+
+def test_a_pool_found_broken_at_submit_loses_no_call(monkeypatch):
+    """A worker can die between the wait that returned a finished call and the next submit; the
+    pool then refuses the submit itself (BrokenProcessPool). The call goes back to the queue, the
+    calls in flight are settled, and every result still comes back once (``make test`` caught
+    the race once in test_crashed_worker_costs_only_its_run)."""
+    real = executor.Executor._get_pool
+    refused = []
+
+    class RefusesOnce:
+        def __init__(self, pool):
+            self.pool = pool
+
+        def submit(self, fn, item):
+            if item == 3 and not refused:
+                refused.append(item)
+                raise executor.BrokenProcessPool("a child process terminated abruptly")
+            return self.pool.submit(fn, item)
+
+    monkeypatch.setattr(executor.Executor, "_get_pool", lambda self: RefusesOnce(real(self)))
+    with executor.Executor(workers=2) as ex:
+        got = dict(ex.map(_square, list(range(6))))
+    assert refused == [3] and got == {i: i * i for i in range(6)}
+
+
 def test_resume_skips_finished_runs_and_retries_errors(capsys, tmp_path):
     argv = ["sweep", "braking", "--workers", "2", "--out", str(tmp_path), *SHORT]
     assert main(argv + ["--grid", "braking.speed=5,6,7"]) == 0

@@ -149,7 +149,13 @@ class Executor:
                 pool = self._get_pool()
                 while queue and len(inflight) < self.workers:
                     i, item = queue.popleft()
-                    inflight[pool.submit(fn, item)] = (i, item)
+                    try:
+                        inflight[pool.submit(fn, item)] = (i, item)
+                    except BrokenProcessPool:  # a worker died since the last wait: settle what was in flight first
+                        queue.appendleft((i, item))
+                        if not inflight:
+                            self._drop_pool(abort=True)
+                        break
                 suspects: list = []
                 yield from _settle(wait(inflight, return_when=FIRST_COMPLETED)[0], inflight, suspects)
                 if not suspects:
