@@ -24,7 +24,7 @@ from aac_sumo.coordination.commitments import CommitmentBook, reach_radii, stopp
 from aac_sumo.coordination.detour import Detours
 from aac_sumo.coordination.make_room import STILL_SPEED, MakeRoom
 from aac_sumo.coordination.anticipation import near_pedestrian, stop_points
-from aac_sumo.coordination.tracking import creep_inputs, track_course
+from aac_sumo.coordination.tracking import creep_inputs, track_course, tracking_bounds
 from aac_sumo.coordination.walker_reach import WalkerReach
 from aac_sumo.kernels.motion import continuation_inputs
 from aac_sumo.references import PathReference
@@ -185,11 +185,9 @@ class CommittedAac(AacCoordinator):
         x, y, h, v = self.fleet.rollout(np.array([i]), world.states[[i]], head[None], cfg.dt)[0, -1]
         steer = float(head[-1, 1]) if len(head) else float(self.last_inputs[i, 1])
         calm = cfg.comfort_accel if cfg.comfort_accel > 0.0 else float(self.fleet.comfort[i])  # brakes within the comfort envelope
-        lim, lat = robot.model.limits, self.tracking_lat()
-        bounds = (robot.model.wheelbase, lim.a_min, lim.a_max, lim.steer_max, lim.v_min, lim.v_max, lim.a_lat_max,
-                  lim.a_lat_max if lat is None else min(lim.a_lat_max, lat), lim.steer_rate_max, lim.comfort_decel)
         more = continuation_inputs(float(x), float(y), float(h), float(v), periods, len(head), cfg.dt, np.ascontiguousarray(stops, dtype=float),
-                                   float(rules.decel), float(rules.accel), float(calm), CONTINUATION_LAG, *(float(b) for b in bounds), steer,
+                                   float(rules.decel), float(rules.accel), float(calm), CONTINUATION_LAG,
+                                   *tracking_bounds(robot, self.tracking_lat()), steer,
                                    *task.arrays(), float(task.speed), float(task.decel), float(self.params.lookahead),
                                    float(self.params.speed_gain), float(self.keep_right_shift(world, i)))
         for k in (periods, periods // 2, periods // 4):
