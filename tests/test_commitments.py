@@ -11,13 +11,13 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from aac_sumo import config, experiments
-from aac_sumo.coordination.commitments import CommitmentBook, clusters, reach_radii, stopping_commitment
+from aac_sumo.coordination.commitments import CommitmentBook, braking_courses, clusters, reach_radii, stopping_commitment
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.geometry import pairwise_rect_clearance
 from aac_sumo.kernels.commitments import course_boxes, course_clearance, ragged_nearest
 from aac_sumo.kernels.motion import footprint_rows
-from aac_sumo.world import RobotSpec
+from aac_sumo.world import Obstacle, RobotSpec
 
 #: Every emergency layer off: safety comes from the commitments alone.
 PLAIN = ["aac.safety_stop=false", "lfc.safety_stop=false", "controller.coordinator=aac"]
@@ -231,7 +231,7 @@ def test_a_standing_authority_whose_plan_leaves_it_standing_creeps_only_on_a_che
     for one, and keeps
     the margin from every other commitment and the debris (the invariant, checked at every
     period as before)."""
-    from aac_sumo.coordination.aac.committed import CREEP_GAIN, CREEP_SPEED
+    from aac_sumo.coordination.aac.creeping import CREEP_GAIN, CREEP_SPEED
     from aac_sumo.coordination.make_room import STILL_SPEED
 
     setup = experiments.build(config.load("circle_swap", PLAIN + ["circle_swap.n_robots=12"]))
@@ -317,3 +317,44 @@ def test_a_robot_taken_off_the_road_leaves_no_commitment_behind():
     assert book.check(0, forward, 3, statics)[0] >= book.margin
     np.testing.assert_array_equal(book.courses(3, np.array([1]), 5)[0, :, :2], np.tile([-1000.0, 0.0], (6, 1)))
     assert book.items[2] is stand[2]
+
+
+@settings(max_examples=40, deadline=None)
+@given(speed=st.floats(0.0, 20.0), decel=st.floats(1.0, 9.0), accel=st.floats(-12.0, 2.0), heading=st.floats(-np.pi, np.pi))
+def test_a_braking_course_is_the_closed_form_stop_along_the_velocity(speed, decel, accel, heading):
+    """An uncontrolled vehicle's braking course starts where it is, goes along its velocity
+    braking at the larger of ``decel`` and its own braking, and ends standing exactly
+    ``v^2 / 2b`` on, after ``ceil(v / b dt)`` periods; cones, walkers and standing obstacles
+    have none."""
+    direction = np.array([np.cos(heading), np.sin(heading)])
+    car = Obstacle("bg.0", "scripted", np.array([5.0, -2.0]), speed * direction, heading, 4.5, 1.8, accel=accel)
+    others = [Obstacle("c", "cone", np.zeros(2), np.zeros(2), 0.0, 0.3, 0.3), Obstacle("p", "pedestrian", np.zeros(2), np.ones(2), 0.0, 0.5, 0.5)]
+    (rows,) = braking_courses(others + [car], decel, 0.1)
+    brake = max(decel, -accel)
+    assert len(rows) == (int(np.ceil(speed / (brake * 0.1) - 1e-9)) if speed > 0 else 0) + 1
+    np.testing.assert_allclose(rows[0, :2], car.centre)
+    np.testing.assert_allclose(rows[-1, :2], car.centre + speed**2 / (2 * brake) * direction, atol=1e-9)
+    travel = (rows[:, :2] - car.centre) @ direction
+    assert np.all(np.diff(travel) >= -1e-12)  # never backwards
+    np.testing.assert_array_equal(rows[:, 2:], np.tile([4.5, 1.8, heading], (len(rows), 1)))
+
+
+def test_a_car_behind_an_uncontrolled_car_may_commit_only_to_stop_behind_where_that_car_can_stop():
+    """A SUMO car at 16 m/s 20 m ahead may brake at 4.5 m/s^2 and stand 28.4 m on. A robot
+    behind it at 16 m/s whose stopping tail brakes at 2 m/s^2 (64 m) would run into it there and
+    is refused, naming it; with a tail at 6 m/s^2 (21.3 m) it stops behind and passes; and a
+    robot beside it in the next lane passes too."""
+    limits = VehicleLimits(-6.0, 3.0, 0.5, 0.0, 20.0)
+    robots = [RobotSpec(f"car{i}", 4.0, 1.8, BicycleModel(2.6, limits)) for i in range(2)]
+    fleet, dt = Fleet(robots), 0.1
+    states = np.array([[0.0, 0.0, 0.0, 16.0], [0.0, 40.0, 0.0, 0.0]])
+    ahead = Obstacle("bg.0", "scripted", np.array([22.0, 0.0]), np.array([16.0, 0.0]), 0.0, 4.5, 1.8)
+    hard = [stopping_commitment(fleet, i, 0, states[i], np.zeros((0, 2)), 0.0, 6.0, 0.0, dt) for i in range(2)]
+    book, statics = CommitmentBook(fleet, hard, 1.0), np.empty((0, 5))
+    book.traffic = braking_courses([ahead], 4.5, dt)
+    gentle = stopping_commitment(fleet, 0, 0, states[0], np.zeros((0, 2)), 0.0, 2.0, 0.0, dt)
+    gap, blocker = book.check(0, gentle, 0, statics)
+    assert gap < 0.0 and blocker == 2  # n robots, no statics: the first braking course
+    assert book.check(0, hard[0], 0, statics)[0] >= book.margin
+    beside = stopping_commitment(fleet, 0, 0, np.array([0.0, 3.5, 0.0, 16.0]), np.zeros((0, 2)), 0.0, 2.0, 0.0, dt)
+    assert book.check(0, beside, 0, statics)[0] >= book.margin

@@ -14,6 +14,12 @@ closer than the margin, and the old commitment, shifted by the periods since it 
 always a safe fallback: a solve that fails, or a plan whose tail fails the check, changes
 nothing. See ``docs/coordination.md`` for the argument and its limits.
 
+Vehicles the coordinator does not drive (SUMO's own cars) ride in the check as **braking
+courses** (:func:`braking_courses`): each goes on along its velocity braking at ``traffic_decel``
+until it stands. A vehicle that never brakes harder than that and keeps its direction is, at
+every moment, at or beyond that course, so a commitment clear of the course behind it stays
+clear of the vehicle (a car following it keeps the room to stop behind where it can stop).
+
 Frames and units: world frame [m], headings [rad], speeds [m/s], periods of ``dt`` [s].
 """
 
@@ -111,6 +117,7 @@ class CommitmentBook:
         self._flat: tuple | None = None  # (rows, starts, lengths, the statics they hold, the courses' boxes)
         self._refused: dict[int, tuple | None] = {}  # per robot, its last refusal by something standing (see refuse)
         self.walkers: WalkerReach | None = None  # the walkers of the current period, set by the coordinator (see check)
+        self.traffic: list[np.ndarray] = []  # footprint rows of the uncontrolled vehicles' braking courses this period (see check)
         # every commitment's states, each padded with its last state to one length (n, L, 4), for courses
         self._states = np.zeros((len(self.items), 1, 4))
         self._start = np.zeros(len(self.items), dtype=int)  # each commitment's first period
@@ -168,7 +175,8 @@ class CommitmentBook:
     def clearance(self, i: int, candidate: Commitment, period: int, statics: np.ndarray, walkers: bool = True) -> float:
         """Least footprint clearance [m] of robot ``i`` along ``candidate`` to every other
         robot along its commitment and to the standing obstacles ``statics`` (S, 5), from
-        ``period`` until all stand still (exact below ``margin``); with ``walkers`` and
+        ``period`` until all stand still (exact below ``margin``), to the braking courses of
+        the uncontrolled vehicles (:attr:`traffic`, set each period); with ``walkers`` and
         :attr:`walkers` set, also ``margin`` plus the course's slack to the walkers' regions
         (:class:`~aac_sumo.coordination.walker_reach.WalkerReach`), so that it passes
         (``>= margin``) only clear of them."""
@@ -176,16 +184,16 @@ class CommitmentBook:
 
     def check(self, i: int, candidate: Commitment, period: int, statics: np.ndarray, walkers: bool = True) -> tuple[float, int]:
         """:meth:`clearance` and what gives it: a robot's index, ``n`` + the row of ``statics``
-        for a standing obstacle, -2 for a walker, -1 for nothing. The standing obstacles ride in
-        the same flat array as the commitments (courses of one row), so a check is one compiled
-        pass."""
+        for a standing obstacle, ``n`` + S + k for the k-th of :attr:`traffic`, -2 for a walker,
+        -1 for nothing. The standing obstacles (courses of one row) and the braking courses ride
+        in the same flat array as the commitments, so a check is one compiled pass."""
         if self._period != period or self._flat is None or self._flat[3] is not statics:
             self._period = period
             fixed = np.asarray(statics, dtype=float).reshape(-1, 5)
             rows = [self.footprints(j, c, period) for j, c in enumerate(self.items)]
-            lengths = np.r_[[len(r) for r in rows], np.ones(len(fixed))].astype(np.int64)
+            lengths = np.r_[[len(r) for r in rows], np.ones(len(fixed)), [len(r) for r in self.traffic]].astype(np.int64)
             starts = np.r_[0, np.cumsum(lengths)[:-1]].astype(np.int64)
-            flat = np.concatenate(rows + [fixed])
+            flat = np.concatenate(rows + [fixed] + self.traffic)
             self._flat = (flat, starts, lengths, statics, course_boxes(flat, starts, lengths))
         flat, starts, lengths, _, boxes = self._flat
         rows = self.footprints(i, candidate, period)
@@ -205,7 +213,7 @@ class CommitmentBook:
         what = None
         if state[3] == 0.0 and 0 <= blocker < n and self.items[blocker].stage(period) == "hold":
             what = self.items[blocker]
-        elif state[3] == 0.0 and blocker >= n:
+        elif state[3] == 0.0 and n <= blocker < n + len(np.asarray(statics).reshape(-1, 5)):
             what = np.array(statics[blocker - n], dtype=float)
         self._refused[i] = None if what is None else (np.array(state, dtype=float), key, blocker, what)
 
@@ -240,6 +248,29 @@ class CommitmentBook:
                 fixed = np.repeat(np.asarray(statics, dtype=float).reshape(-1, 1, 5), steps + 1, axis=1)
                 out[i, n] = course_clearance(rows[i], fixed, np.inf)
         return out
+
+
+def braking_courses(obstacles, decel: float, dt: float) -> list[np.ndarray]:
+    """Footprint rows ``[cx, cy, length, width, heading]`` (K+1, 5) of each vehicle among
+    ``obstacles`` that no coordinator drives (kind ``scripted``: SUMO's own cars) from now until
+    it stands, braking from its speed along its velocity at ``decel`` [m/s^2], or harder when
+    its estimated :attr:`~aac_sumo.world.Obstacle.accel` already is, with the heading it has;
+    K periods of ``dt`` [s] until it stands (0 for a standing vehicle)."""
+    out = []
+    for o in obstacles:
+        if o.kind != "scripted":
+            continue
+        speed = float(np.hypot(*o.velocity))
+        brake = max(float(decel), -float(o.accel))
+        steps = int(np.ceil(speed / (brake * dt) - 1e-9)) if speed > 0.0 else 0  # an exact count is not lost to rounding
+        t = np.minimum(np.arange(steps + 1) * dt, speed / brake)
+        travel = speed * t - 0.5 * brake * t**2
+        direction = np.asarray(o.velocity, dtype=float) / speed if speed > 0.0 else np.zeros(2)
+        rows = np.empty((steps + 1, 5))
+        rows[:, :2] = np.asarray(o.centre, dtype=float) + travel[:, None] * direction
+        rows[:, 2:] = (o.length, o.width, o.heading)
+        out.append(rows)
+    return out
 
 
 def reach_radii(fleet: Fleet, states: np.ndarray, horizon: int, dt: float, tail_decel=None) -> np.ndarray:

@@ -19,12 +19,13 @@ import dataclasses
 import numpy as np
 
 from aac_sumo.coordination.aac.authority import SHIFT_DECAY, SHIFT_GROWTH, SLOW_SHARE, AacCoordinator
+from aac_sumo.coordination.aac.creeping import Creeping
 from aac_sumo.coordination.base import Decision, RobotDecision
-from aac_sumo.coordination.commitments import CommitmentBook, reach_radii, stopping_commitment
+from aac_sumo.coordination.commitments import CommitmentBook, braking_courses, reach_radii, stopping_commitment
 from aac_sumo.coordination.detour import Detours
 from aac_sumo.coordination.make_room import STILL_SPEED, MakeRoom
 from aac_sumo.coordination.anticipation import near_pedestrian, stop_points
-from aac_sumo.coordination.tracking import creep_inputs, track_course, tracking_bounds
+from aac_sumo.coordination.tracking import track_course, tracking_bounds
 from aac_sumo.coordination.walker_reach import WalkerReach
 from aac_sumo.kernels.motion import continuation_inputs
 from aac_sumo.references import PathReference
@@ -49,16 +50,9 @@ LEAD_LOOK = 1.0
 #: Grid cell [m] of the detour planner, and how often [s] a robot checks its reference for standing footprints.
 DETOUR_CELL = 0.1
 DETOUR_CHECK = 1.0
-#: Creeping (:meth:`CommittedAac.creep`): a standing authority whose plan leaves it standing
-#: tries courses at CREEP_SPEED [m/s] (forwards; backwards while it backs off), steering to each
-#: of CREEP_STEER (shares of its steering limit), under the exact check, and takes the one that
-#: ends closest to where its reference ends, when that is at least CREEP_GAIN [m] closer.
-CREEP_SPEED = 0.3
-CREEP_STEER = (-1.0, 0.0, 1.0)
-CREEP_GAIN = 0.05
 
 
-class CommittedAac(AacCoordinator):
+class CommittedAac(Creeping, AacCoordinator):
     """AAC with committed plans (see the module)."""
 
     commit = True
@@ -90,6 +84,7 @@ class CommittedAac(AacCoordinator):
             self.book = CommitmentBook(fleet, [self.commitment(world, i, period, np.zeros((0, 2))) for i in range(n)],
                                        self.params.commit_margin)
         self.book.walkers = walkers
+        self.book.traffic = braking_courses(world.obstacles, self.params.traffic_decel, cfg.dt)
         self.book.park(~world.on_road, world.states, period)
         for i in range(n) if first else ():  # with cruise, every car drives on from the start where the exact check lets it
             start = self.continued_commitment(world, i, period, np.zeros((0, 2)), statics)
@@ -148,16 +143,26 @@ class CommittedAac(AacCoordinator):
         """Robot ``i``'s reference path: its detour (``detour``), else its task."""
         return self.tasks[i] if self.detours is None else self.detours.path(i)
 
-    def tail_decel(self) -> np.ndarray:
-        """Each robot's stopping-tail deceleration [m/s^2]: ``tail_brake`` of its strongest
-        braking, at most its comfort deceleration."""
-        return np.minimum(self.params.tail_brake * -self.fleet.a_min, self.fleet.comfort)
+    def tail_decel(self, firm: bool = False) -> np.ndarray:
+        """Each robot's stopping-tail deceleration [m/s^2]: ``tail_brake`` (``firm``:
+        ``firm_tail``) of its strongest braking, at most its comfort deceleration."""
+        share = self.params.firm_tail if firm else self.params.tail_brake
+        return np.minimum(share * -self.fleet.a_min, self.fleet.comfort)
 
-    def commitment(self, world: WorldState, i: int, period: int, head: np.ndarray):
+    def commitment(self, world: WorldState, i: int, period: int, head: np.ndarray, firm: bool = False):
         """Robot ``i``'s commitment from now: the inputs ``head`` (m, 2), then its stopping tail
-        turning towards its reference's heading where the head ends."""
-        return stopping_commitment(self.fleet, i, period, world.states[i], head, self.path(i), self.tail_decel()[i], self.last_inputs[i, 1],
+        (``firm``: the firm one) turning towards its reference's heading where the head ends."""
+        return stopping_commitment(self.fleet, i, period, world.states[i], head, self.path(i), self.tail_decel(firm)[i], self.last_inputs[i, 1],
                                    self.planner.config.dt)
+
+    def passing(self, world: WorldState, i: int, period: int, head: np.ndarray, statics: np.ndarray):
+        """Robot ``i``'s commitment to ``head`` (m, 2) with its gentle tail when that passes the
+        exact check, else with its firm tail (``firm_tail``) when that does, else None."""
+        for firm in (False, True) if self.params.firm_tail > self.params.tail_brake else (False,):
+            candidate = self.commitment(world, i, period, head, firm)
+            if self.book.clearance(i, candidate, period, statics) >= self.book.margin:
+                return candidate
+        return None
 
     def continued_commitment(self, world: WorldState, i: int, period: int, head: np.ndarray, statics: np.ndarray):
         """Robot ``i``'s commitment to ``head`` (m, 2) continued along its path before its
@@ -193,8 +198,8 @@ class CommittedAac(AacCoordinator):
         for k in (periods, periods // 2, periods // 4):
             if k <= 0:
                 continue
-            candidate = self.commitment(world, i, period, np.vstack([head, more[:k]]))
-            if self.book.clearance(i, candidate, period, statics) >= self.book.margin:
+            candidate = self.passing(world, i, period, np.vstack([head, more[:k]]), statics)
+            if candidate is not None:
                 return candidate
         return None
 
@@ -247,9 +252,8 @@ class CommittedAac(AacCoordinator):
         if plan.status == "solved" and calm == cfg.horizon:
             passed = self.continued_commitment(world, i, period, plan.inputs, statics)
         for m in cuts if passed is None else ():
-            candidate = self.commitment(world, i, period, plan.inputs[:m])
-            if book.clearance(i, candidate, period, statics) >= book.margin:
-                passed = candidate
+            passed = self.passing(world, i, period, plan.inputs[:m], statics)
+            if passed is not None:
                 break
         if abs(world.states[i, 3]) < STILL_SPEED and self.creep(world, i, period, ref, passed, statics):
             record.mode = "creep"
@@ -259,50 +263,6 @@ class CommittedAac(AacCoordinator):
         book.replace(i, passed, period)
         record.mode = "mpc"
         return record, int(m < cfg.horizon), 0
-
-    def creep(self, world: WorldState, i: int, period: int, ref: np.ndarray, planned, statics: np.ndarray) -> bool:
-        """Robot ``i`` stands, and its MPC's course ``planned`` (a commitment that passed the
-        check, or None) gets it no nearer where its reference ``ref`` (N+1, 4) ends: the
-        planner's regions (ellipses round swept hulls, grown by ``d_safe``) are conservative,
-        and in a crowd packed at the commitments' 5 cm margin they left 62 % of the standing
-        authorities' plans within 5 cm of where they stood (100 robots, seed 4), while exact
-        footprints left room. It then tries short courses, ``CREEP_SPEED`` forwards (backwards
-        while it backs off, :meth:`~aac_sumo.coordination.make_room.MakeRoom.backing_off`),
-        steering to each of ``CREEP_STEER``, each with its stopping tail, and commits to the one
-        that ends closest to ``ref``'s end, when that is at least ``CREEP_GAIN`` [m] closer than
-        ``planned`` ends (than where it stands, without one) and the course passes the same exact
-        check as every commitment (:meth:`CommitmentBook.clearance`). Not with uncontrolled
-        moving agents about (walkers, scripted or SUMO-driven cars): the check does not hold
-        them. Not for a robot making room for a leader: creeping towards its make-room target
-        moved robots that had parked at their goals off them for good (100 robots, seed 24;
-        20 robots: 48 of 50 seeds completed with it, 49 without). Nor for the leader, which
-        drives its MPC's plan while the others make room (creeping, the leader of the 16-robot
-        circle swap's seed 3 shuttled by a decimetre for 8 s: a deadlock). Returns whether it
-        committed."""
-        cfg, book, fleet = self.planner.config, self.book, self.fleet
-        if any(o.kind not in ("static", "cone") for o in world.obstacles):
-            return False
-        if self.room is not None and (i in self.room.targets or i == self.room.leader):
-            return False
-        target, here = ref[-1, :2], world.states[i, :2]
-        best = float(np.hypot(*(here - target)))
-        if planned is not None:
-            best = min(best, float(np.hypot(*(planned.states[-1, :2] - target))))
-        best -= CREEP_GAIN
-        choice = None
-        backing = self.room is not None and self.room.backing_off(i) and fleet.v_min[i] < 0.0
-        for speed in ((-CREEP_SPEED,) if backing else (CREEP_SPEED,)):
-            for share in CREEP_STEER:
-                head = creep_inputs(float(world.states[i, 3]), speed, share * fleet.steer_limits[i, 0], float(self.last_inputs[i, 1]),
-                                    fleet.a_min[i], fleet.a_max[i], fleet.wheelbase[i], fleet.steer_limits[i], cfg.dt, cfg.horizon)
-                candidate = self.commitment(world, i, period, head)
-                gap = float(np.hypot(*(candidate.states[-1, :2] - target)))
-                if gap < best and book.clearance(i, candidate, period, statics) >= book.margin:
-                    best, choice = gap, candidate
-        if choice is None:
-            return False
-        book.replace(i, choice, period)
-        return True
 
     def extend_by_tracking(self, world: WorldState, period: int, parked: np.ndarray, holders: list[str],
                            records: list[RobotDecision], statics: np.ndarray) -> int:

@@ -48,7 +48,7 @@ class AacParams:
     safety stop), whether the authority ignores the robots straight behind it
     (:func:`~aac_sumo.coordination.base.straight_behind`; needs the safety stop), the seed
     of the sampling trees; committed plans (``commit``), their stopping tails' share of the
-    strongest braking (``tail_brake``) and the gap every two commitments keep
+    strongest braking (``tail_brake``; ``firm_tail`` where that fails the check) and the gap every two commitments keep
     (``commit_margin`` [m]); authorities per period (:class:`Authorities`); the keep-right
     rule (shift, trigger range and growth limit [m]); the make-room lead (on/off, standing
     time that makes a leader, longest lead [s]); and detours (on/off, the clearance [m] they
@@ -79,11 +79,18 @@ class AacParams:
                                      expect="a positive integer or \"clusters\"")
     tail_brake: float = param(0.5, "deceleration of a commitment's stopping tail, as a share of the strongest braking |robot.a_min|",
                               check=lambda x: 0 < x <= 1, expect="in (0, 1]")
+    firm_tail: float = param(0.0, "a commitment whose stopping tail at tail_brake fails the exact check is tried again with its "
+                             "tail at this share of |robot.a_min| (at most robot.a_comfort; 0: no second try): gentle tails where "
+                             "they pass, firmer ones behind SUMO's cars, which may brake harder than our tails", check=lambda x: 0 <= x <= 1,
+                             expect="in [0, 1]")
     commit_margin: float = param(0.05, "footprint gap every two commitments keep at every period [m]", **NN)
     cruise: float = param(0.0, "with commit, on a path that goes on (a road): a commitment continues along its path for up "
                           "to this long (then half, a quarter) at the speeds its reference anticipates (slowing for what is ahead, "
                           "yielding to walkers) before its stopping tail, where the exact check passes; 0: the tail follows the plan [s]",
                           check=lambda x: 0 <= x <= 60, expect="in [0, 60]")
+    traffic_decel: float = param(4.5, "with commit, the vehicles no coordinator drives (SUMO's own cars) are in the exact check as "
+                                 "braking at this from their speed along their lanes until they stand (SUMO's default passenger "
+                                 "vType decel) [m/s^2]", **P)
     keep_right: float = param(0.0, "right-hand rule: the authority's reference shifts this far to the right while another "
                               "robot is ahead within keep_right_range (0: off, the paper) [m]", **NN)
     keep_right_range: float = param(4.0, "distance within which a robot ahead triggers keep_right [m]", **P)
