@@ -16,7 +16,7 @@ from aac_sumo.runs import runner
 from aac_sumo.cli.app import main
 from aac_sumo.experiments import build
 from aac_sumo.experiments.common import robot_spec
-from aac_sumo.experiments.lane_change import (BAND_SETTLE, BUNDLED_NET, BUNDLED_NET_DIR, lane_change_band, road_end_arrivals,
+from aac_sumo.experiments.lane_change import (BAND_SETTLE, BUNDLED_NET, BUNDLED_NET_DIR, lane_change_band, arrivals,
                                               scenario_road, target_lane)
 from aac_sumo.mpc.settings import MpcConfig
 from aac_sumo.mpc.planner import MpcPlanner
@@ -120,32 +120,42 @@ def test_sumos_own_output_shows_each_car_at_its_start_speed_from_the_first_step(
     assert speeds == {"car0": pytest.approx(10.0), "car1": pytest.approx(0.0)}
 
 
-def test_a_finished_car_arrives_at_the_road_end_as_sumos_cars_do(tmp_path):
-    """A finished car at 10 m/s in the middle lane, 30 m before the road's end, leaves SUMO as
-    arrived before its front gets there (within its stopping distance at 4.5 m/s^2 of the end):
-    SUMO's tripinfo lists its trip, fcd.xml never shows it beyond the lane, and SUMO reports no
-    emergency stop at the lane's end (it did, and placed finished cars up to 60 m past it). A car
-    of the same lane that has not finished drives on."""
+def test_a_finished_car_arrives_in_sumo_when_it_finishes_and_leaves_our_road_at_its_end(tmp_path):
+    """Two cars at 10 m/s in the middle lane, 60 and 90 m before the road's end; the first
+    finishes its task at t = 1 s. SUMO takes it as arrived then (tripinfo.xml lists its trip
+    with that arrival, within one step, and fcd.xml ends its track there), while our model drives
+    it on, on our road, until its front is within its stopping distance at 4.5 m/s^2 of the end,
+    where it leaves our road; it never goes past the lane's end, and SUMO reports no emergency
+    stop (finished cars used to drive on up to 60 m past the network's end). The car that has
+    not finished drives on in SUMO."""
     road = scenario_road(config.load("lane_change"), BUNDLED_NET)
     end = road.length(1)
     robots = cars("car0", "car1")
-    states = np.array([[end - 30.0, LANE_Y[1], 0.0, 10.0], [end - 60.0, LANE_Y[1], 0.0, 10.0]])
+    states = np.array([[end - 60.0, LANE_Y[1], 0.0, 10.0], [end - 90.0, LANE_Y[1], 0.0, 10.0]])
     sim = SumoSimulator(robots, states, 0.1, ["E0", "E1"], SumoOptions(BUNDLED_NET, output_dir=tmp_path, outputs=("fcd", "tripinfo")))
     line = PathReference(road.lanes[1], 10.0, stop_at_end=False)
-    prepare = road_end_arrivals(sim, robots, [line, line], [end, end], np.array([True, False]), 0.1)
+    prepare = arrivals(sim, robots, [line, line], [end, end], lambda w: np.array([w.t >= 1.0 - 1e-9, False]), 0.1)
     front = robots[0].centre_offset + 0.5 * robots[0].length
+    on_road, xs_ours = [], []
     try:
-        for _ in range(30):
+        for _ in range(60):
             world = prepare(sim.observe())
+            on_road.append((round(world.t, 6), bool(world.on_road[0]), "car0" in sim.arrived))
+            if world.on_road[0]:
+                xs_ours.append(world.states[0, 0] + front)
             sim.step(np.zeros((2, 2)))
-        assert not world.on_road[0] and world.on_road[1] and "car0" in sim.removed
-        assert world.states[1, 0] > end - 35.0
+        assert world.on_road[1] and "car1" not in sim.arrived and "car0" in sim.removed
     finally:
         sim.close()
+    assert [t for t, _, gone in on_road if gone][0] == pytest.approx(1.0)  # SUMO took it as arrived when it finished
+    left = [t for t, here, _ in on_road if not here][0]
+    assert 3.0 < left < 6.0  # it drove on on our road, and left it before its front reached the end
+    assert max(xs_ours) <= road.lanes[1][-1, 0] + 1e-6
     trips = {t.get("id"): t for t in ET.parse(tmp_path / "tripinfo.xml").getroot().findall("tripinfo")}
-    assert set(trips) == {"car0"} and float(trips["car0"].get("arrival")) > 0.0
-    xs = [float(v.get("x")) for step in ET.parse(tmp_path / "fcd.xml").getroot() for v in step.findall("vehicle") if v.get("id") == "car0"]
-    assert max(xs) <= road.lanes[1][-1, 0] + 1e-6 and max(xs) >= end - 30.0 + front
+    assert set(trips) == {"car0"} and abs(float(trips["car0"].get("arrival")) - 1.0) <= 0.1 + 1e-9
+    track = [float(step.get("time")) for step in ET.parse(tmp_path / "fcd.xml").getroot() for v in step.findall("vehicle")
+             if v.get("id") == "car0"]
+    assert max(track) <= 1.0 + 1e-9
     assert "emergency" not in (tmp_path / "sumo.log").read_text().lower()
 
 
@@ -399,3 +409,29 @@ def test_sumo_cars_changing_lanes_reach_the_coordinators_moving_across_and_in_bo
     lo, hi = seen.centre[1] - 0.5 * seen.width, seen.centre[1] + 0.5 * seen.width
     assert lo <= min(front_y, target) - 0.9 + 1e-6 and hi >= max(front_y, target) + 0.9 - 1e-6  # from now to the new lane's centre
     assert body["width"] == 1.8 and seen.heading == pytest.approx(0.0, abs=1e-9)
+
+
+def test_a_car_sumo_took_as_arrived_drives_on_bit_for_bit_as_in_sumo():
+    """Once SUMO took a car as arrived (``arrive``) our model drives it on alone; its states are
+    the very ones (every bit) it had when SUMO still read its pose back after each move (SUMO
+    keeps a moved car's angle in radians, so its read-back heading may differ in the last bit),
+    so that a run's decisions do not change with the arrival. It steers, so that its heading
+    changes every step."""
+    inputs = np.array([[0.5, 0.04], [0.0, 0.0]])
+    tracks = []
+    for arrive in (False, True):
+        sim = sim_with([[20.0, LANE_Y[1], 0.0, 8.0], [20.0, LANE_Y[0], 0.0, 8.0]])
+        try:
+            track = []
+            for k in range(40):
+                if arrive and k == 5:
+                    sim.arrive(0)
+                sim.step(inputs)
+                track.append(sim.observe().states.copy())
+            assert ("car0" in sim.arrived) == arrive and "car0" not in sim.removed and sim.observe().on_road.all()
+            assert ("car0" in set(sim.api.vehicle.getIDList())) != arrive
+        finally:
+            sim.close()
+        tracks.append(np.array(track))
+    assert np.array_equal(tracks[0], tracks[1])
+    assert len(set(tracks[1][5:, 0, 2].tolist())) > 30  # its heading changed

@@ -1,9 +1,10 @@
 """SUMO's own outputs tell the truth about the cars we drive: the speed SUMO gives a car we move
-is the one it drove, SUMO warns of no emergency braking it did not do, its trips end when the
-cars leave our road, and steps.csv marks every car that arrived."""
+is our model's speed, SUMO warns of no emergency braking it did not do, its trips end when the
+cars finish their tasks, and steps.csv marks every car that arrived."""
 
 from __future__ import annotations
 
+import json
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -34,7 +35,8 @@ def test_a_car_we_drive_onto_a_slower_lane_keeps_its_speed_in_sumos_eyes(tmp_pat
     highway's approach (22.22 m/s) into its work zone (16.67 m/s). SUMO caps the speed it
     derives from a move at the speed it allows the car on the lane (limit times speed factor,
     12.49 m/s there): it showed 12.49 in fcd.xml and warned of emergency braking (35 m/s^2) every
-    step. Now its speed is 16 on both edges, and it warns of nothing."""
+    step. Now its speed is 16 on both edges and across the junction between them, and it warns
+    of nothing."""
     routes = tmp_path / "slow.rou.xml"
     routes.write_text('<routes><vType id="slow" length="4.0" width="1.8" speedFactor="0.75" maxSpeed="20"/>'
                       '<vehicle id="car" type="slow" depart="0" departLane="3" departPos="300" departSpeed="16">'
@@ -51,12 +53,9 @@ def test_a_car_we_drive_onto_a_slower_lane_keeps_its_speed_in_sumos_eyes(tmp_pat
     finally:
         sim.close()
     assert "approach_3" in lanes and "work_3" in lanes
-    speeds = np.array(speeds)
-    # SUMO counts 0.1 m for a junction its network gives no length (netconvert's least lane
-    # length): the one step across it shows 17 m/s; every other step shows the 16 m/s driven.
-    assert np.all(speeds >= 16.0 - 1e-6) and np.sum(np.abs(speeds - 16.0) > 1e-6) <= 1
+    assert np.all(np.abs(np.array(speeds) - 16.0) < 1e-9)
     fcd = fcd_rows(tmp_path / "fcd.xml")
-    assert (fcd[fcd["lane"] == "work_3"]["fcd_v"].iloc[1:] == 16.0).all()  # after the step onto it
+    assert (fcd["fcd_v"] == 16.0).all()
     assert "emergency" not in (tmp_path / "sumo.log").read_text().lower()
 
 
@@ -77,37 +76,35 @@ def test_the_last_car_to_arrive_is_marked_arrived_when_the_run_completes():
 
 @pytest.mark.slow
 def test_the_s2_demo_agrees_with_sumos_tripinfo_and_fcd(tmp_path, capsys):
-    """The S2 demo with SUMO's tripinfo and fcd outputs: every car steps.csv has is marked
-    arrived; every trip tripinfo lists ends when its car left our road (within one step), and every
-    car that left our road before the run's end has its trip there (the cars still driving when
-    the last car finishes have none); fcd's speed of each car at each time is the speed it drove
-    the step before at (our bicycle model moves a car over a step at the speed it had at the
-    step's start; SUMO's speed of a moved car is that displacement over the step), along its lane
-    (within 0.1 m/s: the lanes run along x here, and a car changing lanes drives at an angle to
-    them); SUMO warns of no emergency braking or stop."""
+    """The S2 demo with SUMO's tripinfo and fcd outputs. tripinfo.xml lists all 15 cars, each
+    arriving when steps.csv first marks it arrived, within one step (SUMO logs a removal between
+    two steps at the next step's time): it had no trip of the 10 cars still driving when the run
+    completed, and the others arrived some 15 s late, where they left the road's end. fcd.xml's
+    speed of each car at each time is steps.csv's ``v`` then (to fcd's two decimals): it showed
+    the speed of the step before. Every row of a car up to its arrival is in
+    fcd.xml, none after. SUMO warns of no emergency braking or stop. The demo's own figures are
+    those the README gives."""
     out = tmp_path / "s2"
     assert main(["run", "lane_change", "--set", "sumo.outputs=tripinfo,fcd", "--out", str(out)]) == 0
     capsys.readouterr()
     steps = pd.read_csv(out / "steps.csv")
     steps["t"] = steps["t"].round(6)
     dt = 0.1
-    assert steps.groupby("robot")["arrived"].any().all() and steps["robot"].nunique() == 15
-    traj = pd.read_csv(out / "trajectories.csv")
-    traj = traj[traj["kind"] == "controlled"]  # every car on our road at every observation, the last one included
-    last = traj.groupby("name")["t"].max()
-    left = last[last < traj["t"].max() - 1e-9] + dt  # the first time a car is no longer on our road
+    arrived = steps[steps["arrived"].astype(bool)].groupby("robot")["t"].min()
+    assert steps["robot"].nunique() == 15 and set(arrived.index) == set(steps["robot"])
     trips = {t.get("id"): float(t.get("arrival")) for t in ET.parse(out / "tripinfo.xml").getroot().findall("tripinfo")}
-    assert set(trips) == set(left.index) and trips
+    assert set(trips) == set(arrived.index)
     for name, t in trips.items():
-        assert abs(t - left[name]) <= dt + 1e-6, name
+        assert abs(t - arrived[name]) <= dt + 1e-6, name
     fcd = fcd_rows(out / "fcd.xml")
-    steps = steps.sort_values(["robot", "t"])
-    steps["driven"] = steps.groupby("robot")["v"].shift() * np.cos(steps.groupby("robot")["heading"].shift())
-    both = steps.merge(fcd, on=["t", "robot"]).dropna(subset=["driven"])
-    assert len(both) > 0.9 * len(steps)
-    assert (both["fcd_v"] - both["driven"]).abs().max() < 0.1
+    both = steps.merge(fcd, on=["t", "robot"], how="left")
+    before = both["t"] <= both["robot"].map(arrived) + 1e-9  # SUMO has it until the observation it arrived at
+    assert both.loc[before, "fcd_v"].notna().all() and both.loc[~before, "fcd_v"].isna().all()
+    assert (both.loc[before, "fcd_v"] - both.loc[before, "v"]).abs().max() <= 0.005 + 1e-9
     log = (out / "sumo.log").read_text().lower()
     assert "emergency" not in log
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["completed"] and metrics["collisions"] == 0 and metrics["sim_collisions"] == 0
 
 
 def test_a_road_without_cones_or_walkers_says_the_task_is_the_lane_changes_alone(capsys):

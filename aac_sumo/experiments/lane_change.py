@@ -53,8 +53,8 @@ from aac_sumo.world import RobotSpec, WorldState
 BUNDLED_NET_DIR = package_data.networks_dir() / "lane_change"  # the checkout's sumo_networks/, or a wheel's package data
 BUNDLED_NET = BUNDLED_NET_DIR / "lane_change.net.xml"
 BUNDLED_ROUTES = [BUNDLED_NET_DIR / "cones.rou.xml", BUNDLED_NET_DIR / "pedestrians.rou.xml"]
-#: A finished car arrives (leaves SUMO) where it would have to brake harder than this [m/s^2]
-#: to stop at its lane's end: SUMO's default vType deceleration (:func:`road_end_arrivals`).
+#: A finished car leaves our road where it would have to brake harder than this [m/s^2] to stop
+#: at its lane's end: SUMO's default vType deceleration (:func:`arrivals`).
 ARRIVAL_DECEL = 4.5
 
 
@@ -255,23 +255,33 @@ def build_lane_change(scenario: Scenario) -> Setup:
         free_flow = np.array([task.project(p)[0] for task, p in zip(tasks, finish_points)]) / lc.speed
         bands = [lane_change_band(rd, int(a), b, change_end[k], 0.5 * robots[0].width + ROAD_MARGIN)
                  for k, (a, b) in enumerate(zip(start_lane, targets))]
-        prepare = None if simulator_drives(scenario) else road_end_arrivals(sim, robots, [centre_lines[b] for b in targets],
-                                                                           [rd.length(b) for b in targets], done, scenario["scenario.dt"])
+        prepare = None if simulator_drives(scenario) else arrivals(sim, robots, [centre_lines[b] for b in targets],
+                                                                 [rd.length(b) for b in targets], finished, scenario["scenario.dt"])
         return _noted(Setup(scenario, sim, coordinator(scenario, tasks, bands, finished), tasks, finished, free_flow, prepare), bare)
     except BaseException:
         sim.close()
         raise
 
 
-def road_end_arrivals(sim, robots: list[RobotSpec], lines: list[PathReference], ends: list[float], done: np.ndarray,
-                      dt: float) -> Callable[[WorldState], WorldState]:
-    """The run's ``prepare``: a finished car (``done``) arrives where the road ends, as SUMO's own
-    cars do: once its front is within the distance it needs to stop at ``ARRIVAL_DECEL`` (plus one
-    period) of the end of its lane (``lines``, ``ends`` [m] along them), SUMO removes it as
-    arrived (its trip goes into SUMO's tripinfo) and it leaves the road. Before, finished cars
-    drove on beyond the network's end, where SUMO reported emergency stops at the lane's end and
-    placed them past it."""
+def arrivals(sim, robots: list[RobotSpec], lines: list[PathReference], ends: list[float],
+             finished: Callable[[WorldState], np.ndarray], dt: float) -> Callable[[WorldState], WorldState]:
+    """The run's ``prepare``, for the cars we move. A car arrives in SUMO's eyes when it finishes
+    its task: at the observation where ``finished`` first has it, SUMO removes it as arrived
+    (``sim.arrive``: its ``tripinfo`` trip ends then, as the run's ``arrived`` does), and our
+    model drives it on along its reference, still seen by the coordinators. Before, SUMO had no
+    trip of the cars still driving when the run completed (10 of the demo's 15), and the others
+    arrived there some 15 s after they finished. It leaves our road where the road ends: once its
+    front is within the distance it needs to stop at ``ARRIVAL_DECEL`` (plus one period) of the
+    end of its lane (``lines``, ``ends`` [m] along them), it is parked (``sim.retire``). Before
+    that, finished cars drove on beyond the network's end, where SUMO reported emergency stops at
+    the lane's end and placed them past it."""
+    arrived = np.zeros(len(robots), dtype=bool)
+
     def prepare(world: WorldState) -> WorldState:
+        done = np.asarray(finished(world), dtype=bool)
+        for k in np.flatnonzero(done & world.on_road & ~arrived):
+            sim.arrive(int(k))
+        arrived[done] = True
         leaving = []
         for k in np.flatnonzero(done & world.on_road):
             v = max(float(world.states[k, 3]), 0.0)

@@ -4,7 +4,13 @@ SUMO hosts the world: the network, cones (stopped vehicles of a cone vType), ped
 other traffic, which SUMO moves itself. Our controlled vehicles are inserted with speed mode and
 lane-change mode 0 and, every step, placed at the pose our bicycle model reached with
 ``vehicle.moveToXY(..., keepRoute=2)``; their poses are then read back from SUMO. Their speed is
-our model's: after ``moveToXY`` SUMO only knows the distance travelled in the step.
+our model's: with each move SUMO is given the speed the model reached (``vehicle.setSpeed`` in the
+same step), so that SUMO's speed of the car (``vehicle.getSpeed``, ``fcd.xml``, what its own cars
+follow) is ours at every step, and its acceleration ours. Without it SUMO derives the speed from
+the distance moved along the lane, the speed of the step before (our model moves a car over a
+step at the speed it had at the step's start), less when it drives at an angle to the lane; and
+``vehicle.setPreviousSpeed``, which this replaced, changed nothing SUMO reports after the step
+but its acceleration, with the wrong sign.
 
 Every step SUMO's own collision check (``simulation.getCollisions``) is read beside our footprint
 check. Our check measures the agents' bodies; the coordinators see each SUMO-driven car as the
@@ -97,6 +103,7 @@ class SumoSimulator(SumoReading, Simulator):
         for i in np.flatnonzero(~self.present):
             self.states[i] = parking_spot(int(i))
         self.removed: set[str] = set()
+        self.arrived: set[str] = set()  # SUMO took them as arrived (arrive); they drive on, on our road
         self.wrecked: set[str] = set()
         self.events: list[str] = []
         self._sim_pairs: set[tuple[str, str]] = set()
@@ -227,15 +234,32 @@ class SumoSimulator(SumoReading, Simulator):
 
     def retire(self, i: int, arrived: bool = False) -> None:
         """Take robot ``i`` off the road: SUMO removes it (as arrived at its destination when
-        ``arrived``, so that SUMO's tripinfo lists its trip; else as vaporized), and it stands
-        parked."""
+        ``arrived``, so that SUMO's tripinfo lists its trip; else as vaporized), unless it took
+        it as arrived already (:meth:`arrive`), and it stands parked."""
         name = self.robots[i].name
         if name in self.removed or not self.present[i]:
             return
-        with self._sumo_errors(f"removing {name}"):
-            self.api.vehicle.remove(name, REMOVE_ARRIVED if arrived else REMOVE_VAPORIZED)
+        if name not in self.arrived:
+            with self._sumo_errors(f"removing {name}"):
+                self.api.vehicle.remove(name, REMOVE_ARRIVED if arrived else REMOVE_VAPORIZED)
         self.removed.add(name)
         self._park(i)
+
+    def arrive(self, i: int) -> None:
+        """Robot ``i`` has finished its task: SUMO removes it as arrived at its destination now
+        (its ``tripinfo`` trip ends at this time, where it stands), and our model drives it on, on
+        our road, where the coordinators and our footprint check still see it, until
+        :meth:`retire` parks it. SUMO no longer has it: its own cars, walkers and collision
+        check no longer see it, and ``fcd.xml`` ends its track here. Only for a car we move
+        (not under SUMO's driver)."""
+        name = self.robots[i].name
+        if self.drives:
+            raise SumoError("arrive moves SUMO's idea of a car we drive; SUMO's own driver arrives by its route")
+        if name in self.removed or name in self.arrived or not self.present[i]:
+            return
+        with self._sumo_errors(f"removing {name} as arrived"):
+            self.api.vehicle.remove(name, REMOVE_ARRIVED)
+        self.arrived.add(name)
 
     # -- the Simulator interface -------------------------------------------------------------
 
@@ -253,11 +277,11 @@ class SumoSimulator(SumoReading, Simulator):
                 moving = np.array([r.name not in self.wrecked for r in self.robots], dtype=bool) & self.present
                 self.states[moving] = self.model.step(self.states, inputs, self.dt)[moving]
             for i, robot in enumerate(self.robots):
-                if self.drives or robot.name in self.removed or not self.present[i]:
+                if self.drives or robot.name in self.removed or robot.name in self.arrived or not self.present[i]:
                     continue
                 x, y, angle = sumo_from_state(self.states[i], robot.length, robot.model.wheelbase)
                 self.api.vehicle.moveToXY(robot.name, "", -1, x, y, angle, keepRoute=2)
-                self.api.vehicle.setPreviousSpeed(robot.name, float(self.states[i, 3]))
+                self.api.vehicle.setSpeed(robot.name, max(float(self.states[i, 3]), 0.0))  # SUMO's speed: ours (below)
             self.api.simulationStep()
             self.t = self.api.simulation.getTime() - self.t0
             self._take_departed()
@@ -307,7 +331,7 @@ class SumoSimulator(SumoReading, Simulator):
         shown = getattr(self, "_shown", {})
         for robot, here in zip(self.robots, self.present):
             colour = SAFETY_STOP if robot.name in stopped else AUTHORITY if robot.name in authority else PLAIN
-            if shown.get(robot.name, PLAIN) != colour and robot.name not in self.removed and here:
+            if shown.get(robot.name, PLAIN) != colour and robot.name not in self.removed | self.arrived and here:
                 self.api.vehicle.setColor(robot.name, colour)
                 shown[robot.name] = colour
         self._shown = shown
@@ -342,7 +366,7 @@ def sumo_simulator(robots: list[RobotSpec], states: np.ndarray, dt: float, edges
     start children."""
     if isolate and not options.gui and not multiprocessing.current_process().daemon:
         return IsolatedSimulator(SumoSimulator, (robots, states, dt, edges, options, routed), name="SUMO", error=SumoError,
-                                 mirror=("t", "dt", "removed", "events"))
+                                 mirror=("t", "dt", "removed", "arrived", "events"))
     return SumoSimulator(robots, states, dt, edges, options, routed)
 
 

@@ -36,6 +36,22 @@ def sumo_from_state(state, length: float, wheelbase: float) -> tuple[float, floa
     return x + ahead * math.cos(heading), y + ahead * math.sin(heading), angle
 
 
+def angle_as_sumo_keeps(angle_deg: float) -> float:
+    """The angle [navigational degrees, in [0, 360)] SUMO reports (``vehicle.getAngle``) for a
+    vehicle placed at ``angle_deg`` (``moveToXY``): it keeps a vehicle's angle in radians
+    (``GeomHelper::fromNaviDegree``) and turns it back into degrees (``GeomHelper::naviDegree``),
+    which may change its last bit. For a car SUMO no longer has (it took it as arrived) this is
+    the pose it would have read back: the run stays bit for bit the one it was with the car in
+    SUMO (``tests/test_sumo_frames.py`` checks it against libsumo)."""
+    radians = math.pi / 2.0 - angle_deg * math.pi / 180.0
+    degrees = (math.pi / 2.0 - radians) * 180.0 / math.pi
+    if degrees < 0.0:
+        degrees += 360.0
+    elif degrees >= 360.0:
+        degrees -= 360.0
+    return degrees
+
+
 def heading_from_sumo(angle_deg: float) -> float:
     """Heading [rad] counter-clockwise from +x, in (-pi, pi], of a SUMO angle (navigational degrees)."""
     return math.atan2(math.cos(math.radians(angle_deg)), math.sin(math.radians(angle_deg)))

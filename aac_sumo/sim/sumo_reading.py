@@ -12,8 +12,8 @@ import numpy as np
 
 from aac_sumo.network import VEHICLE_CLASS
 from aac_sumo.sim.base import Crossing
-from aac_sumo.sim.sumo_frames import (body_from_sumo, collision_cover, crossing_from_sumo, lane_change_sweep, state_from_sumo,
-                                      velocity_from_sumo)
+from aac_sumo.sim.sumo_frames import (angle_as_sumo_keeps, body_from_sumo, collision_cover, crossing_from_sumo, lane_change_sweep,
+                                      state_from_sumo, sumo_from_state, velocity_from_sumo)
 from aac_sumo.world import Obstacle, parking_spot
 
 
@@ -28,7 +28,7 @@ DEFAULT_LANE_WIDTH = 3.2
 class SumoReading:
     """The reading half of :class:`~aac_sumo.sim.sumo.SumoSimulator`, which sets the attributes
     it uses: ``api`` (libsumo or traci), ``robots``, ``states``, ``present``, ``index``,
-    ``routed``, ``removed``, ``drives``, ``events``, ``t``, ``options`` and the caches
+    ``routed``, ``removed``, ``arrived``, ``drives``, ``events``, ``t``, ``options`` and the caches
     ``_obstacle_dims`` and ``_walkway_lanes``, and the method ``_make_ours`` (speed modes and allowed speed of a car we move)."""
 
     def _note_removed(self) -> None:
@@ -36,7 +36,7 @@ class SumoReading:
         placed one is reported once (it drives on in our model)."""
         present = set(self.api.vehicle.getIDList())
         for i, robot in enumerate(self.robots):
-            if robot.name in self.removed or robot.name in present or not self.present[i]:
+            if robot.name in self.removed or robot.name in self.arrived or robot.name in present or not self.present[i]:
                 continue
             self.removed.add(robot.name)
             if robot.name in self.routed or self.drives:
@@ -66,10 +66,16 @@ class SumoReading:
             self.present[i] = True
 
     def _read_robots(self) -> None:
-        """Poses of the controlled vehicles after the last SUMO step; notice removed ones."""
+        """Poses of the controlled vehicles after the last SUMO step; notice removed ones. A car
+        SUMO took as arrived (``arrived``) has the pose our model gave it, as SUMO would have
+        read it back (:func:`~aac_sumo.sim.sumo_frames.angle_as_sumo_keeps`)."""
         v = self.api.vehicle
         self._note_removed()
         for i, robot in enumerate(self.robots):
+            if robot.name in self.arrived and robot.name not in self.removed and self.present[i]:
+                x, y, angle = sumo_from_state(self.states[i], robot.length, robot.model.wheelbase)
+                self.states[i, :3] = state_from_sumo(x, y, angle_as_sumo_keeps(angle), 0.0, robot.length, robot.model.wheelbase)[:3]
+                continue
             if robot.name in self.removed or not self.present[i]:
                 continue
             x, y = v.getPosition(robot.name)
