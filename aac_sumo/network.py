@@ -74,7 +74,7 @@ def read(path: Path, key: str, source: str, **options):
     import sumolib
 
     if not Path(path).is_file():
-        raise ScenarioError(source, key, "an existing SUMO .net.xml file", str(path))
+        raise ScenarioError(source, key, f"an existing SUMO .net.xml file{build_hint(Path(path))}", str(path))
     try:
         net = sumolib.net.readNet(str(path), **options)
     except Exception as exc:  # sumolib raises plain xml / attribute errors
@@ -82,6 +82,16 @@ def read(path: Path, key: str, source: str, **options):
     if not any(e.getLanes() for e in net.getEdges()):  # sumolib reads an .edg.xml, say, as edges without lanes
         raise ScenarioError(source, key, "a SUMO network with lanes (a .net.xml that netconvert built)", str(path))
     return net
+
+
+def build_hint(missing: Path) -> str:
+    """``" (build the network first: aac-sumo net build DIR)"`` when the missing network file
+    ``missing`` lies in a folder DIR of plain-XML sources netconvert can build it from (a
+    ``*.netccfg`` or ``*.edg.xml`` file there), else ``""``."""
+    folder = Path(missing).parent
+    if not folder.is_dir() or not (any(folder.glob("*.netccfg")) or any(folder.glob("*.edg.xml"))):
+        return ""
+    return f" (build the network first: aac-sumo net build {folder})"
 
 
 def car_lanes(edge) -> list:

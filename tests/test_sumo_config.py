@@ -81,6 +81,24 @@ def test_a_config_whose_network_is_not_built_yet_says_how_to_build_it(tmp_path, 
     assert len(err.splitlines()) == 1 and "net build" not in err
 
 
+def test_a_network_that_is_not_built_yet_says_how_to_build_it_wherever_it_is_named(tmp_path, capsys):
+    """The same hint when the missing network is named as sumo.net or given to net info: one
+    line, exit 2, naming the command that builds it from the sources beside it; none for a
+    missing route file there or a missing network with no sources beside it."""
+    shutil.copy(BUNDLED_NET_DIR / "lane_change.edg.xml", tmp_path / "road.edg.xml")
+    net = tmp_path / "road.net.xml"
+    for argv in (["run", "lane_change", "--set", f"sumo.net={net}", "--out", str(tmp_path / "a")], ["net", "info", str(net)]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "road.net.xml" in err and f"aac-sumo net build {tmp_path}" in err, err
+    (tmp_path / "elsewhere").mkdir()
+    for argv in (["run", "lane_change", "--set", f"sumo.routes={tmp_path / 'cars.rou.xml'}", "--out", str(tmp_path / "b")],
+                 ["net", "info", str(tmp_path / "elsewhere" / "road.net.xml")]):
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "net build" not in err, err
+
+
 def test_extra_arguments_go_through_and_ours_come_after_them():
     cmd = SumoOptions(Path("road.net.xml"), config=Path("my.sumocfg"), extra_args=("--lateral-resolution", "0.8")).command(0.1)
     assert cmd[1:3] == ["-c", "my.sumocfg"]

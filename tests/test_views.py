@@ -175,6 +175,10 @@ def test_compare_draws_paths_to_scale_unless_they_are_a_long_road(tmp_path, monk
     assert ("not to scale" in paths.get_ylabel()) == (not equal)  # the lateral axis says how much it is stretched
     legend = [text.get_text() for text in figures[0].axes[0].get_legend().get_texts()]
     assert legend == ["one (horizon N=10, 2 cars)"]  # a bare "N=10" read as ten cars
+    arrived = figures[0].axes[2]
+    assert arrived.get_ylabel() == "cars arrived"
+    assert all(float(tick).is_integer() for tick in arrived.get_yticks())  # whole cars (it showed 12.5 of 15)
+    assert arrived.get_ylim()[0] <= 0.0 and arrived.get_ylim()[1] >= 2.0  # from none to the whole fleet
 
 
 def test_compare_counts_a_robot_arrived_from_its_first_arrived_row_on_also_after_it_left():

@@ -95,7 +95,8 @@ def scenario_file(scenario: Scenario, text: str, key: str) -> Path:
         beside = Path(scenario.source).parent / path
         path = beside if beside.exists() else path
     if not path.is_file():
-        raise ScenarioError(scenario.source, key, "an existing file", text)
+        hint = network.build_hint(path) if path.name.endswith((".net.xml", ".net.xml.gz")) else ""
+        raise ScenarioError(scenario.source, key, f"an existing file{hint}", text)
     return path
 
 
@@ -113,8 +114,7 @@ def network_files(scenario: Scenario) -> tuple[Path, list[Path]]:
             raise ScenarioError(scenario.source, "sumo.config", f"a net-file in {cfg.path} (or sumo.net)", su.config)
         missing = [p for p in [cfg.net, *cfg.routes] if p is not None and not p.is_file()]
         if missing:
-            sources = missing[0] == cfg.net and (any(missing[0].parent.glob("*.netccfg")) or any(missing[0].parent.glob("*.edg.xml")))
-            build = f" (build the network first: aac-sumo net build {missing[0].parent})" if sources else ""
+            build = network.build_hint(missing[0]) if missing[0] == cfg.net else ""
             raise ScenarioError(scenario.source, "sumo.config", f"the files {cfg.path} names to exist{build}", str(missing[0]))
         for path in cfg.routes:
             route_file(scenario, path, "sumo.config")

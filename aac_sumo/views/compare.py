@@ -13,7 +13,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from aac_sumo.metrics import METRIC_KEYS  # noqa: E402
-from aac_sumo.views.titles import horizon_and_fleet  # noqa: E402
+from aac_sumo.views.titles import CAR_KINDS, horizon_and_fleet  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 
 def labels(run_dirs: list[Path]) -> list[str]:
@@ -55,7 +56,8 @@ STRETCH = 4.0
 
 def plot(runs: dict[str, object], path: Path) -> None:
     """Overlaid, one colour per run: mean speed, smallest clearance and robots arrived over
-    time, and every controlled robot's path."""
+    time (counted in whole cars when every run's robots are cars), and every controlled robot's
+    path."""
     fig = plt.figure(figsize=(12, 8))
     grid = fig.add_gridspec(3, 2, width_ratios=[1.2, 1])
     speed, clearance, arrived = (fig.add_subplot(grid[i, 0]) for i in range(3))
@@ -72,7 +74,11 @@ def plot(runs: dict[str, object], path: Path) -> None:
     speed.set_ylabel("mean speed [m/s]")
     clearance.set_ylabel("smallest clearance [m]")
     clearance.axhline(0.0, color="k", lw=0.8)
-    arrived.set_ylabel("robots arrived")
+    cars = all(getattr(run.scenario, "kind", None) in CAR_KINDS for run in runs.values())
+    arrived.set_ylabel("cars arrived" if cars else "robots arrived")
+    fleet = max([run.steps["robot"].nunique() for run in runs.values()] + [1])
+    arrived.set_ylim(-0.02 * fleet, 1.05 * fleet)  # from none to the whole fleet
+    arrived.yaxis.set_major_locator(MaxNLocator(integer=True))  # whole robots: no 12.5
     arrived.set_xlabel("time [s]")
     for ax in (speed, clearance, arrived):
         ax.grid(alpha=0.3)

@@ -52,7 +52,7 @@ def plot_lane_change(result, path: Path) -> None:
         ax.plot(group["x"], group["y"], color="tab:red", lw=2, label="pedestrians" if i == 0 else None)
         ax.plot(group["x"].iloc[-1], group["y"].iloc[-1], "v", color="tab:red", ms=5)
     cones = traj[traj["kind"] == "cone"].drop_duplicates("name")
-    ax.plot(cones["x"], cones["y"], "^", color="tab:orange", ms=7, ls="none", label="cones")
+    ax.plot(cones["x"], cones["y"], "^", color="tab:orange", ms=7, ls="none", label="cones" if len(cones) else None)
     ax.plot([], [], color="0.3", lw=1.2, label="vehicles (footprint centre)")
     ax.plot([], [], color="0.3", lw=0.8, ls=":", label="references (rear axle)")
     ax.autoscale()
