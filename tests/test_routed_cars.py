@@ -4,6 +4,8 @@ its own vTypes, a controlled flow and background traffic."""
 
 from __future__ import annotations
 
+import xml.etree.ElementTree as ET
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -99,7 +101,7 @@ def test_a_users_sumocfg_runs_unchanged_with_its_controlled_flow_among_backgroun
     cfg = user_config(tmp_path, FLOWS)
     out = tmp_path / "out"
     code = cli.main(["run", "lane_change", "--set", f"sumo.config={cfg}", "--set", "sumo.controlled_types=mine",
-                     "--set", "scenario.duration=60", "--set", "sumo.outputs=collision", "--out", str(out)])
+                     "--set", "scenario.duration=60", "--set", "sumo.outputs=collision,tripinfo", "--out", str(out)])
     assert code == 0, capsys.readouterr().err
     steps = pd.read_csv(out / "steps.csv")
     first = steps.groupby("robot")["t"].min()
@@ -112,6 +114,14 @@ def test_a_users_sumocfg_runs_unchanged_with_its_controlled_flow_among_backgroun
     assert {"bgf.0", "bgf.1", "bgf.2"} <= set(traj[traj.kind == "scripted"].name)  # SUMO drove them: obstacles to us
     metrics = pd.read_json(out / "metrics.json", typ="series")
     assert metrics["completed"] and metrics["n_robots"] == 4 and metrics["collisions"] == 0 and metrics["sim_collisions"] == 0
+    # SUMO's tripinfo.xml has each controlled car's trip, arrived (not vaporized), the last one's
+    # included, within two steps of steps.csv's arrival (it leaves SUMO the period after it
+    # finished, and SUMO logs a removal at its next step's time)
+    arrived = steps[steps["arrived"].astype(bool)].groupby("robot")["t"].min()
+    trips = {t.get("id"): t for t in ET.parse(out / "tripinfo.xml").getroot().findall("tripinfo") if t.get("id").startswith("ours.")}
+    assert set(trips) == set(arrived.index)
+    for name, trip in trips.items():
+        assert trip.get("vaporized") in (None, "") and 0.0 < float(trip.get("arrival")) - arrived[name] <= 0.2 + 1e-6, name
 
 
 @pytest.mark.parametrize("sets, key", [

@@ -178,9 +178,15 @@ class RoutedCars:
         if not self.sumo_drives:
             self.judge(world)
         leaving = np.flatnonzero(self.done & world.on_road)
-        for k in leaving:
-            self.sim.retire(int(k))
-        return self.sim.observe() if leaving.size else world
+        for k in leaving:  # at its route's end, the period after it finished: SUMO takes it as arrived (it said vaporized)
+            self.sim.retire(int(k), arrived=True)
+        world = self.sim.observe() if leaving.size else world
+        if not self.sumo_drives and self.finished(world).all():
+            # the run completes now, with the cars that finish now still on the road (steps.csv
+            # marks them arrived there): SUMO takes them as arrived too, else tripinfo lacked them
+            for k in np.flatnonzero(world.on_road):
+                self.sim.arrive(int(k))
+        return world
 
     def admit(self, world: WorldState, k: int) -> None:
         lc, v = self.lc, self.vehicles[k]
