@@ -258,3 +258,20 @@ def test_a_run_stopped_before_its_first_period_still_writes_its_files(tmp_path):
     metrics = json.loads((tmp_path / "metrics.json").read_text())
     assert metrics["error"] == "interrupted at t=0.00 s" and metrics["completed"] is False
     assert (tmp_path / "steps.csv").exists() and not list(tmp_path.glob("*.png"))
+
+
+@pytest.mark.parametrize("command, said", [("run", "aac-sumo: interrupted while starting"),
+                                           ("sweep", "aac-sumo: interrupted (finished runs are kept)")])
+def test_a_ctrl_c_before_a_run_begins_says_it_was_starting(monkeypatch, capsys, command, said):
+    """Ctrl-C while ``run`` loads its scenario: exit 130 and one line that says the run was
+    starting (it said "finished runs are kept", a sweep's words, of a single run); a sweep
+    keeps its own words."""
+    from aac_sumo.cli import app
+
+    def interrupted(args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(app, f"cmd_{command}", interrupted)
+    argv = ["run", "lane_change"] if command == "run" else ["sweep", "lane_change", "--grid", "controller.horizon=5"]
+    assert app.main(argv) == 130
+    assert capsys.readouterr().err.splitlines() == [said]

@@ -41,8 +41,9 @@ def main(argv: list[str] | None = None) -> int:
         return _fail(f"{name}: (encoding): expected UTF-8 text ({exc.reason} at byte {exc.start})")
     except OSError as exc:  # e.g. --out names a file
         return _fail(f"{exc.filename or ''}: {exc.strerror or exc}".lstrip(": "))
-    except KeyboardInterrupt:
-        print(f"{PROG}: interrupted (finished runs are kept)", file=sys.stderr)
+    except KeyboardInterrupt:  # a run interrupted once under way says so itself (cmd_run)
+        what = "while starting" if getattr(args, "command", None) in (None, "run") else "(finished runs are kept)"
+        print(f"{PROG}: interrupted {what}", file=sys.stderr)
         return 130
 
 
