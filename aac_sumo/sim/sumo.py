@@ -53,7 +53,7 @@ from aac_sumo.dynamics import FleetModel
 from aac_sumo.network import VEHICLE_CLASS
 from aac_sumo.sim.base import ContactReport, Crossing, Simulator, agent_rows, footprint_contacts
 from aac_sumo.sim.isolated import IsolatedSimulator
-from aac_sumo.sim.sumo_frames import sumo_from_state
+from aac_sumo.sim.sumo_frames import applied_inputs, sumo_from_state
 from aac_sumo.sim.sumo_options import LaneOrder, SumoError, SumoOptions
 from aac_sumo.sim.sumo_reading import SumoReading
 from aac_sumo.world import RobotSpec, WorldState, parking_spot
@@ -368,24 +368,6 @@ def sumo_simulator(robots: list[RobotSpec], states: np.ndarray, dt: float, edges
         return IsolatedSimulator(SumoSimulator, (robots, states, dt, edges, options, routed), name="SUMO", error=SumoError,
                                  mirror=("t", "dt", "removed", "arrived", "events"))
     return SumoSimulator(robots, states, dt, edges, options, routed)
-
-
-#: The steering angle [rad] the inputs :func:`applied_inputs` reports stay within (a lane change
-#: SUMO makes in one step turns no heading; a car turning on the spot would need 90 degrees).
-APPLIED_STEER_MAX = 1.5
-
-
-def applied_inputs(before: np.ndarray, after: np.ndarray, dt: float, wheelbase: np.ndarray) -> np.ndarray:
-    """The inputs ``[accel, steer]`` (n, 2) of the bicycle model that match a step of ``dt`` [s]
-    from states ``before`` to ``after`` (n, 4) SUMO's driver made: the change of speed over the
-    step, and the steering angle whose yaw rate ``v tan(steer) / wheelbase`` at the speed before
-    turns the heading as it turned (0 below 0.1 m/s; within ``APPLIED_STEER_MAX``)."""
-    accel = (after[:, 3] - before[:, 3]) / dt
-    turn = np.angle(np.exp(1j * (after[:, 2] - before[:, 2]))) / dt
-    v = before[:, 3]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        steer = np.where(np.abs(v) > 0.1, np.arctan(wheelbase * turn / np.where(np.abs(v) > 0.1, v, 1.0)), 0.0)
-    return np.column_stack([accel, np.clip(steer, -APPLIED_STEER_MAX, APPLIED_STEER_MAX)])
 
 
 def _start_gui(traci, cmd: list[str]) -> None:

@@ -121,3 +121,21 @@ def crossing_from_sumo(lane_id: str, shape, width: float, lane_width: float) -> 
     (SUMO's centre-line points, network coordinates, which are our world frame [m]), its
     ``width`` [m] and the width [m] of the vehicle lanes it crosses."""
     return Crossing(lane_id, np.asarray(shape, dtype=float).reshape(-1, 2), float(width), float(lane_width))
+
+
+#: The steering angle [rad] the inputs :func:`applied_inputs` reports stay within (a lane change
+#: SUMO makes in one step turns no heading; a car turning on the spot would need 90 degrees).
+APPLIED_STEER_MAX = 1.5
+
+
+def applied_inputs(before: np.ndarray, after: np.ndarray, dt: float, wheelbase: np.ndarray) -> np.ndarray:
+    """The inputs ``[accel, steer]`` (n, 2) of the bicycle model that match a step of ``dt`` [s]
+    from states ``before`` to ``after`` (n, 4) SUMO's driver made: the change of speed over the
+    step, and the steering angle whose yaw rate ``v tan(steer) / wheelbase`` at the speed before
+    turns the heading as it turned (0 below 0.1 m/s; within ``APPLIED_STEER_MAX``)."""
+    accel = (after[:, 3] - before[:, 3]) / dt
+    turn = np.angle(np.exp(1j * (after[:, 2] - before[:, 2]))) / dt
+    v = before[:, 3]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        steer = np.where(np.abs(v) > 0.1, np.arctan(wheelbase * turn / np.where(np.abs(v) > 0.1, v, 1.0)), 0.0)
+    return np.column_stack([accel, np.clip(steer, -APPLIED_STEER_MAX, APPLIED_STEER_MAX)])
