@@ -11,7 +11,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from aac_sumo import config, experiments
-from aac_sumo.coordination.commitments import CommitmentBook, braking_courses, clusters, reach_radii, stopping_commitment
+from aac_sumo.coordination.commitments import CommitmentBook, braking_courses, clusters, reach_radii, standing_points, stopping_commitment
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.geometry import pairwise_rect_clearance
@@ -343,7 +343,9 @@ def test_a_car_behind_an_uncontrolled_car_may_commit_only_to_stop_behind_where_t
     """A SUMO car at 16 m/s 20 m ahead may brake at 4.5 m/s^2 and stand 28.4 m on. A robot
     behind it at 16 m/s whose stopping tail brakes at 2 m/s^2 (64 m) would run into it there and
     is refused, naming it; with a tail at 6 m/s^2 (21.3 m) it stops behind and passes; and a
-    robot beside it in the next lane passes too."""
+    robot beside it in the next lane passes too. A SUMO car behind the robot keeps its own
+    distance: the robot's gentle tail in front of it passes, though that car's braking course
+    would run into it."""
     limits = VehicleLimits(-6.0, 3.0, 0.5, 0.0, 20.0)
     robots = [RobotSpec(f"car{i}", 4.0, 1.8, BicycleModel(2.6, limits)) for i in range(2)]
     fleet, dt = Fleet(robots), 0.1
@@ -354,7 +356,32 @@ def test_a_car_behind_an_uncontrolled_car_may_commit_only_to_stop_behind_where_t
     book.traffic = braking_courses([ahead], 4.5, dt)
     gentle = stopping_commitment(fleet, 0, 0, states[0], np.zeros((0, 2)), 0.0, 2.0, 0.0, dt)
     gap, blocker = book.check(0, gentle, 0, statics)
-    assert gap < 0.0 and blocker == 2  # n robots, no statics: the first braking course
+    assert gap < 0.0 and blocker == -3
     assert book.check(0, hard[0], 0, statics)[0] >= book.margin
     beside = stopping_commitment(fleet, 0, 0, np.array([0.0, 3.5, 0.0, 16.0]), np.zeros((0, 2)), 0.0, 2.0, 0.0, dt)
     assert book.check(0, beside, 0, statics)[0] >= book.margin
+    in_front = stopping_commitment(fleet, 0, 0, np.array([30.0, 0.0, 0.0, 5.0]), np.zeros((0, 2)), 0.0, 2.0, 0.0, dt)
+    assert book.check(0, in_front, 0, statics)[0] >= book.margin
+    rows = footprint_rows(in_front.states[None], fleet.offset[[0]], fleet.length[[0]], fleet.width[[0]])[0]
+    course = book.traffic[0]
+    steps = max(len(rows), len(course))
+    padded = [np.vstack([r, np.repeat(r[-1:], steps - len(r), axis=0)]) for r in (rows, course)]  # each stands at its end
+    assert course_clearance(padded[0], padded[1][None], np.inf) < 0.0  # the course behind it would
+
+
+def test_a_continuation_stands_behind_where_each_vehicle_ahead_on_its_path_can_stop():
+    """On a straight lane, the standing point of a SUMO car ahead in the lane is where its
+    braking course stands, less half its length and the gap; a car behind the robot, one in the
+    next lane (3.5 m across) and a standing cone give none; a car changing lanes, seen over both
+    lanes (5 m wide), counts from the next lane."""
+    from aac_sumo.references import PathReference
+
+    path = PathReference(np.array([[0.0, 0.0], [1000.0, 0.0]]), 16.0, stop_at_end=False)
+    def car(x, y, speed, width=1.8):
+        return Obstacle(f"bg{x}", "scripted", np.array([x, y]), np.array([speed, 0.0]), 0.0, 4.5, width)
+    vehicles = [car(100.0, 0.0, 15.0), car(20.0, 0.0, 15.0), car(150.0, 3.5, 15.0), car(300.0, 2.2, 9.0, width=5.0),
+                Obstacle("cone", "cone", np.array([400.0, 0.0]), np.zeros(2), 0.0, 0.3, 0.3)]
+    courses = braking_courses(vehicles, 4.5, 0.1)
+    got = standing_points(path, courses, np.array([50.0, 0.0]), 0.0, reach=1.9, gap=4.0)
+    expected = [100.0 + 15.0**2 / 9.0 - 2.25 - 4.0, 300.0 + 9.0**2 / 9.0 - 2.25 - 4.0]
+    np.testing.assert_allclose(np.sort(got), expected, atol=1e-6)

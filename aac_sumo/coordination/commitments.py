@@ -17,8 +17,11 @@ nothing. See ``docs/coordination.md`` for the argument and its limits.
 Vehicles the coordinator does not drive (SUMO's own cars) ride in the check as **braking
 courses** (:func:`braking_courses`): each goes on along its velocity braking at ``traffic_decel``
 until it stands. A vehicle that never brakes harder than that and keeps its direction is, at
-every moment, at or beyond that course, so a commitment clear of the course behind it stays
-clear of the vehicle (a car following it keeps the room to stop behind where it can stop).
+every moment, at or beyond that course, so a commitment clear of the course stays clear of the
+vehicle: a car following it keeps the room to stop behind where it can stop. Only the vehicles
+ahead of the robot checked count (their centres ahead of its footprint centre along its
+heading): one behind it keeps its own distance, as its driver does, within the lane-change gap
+rule.
 
 Frames and units: world frame [m], headings [rad], speeds [m/s], periods of ``dt`` [s].
 """
@@ -118,6 +121,7 @@ class CommitmentBook:
         self._refused: dict[int, tuple | None] = {}  # per robot, its last refusal by something standing (see refuse)
         self.walkers: WalkerReach | None = None  # the walkers of the current period, set by the coordinator (see check)
         self.traffic: list[np.ndarray] = []  # footprint rows of the uncontrolled vehicles' braking courses this period (see check)
+        self._traffic: tuple | None = None  # (period, the list above, its flat rows, starts, lengths, boxes)
         # every commitment's states, each padded with its last state to one length (n, L, 4), for courses
         self._states = np.zeros((len(self.items), 1, 4))
         self._start = np.zeros(len(self.items), dtype=int)  # each commitment's first period
@@ -172,37 +176,59 @@ class CommitmentBook:
             commitment.rows = footprint_rows(commitment.states[None], self.fleet.offset[[i]], self.fleet.length[[i]], self.fleet.width[[i]])[0]
         return commitment.rows[min(max(period - commitment.start, 0), len(commitment.inputs)):]
 
-    def clearance(self, i: int, candidate: Commitment, period: int, statics: np.ndarray, walkers: bool = True) -> float:
+    def clearance(self, i: int, candidate: Commitment, period: int, statics: np.ndarray, walkers: bool = True,
+                  traffic: bool = True) -> float:
         """Least footprint clearance [m] of robot ``i`` along ``candidate`` to every other
         robot along its commitment and to the standing obstacles ``statics`` (S, 5), from
-        ``period`` until all stand still (exact below ``margin``), to the braking courses of
-        the uncontrolled vehicles (:attr:`traffic`, set each period); with ``walkers`` and
-        :attr:`walkers` set, also ``margin`` plus the course's slack to the walkers' regions
-        (:class:`~aac_sumo.coordination.walker_reach.WalkerReach`), so that it passes
-        (``>= margin``) only clear of them."""
-        return self.check(i, candidate, period, statics, walkers)[0]
+        ``period`` until all stand still (exact below ``margin``), and to the braking courses of
+        the uncontrolled vehicles ahead of it (:attr:`traffic`, set each period); with
+        ``walkers`` and :attr:`walkers` set, also ``margin`` plus the course's slack to the
+        walkers' regions (:class:`~aac_sumo.coordination.walker_reach.WalkerReach`), so that it
+        passes (``>= margin``) only clear of them; without ``traffic``, not to the vehicles."""
+        return self.check(i, candidate, period, statics, walkers, traffic)[0]
 
-    def check(self, i: int, candidate: Commitment, period: int, statics: np.ndarray, walkers: bool = True) -> tuple[float, int]:
+    def check(self, i: int, candidate: Commitment, period: int, statics: np.ndarray, walkers: bool = True,
+              traffic: bool = True) -> tuple[float, int]:
         """:meth:`clearance` and what gives it: a robot's index, ``n`` + the row of ``statics``
-        for a standing obstacle, ``n`` + S + k for the k-th of :attr:`traffic`, -2 for a walker,
-        -1 for nothing. The standing obstacles (courses of one row) and the braking courses ride
-        in the same flat array as the commitments, so a check is one compiled pass."""
+        for a standing obstacle, -3 for an uncontrolled vehicle, -2 for a walker, -1 for
+        nothing. The standing obstacles ride in the same flat array as the commitments (courses
+        of one row), so a check is one compiled pass, and one more for the vehicles ahead."""
         if self._period != period or self._flat is None or self._flat[3] is not statics:
             self._period = period
             fixed = np.asarray(statics, dtype=float).reshape(-1, 5)
             rows = [self.footprints(j, c, period) for j, c in enumerate(self.items)]
-            lengths = np.r_[[len(r) for r in rows], np.ones(len(fixed)), [len(r) for r in self.traffic]].astype(np.int64)
+            lengths = np.r_[[len(r) for r in rows], np.ones(len(fixed))].astype(np.int64)
             starts = np.r_[0, np.cumsum(lengths)[:-1]].astype(np.int64)
-            flat = np.concatenate(rows + [fixed] + self.traffic)
+            flat = np.concatenate(rows + [fixed])
             self._flat = (flat, starts, lengths, statics, course_boxes(flat, starts, lengths))
         flat, starts, lengths, _, boxes = self._flat
         rows = self.footprints(i, candidate, period)
         gap, nearest = ragged_nearest(rows, flat, starts, lengths, boxes, i, self.margin)
+        if traffic and self.traffic and gap >= self.margin:
+            ahead = self.traffic_gap(rows, period)
+            if ahead < gap:
+                gap, nearest = ahead, -3
         if walkers and self.walkers is not None and gap >= self.margin:
             slack = min(self.walkers.slack(rows), self.walkers.stand_slack(rows[-1]))
             if self.margin + slack < gap:
                 return self.margin + slack, -2
         return float(gap), int(nearest)
+
+    def traffic_gap(self, rows: np.ndarray, period: int) -> float:
+        """Least clearance [m] of the footprint rows ``rows`` (a course from ``period`` on) to
+        the braking courses of the uncontrolled vehicles whose centres are ahead of ``rows[0]``
+        along its heading (inf without any)."""
+        if self._traffic is None or self._traffic[0] != period or self._traffic[1] is not self.traffic:
+            flat = np.concatenate(self.traffic) if self.traffic else np.zeros((0, 5))
+            lengths = np.array([len(r) for r in self.traffic], dtype=np.int64)
+            starts = np.r_[0, np.cumsum(lengths)[:-1]].astype(np.int64) if len(lengths) else lengths
+            self._traffic = (period, self.traffic, flat, starts, lengths, course_boxes(flat, starts, lengths))
+        _, _, flat, starts, lengths, boxes = self._traffic
+        here = rows[0]
+        ahead = np.flatnonzero((flat[starts, 0] - here[0]) * np.cos(here[4]) + (flat[starts, 1] - here[1]) * np.sin(here[4]) > 0.0)
+        if ahead.size == 0:
+            return np.inf
+        return float(ragged_nearest(rows, flat, starts[ahead], lengths[ahead], boxes[ahead], -1, self.margin)[0])
 
     def refuse(self, i: int, state: np.ndarray, key: tuple, blocker: int, period: int, statics: np.ndarray) -> None:
         """Remember that robot ``i``, standing at ``state`` (4,), had a candidate (made from
@@ -271,6 +297,26 @@ def braking_courses(obstacles, decel: float, dt: float) -> list[np.ndarray]:
         rows[:, 2:] = (o.length, o.width, o.heading)
         out.append(rows)
     return out
+
+
+def standing_points(path: PathReference, traffic: list[np.ndarray], here: np.ndarray, heading: float, reach: float,
+                    gap: float) -> np.ndarray:
+    """Arc lengths [m] along ``path`` (K,) where a robot's rear axle must stand to keep ``gap``
+    [m] (its rear axle to its front, and room to spare) behind where each vehicle of
+    ``traffic`` (braking courses, :func:`braking_courses`) stands at the end of its course: the
+    vehicles whose centres are ahead of ``here`` (the robot's footprint centre [m]) along
+    ``heading`` [rad], as the check counts them, and whose standing footprints come within
+    ``reach`` [m] of the path (on top of half their width)."""
+    if not traffic:
+        return np.empty(0)
+    first = np.array([c[0] for c in traffic])
+    ends = np.array([c[-1] for c in traffic])
+    ends = ends[(first[:, 0] - here[0]) * np.cos(heading) + (first[:, 1] - here[1]) * np.sin(heading) > 0.0]
+    if len(ends) == 0:
+        return np.empty(0)
+    s, off = path.project_many(ends[:, :2])
+    on = off <= 0.5 * ends[:, 3] + reach
+    return np.ascontiguousarray(s[on] - 0.5 * ends[on, 2] - gap)
 
 
 def reach_radii(fleet: Fleet, states: np.ndarray, horizon: int, dt: float, tail_decel=None) -> np.ndarray:

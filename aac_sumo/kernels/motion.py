@@ -191,12 +191,13 @@ def tracking_course(x, y, h, v, steps, dt, wheelbase, a_min, a_max, steer_max, v
 @numba.njit(cache=True)
 def continuation_inputs(x, y, h, v, steps, t0, dt, stops, cap_decel, accel_up, calm, lag, wheelbase, a_min, a_max, steer_max, v_min, v_max,
                         a_lat_max, a_lat_comfort, steer_rate_max, comfort, previous_steer, points, seg_len, cum, seg_dir, seg_heading, t_max,
-                        chunk_centre, chunk_radius, chunk, limits, speed, decel, lookahead, speed_gain, offset):
+                        chunk_centre, chunk_radius, chunk, limits, speed, decel, lookahead, speed_gain, offset, hard, hard_decel):
     """Inputs (steps, 2) of a continuation along a path that does not stop, from the rear-axle
     state ``(x, y, h, v)`` reached ``t0`` periods of ``dt`` [s] from now: each period the speed
-    that reaches, in ``lag`` [s], the lower of the path's speed and the anticipation's speed cap
+    that reaches, in ``lag`` [s], the lower of the path's speed, the anticipation's speed cap
     (braking at ``cap_decel`` [m/s^2] to every stop row ``[s_stop, v_lead, grow]`` of ``stops``
-    (K, 3), each moving on at its ``v_lead`` meanwhile) where the car will be ``lag`` on, within
+    (K, 3), each moving on at its ``v_lead`` meanwhile) and the speed from which braking at
+    ``hard_decel`` stops at each arc length of ``hard`` (H,) [m], where the car will be ``lag`` on, within
     [-``calm``, ``accel_up``]; the steering of one period of :func:`tracking_course` with that
     target speed; then one :func:`_bicycle_step`. The compiled loop of
     :meth:`~aac_sumo.coordination.aac.committed.CommittedAac.continued_commitment`."""
@@ -211,6 +212,8 @@ def continuation_inputs(x, y, h, v, steps, t0, dt, stops, cap_decel, accel_up, c
             room = (stops[r, 0] + stops[r, 1] * t) - ahead
             lead, bk = stops[r, 1], cap_decel * stops[r, 2]
             cap = min(cap, max(math.sqrt(max(bk**2 + lead**2 + 2.0 * cap_decel * room, 0.0)) - bk, 0.0))
+        for r in range(hard.shape[0]):
+            cap = min(cap, math.sqrt(2.0 * hard_decel * max(hard[r] - ahead, 0.0)))
         path_speed = speed if limits.shape[0] == 0 else min(speed, np.interp(ahead, cum, limits))
         target = min(cap, path_speed)
         row = tracking_course(x, y, h, v, 1, dt, wheelbase, a_min, a_max, steer_max, v_min, v_max, a_lat_max, a_lat_comfort,

@@ -20,8 +20,9 @@ import numpy as np
 
 from aac_sumo.coordination.aac.authority import SHIFT_DECAY, SHIFT_GROWTH, SLOW_SHARE, AacCoordinator
 from aac_sumo.coordination.aac.creeping import Creeping
+from aac_sumo.coordination.aac.traffic import TrafficBraking
 from aac_sumo.coordination.base import Decision, RobotDecision
-from aac_sumo.coordination.commitments import CommitmentBook, braking_courses, reach_radii, stopping_commitment
+from aac_sumo.coordination.commitments import CommitmentBook, braking_courses, reach_radii, standing_points, stopping_commitment
 from aac_sumo.coordination.detour import Detours
 from aac_sumo.coordination.make_room import STILL_SPEED, MakeRoom
 from aac_sumo.coordination.anticipation import near_pedestrian, stop_points
@@ -47,12 +48,18 @@ CONTINUATION_LAG = 0.3
 #: A continuation sees every other robot at the speed its commitment has LEAD_LOOK [s] on (a
 #: queue's cars follow the one ahead as it has committed to set off, not as it stands now).
 LEAD_LOOK = 1.0
+#: A continuation stops its rear axle this much [m] behind where it must (on top of its front and
+#: ``commit_margin``) for the uncontrolled vehicles ahead (:func:`~aac_sumo.coordination.commitments.standing_points`).
+TRAFFIC_SPARE = 0.5
+#: and its speed stays where braking at HARD_SHARE of its stopping tail's deceleration stops it
+#: there (the speed law reaches its target with a lag: at the whole of it, it crossed the bound by up to 0.7 m)
+HARD_SHARE = 0.9
 #: Grid cell [m] of the detour planner, and how often [s] a robot checks its reference for standing footprints.
 DETOUR_CELL = 0.1
 DETOUR_CHECK = 1.0
 
 
-class CommittedAac(Creeping, AacCoordinator):
+class CommittedAac(Creeping, TrafficBraking, AacCoordinator):
     """AAC with committed plans (see the module)."""
 
     commit = True
@@ -61,6 +68,7 @@ class CommittedAac(Creeping, AacCoordinator):
         super().__init__(*args, **kwargs)
         self.book: CommitmentBook | None = None
         self.next_extension = np.zeros(len(self.tasks), dtype=int)  # first period a robot may try a tracking extension again
+        self.behind_traffic = np.zeros(len(self.tasks), dtype=bool)  # whose last continuation stopped for an uncontrolled vehicle ahead
 
     def admit(self, world: WorldState, i: int) -> None:
         """Robot ``i`` has just come onto the road: its commitment becomes its stopping tail from
@@ -122,12 +130,14 @@ class CommittedAac(Creeping, AacCoordinator):
             cuts += cut
             kept += keep
         extended = self.extend_by_tracking(world, period, parked, holders, records, statics)
+        braked = self.brake_for_traffic(world, period, parked, records, statics) if self.book.traffic else 0
         inputs = self.book.inputs(period)
         stopped = 0
         if self.params.safety_stop:
             stopped = self.committed_safety_stop(world, inputs, records, period, statics)
         notes = dict(authority=" ".join(holders), reason=" ".join(sorted(set(reasons))) if reasons else "all finished",
-                     safety_stops=stopped, authorities=len(holders), commit_cuts=cuts, commit_kept=kept, extensions=extended)
+                     safety_stops=stopped, authorities=len(holders), commit_cuts=cuts, commit_kept=kept, extensions=extended,
+                     traffic_brakes=braked)
         return Decision(inputs, records, notes=notes)
 
     def yielding(self, world: WorldState, i: int) -> bool:
@@ -157,9 +167,14 @@ class CommittedAac(Creeping, AacCoordinator):
 
     def passing(self, world: WorldState, i: int, period: int, head: np.ndarray, statics: np.ndarray):
         """Robot ``i``'s commitment to ``head`` (m, 2) with its gentle tail when that passes the
-        exact check, else with its firm tail (``firm_tail``) when that does, else None."""
-        for firm in (False, True) if self.params.firm_tail > self.params.tail_brake else (False,):
-            candidate = self.commitment(world, i, period, head, firm)
+        exact check, else, where an uncontrolled vehicle ahead refused it, with its firm tail
+        (``firm_tail``) when that passes, else None."""
+        candidate = self.commitment(world, i, period, head)
+        gap, blocker = self.book.check(i, candidate, period, statics)
+        if gap >= self.book.margin:
+            return candidate
+        if blocker == -3 and self.params.firm_tail > self.params.tail_brake:  # only a vehicle ahead asks for a firmer tail
+            candidate = self.commitment(world, i, period, head, True)
             if self.book.clearance(i, candidate, period, statics) >= self.book.margin:
                 return candidate
         return None
@@ -190,11 +205,15 @@ class CommittedAac(Creeping, AacCoordinator):
         x, y, h, v = self.fleet.rollout(np.array([i]), world.states[[i]], head[None], cfg.dt)[0, -1]
         steer = float(head[-1, 1]) if len(head) else float(self.last_inputs[i, 1])
         calm = cfg.comfort_accel if cfg.comfort_accel > 0.0 else float(self.fleet.comfort[i])  # brakes within the comfort envelope
+        hard = standing_points(task, self.book.traffic, world.robot_centres()[i], float(world.states[i, 2]), 0.5 * robot.width + self.book.margin,
+                               robot.centre_offset + 0.5 * robot.length + self.book.margin + TRAFFIC_SPARE)
+        self.behind_traffic[i] = len(hard) > 0
         more = continuation_inputs(float(x), float(y), float(h), float(v), periods, len(head), cfg.dt, np.ascontiguousarray(stops, dtype=float),
                                    float(rules.decel), float(rules.accel), float(calm), CONTINUATION_LAG,
                                    *tracking_bounds(robot, self.tracking_lat()), steer,
                                    *task.arrays(), float(task.speed), float(task.decel), float(self.params.lookahead),
-                                   float(self.params.speed_gain), float(self.keep_right_shift(world, i)))
+                                   float(self.params.speed_gain), float(self.keep_right_shift(world, i)), hard,
+                                   float(HARD_SHARE * min(self.tail_decel()[i], calm)))
         for k in (periods, periods // 2, periods // 4):
             if k <= 0:
                 continue
@@ -251,6 +270,8 @@ class CommittedAac(Creeping, AacCoordinator):
         passed, m = None, cfg.horizon
         if plan.status == "solved" and calm == cfg.horizon:
             passed = self.continued_commitment(world, i, period, plan.inputs, statics)
+        if passed is None and self.book.traffic and self.behind_traffic[i]:  # behind a SUMO car: its continuation from now
+            passed = self.continued_commitment(world, i, period, np.zeros((0, 2)), statics)
         for m in cuts if passed is None else ():
             passed = self.passing(world, i, period, plan.inputs[:m], statics)
             if passed is not None:
@@ -294,7 +315,8 @@ class CommittedAac(Creeping, AacCoordinator):
             if self.room is not None and j in self.room.targets:
                 continue  # making room: it moves aside on its turns, not back onto its path
             renewing = c.stage(period) == "plan" and c.start + c.planned - period > 1
-            due = (period + j) % RENEW_EVERY == 0 or world.states[j, 3] < self.path(j).speed - RENEW_SLOW
+            due = ((period + j) % RENEW_EVERY == 0 or world.states[j, 3] < self.path(j).speed - RENEW_SLOW
+                   or self.behind_traffic[j])  # behind a SUMO car: every period, as the car ahead has not braked
             if renewing and not (self.params.cruise > 0.0 and due):
                 continue
             longer = self.continued_commitment(world, j, period, np.zeros((0, 2)), statics)  # with cruise: on as anticipated
