@@ -135,7 +135,8 @@ def intended_courses(world: WorldState, tasks: list[PathReference], preview: flo
 
 
 def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipation, held: dict | None = None,
-                projected: tuple[float, float] | None = None, courses: np.ndarray | None = None) -> np.ndarray:
+                projected: tuple[float, float] | None = None, courses: np.ndarray | None = None,
+                speeds: np.ndarray | None = None) -> np.ndarray:
     """Rows ``[s_stop, v_lead, grow]`` (K, 3) of what robot ``i`` must stay behind on ``task``'s
     path: the arc length [m] where its rear axle must be able to come down to the speed
     ``v_lead`` [m/s] (>= 0) of what lies ahead, and how much room [m] per m/s of the robot's
@@ -144,11 +145,17 @@ def stop_points(world: WorldState, i: int, task: PathReference, params: Anticipa
     counting for ``hold`` seconds after it last did, while it is still ahead on the path and not
     walking away from it: a walker who pauses on the crossing for a moment is yielded to still.
     ``projected``: the robot's ``task.project`` when the caller has it; ``courses``: the robots'
-    courses (:func:`intended_courses`; None: their headings). The loop is compiled
-    (:func:`aac_sumo.kernels.stop_rows`)."""
+    courses (:func:`intended_courses`; None: their headings); ``speeds`` (n,) [m/s]: the
+    robots' speeds to take instead of their states' (robot ``i``'s own is its state's), without
+    building the agents again. The loop is compiled (:func:`aac_sumo.kernels.stop_rows`)."""
     robot, state = world.robots[i], world.states[i]
     s0, off0 = task.project(state[:2]) if projected is None else projected
     index, centres, headings, lengths, widths, velocity, walker, accel = agents(world, courses)
+    if speeds is not None:
+        robots = np.flatnonzero(world.on_road)  # agents' first rows, in this order
+        course = world.states[robots, 2] if courses is None else np.asarray(courses, dtype=float)[robots]
+        velocity = velocity.copy()
+        velocity[: len(robots)] = np.asarray(speeds, dtype=float)[robots, None] * np.column_stack([np.cos(course), np.sin(course)])
     rows = np.flatnonzero(index == i)
     held_since = np.full(len(index), -np.inf)
     walkers = _walker_rows(world) if held is not None else []

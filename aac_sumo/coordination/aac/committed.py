@@ -14,7 +14,6 @@ exact check allows; detours route robots round standing footprints.
 
 from __future__ import annotations
 
-import dataclasses
 
 import numpy as np
 
@@ -197,11 +196,10 @@ class CommittedAac(Creeping, TrafficBraking, AacCoordinator):
             return None
         head = np.asarray(head, dtype=float).reshape(-1, 2)
         rules, robot = self.anticipation, world.robots[i]
-        states, look = world.states.copy(), int(round(LEAD_LOOK / cfg.dt))
-        others = np.flatnonzero(np.arange(len(states)) != i)
-        states[others, 3] = self.book.courses(period, others, look)[:, look, 3]
-        seen = dataclasses.replace(world, states=states)  # the others at their committed speeds LEAD_LOOK on
-        stops = stop_points(seen, i, task, rules, self.held[i], courses=self.courses)  # [s_stop, v_lead, grow]: what it must stay behind
+        speeds, look = world.states[:, 3].copy(), int(round(LEAD_LOOK / cfg.dt))
+        others = np.flatnonzero(np.arange(len(speeds)) != i)
+        speeds[others] = self.book.courses(period, others, look)[:, look, 3]  # the others at their committed speeds LEAD_LOOK on
+        stops = stop_points(world, i, task, rules, self.held[i], courses=self.courses, speeds=speeds)  # [s_stop, v_lead, grow]: what it must stay behind
         x, y, h, v = self.fleet.rollout(np.array([i]), world.states[[i]], head[None], cfg.dt)[0, -1]
         steer = float(head[-1, 1]) if len(head) else float(self.last_inputs[i, 1])
         calm = cfg.comfort_accel if cfg.comfort_accel > 0.0 else float(self.fleet.comfort[i])  # brakes within the comfort envelope
