@@ -385,3 +385,34 @@ def test_a_continuation_stands_behind_where_each_vehicle_ahead_on_its_path_can_s
     got = standing_points(path, courses, np.array([50.0, 0.0]), 0.0, reach=1.9, gap=4.0)
     expected = [100.0 + 15.0**2 / 9.0 - 2.25 - 4.0, 300.0 + 9.0**2 / 9.0 - 2.25 - 4.0]
     np.testing.assert_allclose(np.sort(got), expected, atol=1e-6)
+
+
+@pytest.mark.parametrize("disabled", [False, True])
+def test_a_robot_whose_commitment_a_harder_braking_vehicle_breaks_brakes_for_it_at_once(disabled):
+    """A lead (an uncontrolled vehicle) brakes at 8 m/s^2, harder than the 4.5 m/s^2 the check
+    assumes of it, 9 m ahead of a robot on committed plans: within the same period the robot's
+    commitment either keeps the margin from the lead's braking course or brakes at once (it
+    renews or brakes, mode ``traffic_brake``), and nothing touches. With that step switched off
+    (``disabled``), the robot keeps a commitment that runs into the lead's course."""
+    scenario = config.load("scenarios/braking.toml", ["controller.coordinator=aac", "aac.commit=true", "aac.tail_brake=0.3333",
+                                                      "braking.gap=9", "braking.lead_decel=8", "aac.safety_stop=false"])
+    setup = experiments.build(scenario)
+    sim, coord = setup.sim, setup.coordinator
+    if disabled:
+        coord.brake_for_traffic = lambda *args, **kwargs: 0
+    broken, braked, overlaps = 0, 0, set()
+    for _ in range(80):
+        world = sim.observe()
+        decision = coord.decide(world)
+        book, period = coord.book, coord.period - 1
+        commitment = book.items[0]
+        gap = book.traffic_gap(book.footprints(0, commitment, period), period)
+        braking = commitment.start == period and commitment.planned == 0  # a stop from now, no plan before it
+        broken += gap < book.margin and not braking
+        braked += decision.notes["traffic_brakes"]
+        overlaps |= sim.step(decision.inputs).overlaps
+    assert not overlaps
+    if disabled:
+        assert broken > 0
+    else:
+        assert broken == 0 and braked > 0
