@@ -416,3 +416,24 @@ def test_a_robot_whose_commitment_a_harder_braking_vehicle_breaks_brakes_for_it_
         assert broken > 0
     else:
         assert broken == 0 and braked > 0
+
+
+def test_a_reactive_check_holds_a_car_to_stopping_behind_a_vehicle_once_it_sees_it_brake():
+    """A car at 16 m/s, 20 m behind a SUMO car at 16 m/s, committed to 4 s more at its speed and
+    then a 2 m/s^2 tail: against its own course the check refuses it (the vehicle may stop 28 m on
+    while the car goes 64 m before braking). Held reactively (:attr:`CommitmentBook.reaction`:
+    one period of the commitment, then braking at 3 m/s^2, 43 m) it passes; at 10 m behind it does
+    not."""
+    limits = VehicleLimits(-6.0, 3.0, 0.5, 0.0, 20.0)
+    robots = [RobotSpec(f"car{i}", 4.0, 1.8, BicycleModel(2.6, limits)) for i in range(2)]
+    fleet, dt = Fleet(robots), 0.1
+    states = np.array([[0.0, 0.0, 0.0, 16.0], [0.0, 40.0, 0.0, 0.0]])
+    stand = [stopping_commitment(fleet, i, 0, states[i], np.zeros((0, 2)), 0.0, 6.0, 0.0, dt) for i in range(2)]
+    book, statics = CommitmentBook(fleet, stand, 1.0), np.empty((0, 5))
+    cruise = stopping_commitment(fleet, 0, 0, states[0], np.zeros((40, 2)), 0.0, 2.0, 0.0, dt)
+    for gap, passes in ((20.0, True), (10.0, False)):
+        ahead = Obstacle("bg.0", "scripted", np.array([1.3 + gap + 4.25, 0.0]), np.array([16.0, 0.0]), 0.0, 4.5, 1.8)
+        book.traffic, book.reaction = braking_courses([ahead], 4.5, dt), None
+        assert book.check(0, cruise, 0, statics)[0] < book.margin
+        book.reaction = (np.array([3.0, 3.0]), dt)
+        assert (book.check(0, cruise, 0, statics)[0] >= book.margin) == passes

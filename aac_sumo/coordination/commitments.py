@@ -122,6 +122,7 @@ class CommitmentBook:
         self.walkers: WalkerReach | None = None  # the walkers of the current period, set by the coordinator (see check)
         self.traffic: list[np.ndarray] = []  # footprint rows of the uncontrolled vehicles' braking courses this period (see check)
         self._traffic: tuple | None = None  # (period, the list above, its flat rows, starts, lengths, boxes)
+        self.reaction: tuple[np.ndarray, float] | None = None  # (per robot deceleration [m/s^2], dt [s]): see traffic_rows
         # every commitment's states, each padded with its last state to one length (n, L, 4), for courses
         self._states = np.zeros((len(self.items), 1, 4))
         self._start = np.zeros(len(self.items), dtype=int)  # each commitment's first period
@@ -205,7 +206,7 @@ class CommitmentBook:
         rows = self.footprints(i, candidate, period)
         gap, nearest = ragged_nearest(rows, flat, starts, lengths, boxes, i, self.margin)
         if traffic and self.traffic and gap >= self.margin:
-            ahead = self.traffic_gap(rows, period)
+            ahead = self.traffic_gap(self.traffic_rows(i, candidate, period), period)
             if ahead < gap:
                 gap, nearest = ahead, -3
         if walkers and self.walkers is not None and gap >= self.margin:
@@ -213,6 +214,20 @@ class CommitmentBook:
             if self.margin + slack < gap:
                 return self.margin + slack, -2
         return float(gap), int(nearest)
+
+    def traffic_rows(self, i: int, commitment: Commitment, period: int) -> np.ndarray:
+        """The footprint rows robot ``i`` along ``commitment`` holds against the uncontrolled
+        vehicles from ``period`` on: the commitment's own, or with :attr:`reaction` set, its
+        first period and then braking to a stop at the reaction's deceleration (straight on, as
+        the robot would brake once a vehicle ahead brakes: the check against them is reactive)."""
+        if self.reaction is None:
+            return self.footprints(i, commitment, period)
+        decel, dt = self.reaction
+        k = min(max(period - commitment.start, 0), len(commitment.inputs))
+        state, head = commitment.states[k], commitment.inputs[k:k + 1]
+        steer = float(head[0, 1]) if len(head) else 0.0
+        react = stopping_commitment(self.fleet, i, period, state, head, float(state[2]), float(decel[i]), steer, dt)
+        return footprint_rows(react.states[None], self.fleet.offset[[i]], self.fleet.length[[i]], self.fleet.width[[i]])[0]
 
     def traffic_gap(self, rows: np.ndarray, period: int) -> float:
         """Least clearance [m] of the footprint rows ``rows`` (a course from ``period`` on) to

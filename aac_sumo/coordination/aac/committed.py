@@ -92,6 +92,8 @@ class CommittedAac(Creeping, TrafficBraking, AacCoordinator):
                                        self.params.commit_margin)
         self.book.walkers = walkers
         self.book.traffic = braking_courses(world.obstacles, self.params.traffic_decel, cfg.dt)
+        if self.params.traffic_reaction:
+            self.book.reaction = (self.tail_decel(self.params.firm_tail > self.params.tail_brake), cfg.dt)
         self.book.park(~world.on_road, world.states, period)
         for i in range(n) if first else ():  # with cruise, every car drives on from the start where the exact check lets it
             start = self.continued_commitment(world, i, period, np.zeros((0, 2)), statics)
@@ -158,6 +160,14 @@ class CommittedAac(Creeping, TrafficBraking, AacCoordinator):
         share = self.params.firm_tail if firm else self.params.tail_brake
         return np.minimum(share * -self.fleet.a_min, self.fleet.comfort)
 
+    def held_decel(self, calm: float) -> np.ndarray:
+        """Each robot's deceleration [m/s^2] the check holds it to behind an uncontrolled vehicle:
+        its reaction's (``traffic_reaction``: the firm tail's), else its gentle tail's within
+        ``calm``, the comfort envelope of its continuation."""
+        if self.params.traffic_reaction:
+            return self.tail_decel(self.params.firm_tail > self.params.tail_brake)
+        return np.minimum(self.tail_decel(), calm)
+
     def commitment(self, world: WorldState, i: int, period: int, head: np.ndarray, firm: bool = False):
         """Robot ``i``'s commitment from now: the inputs ``head`` (m, 2), then its stopping tail
         (``firm``: the firm one) turning towards its reference's heading where the head ends."""
@@ -211,7 +221,7 @@ class CommittedAac(Creeping, TrafficBraking, AacCoordinator):
                                    *tracking_bounds(robot, self.tracking_lat()), steer,
                                    *task.arrays(), float(task.speed), float(task.decel), float(self.params.lookahead),
                                    float(self.params.speed_gain), float(self.keep_right_shift(world, i)), hard,
-                                   float(HARD_SHARE * min(self.tail_decel()[i], calm)))
+                                   float(HARD_SHARE * self.held_decel(calm)[i]))
         for k in (periods, periods // 2, periods // 4):
             if k <= 0:
                 continue

@@ -91,6 +91,10 @@ class AacParams:
     traffic_decel: float = param(4.5, "with commit, the vehicles no coordinator drives (SUMO's own cars) are in the exact check as "
                                  "braking at this from their speed along their lanes until they stand (SUMO's default passenger "
                                  "vType decel) [m/s^2]", **P)
+    traffic_reaction: bool = param(False, "with commit, a commitment is held against SUMO's cars as its first period, then braking "
+                                   "at the firm tail (firm_tail, else tail_brake): a car can always stop behind where a car ahead "
+                                   "could, once it sees it brake (as a driver's time gap keeps), rather than on its own committed "
+                                   "tail; false: the commitment's own course")
     keep_right: float = param(0.0, "right-hand rule: the authority's reference shifts this far to the right while another "
                               "robot is ahead within keep_right_range (0: off, the paper) [m]", **NN)
     keep_right_range: float = param(4.0, "distance within which a robot ahead triggers keep_right [m]", **P)

@@ -37,7 +37,7 @@ class TrafficBraking:
         book, braked = self.book, 0
         strongest = -self.fleet.a_min
         for i in np.flatnonzero(~parked & world.on_road):
-            current = book.traffic_gap(book.footprints(i, book.items[i], period), period)
+            current = book.traffic_gap(book.traffic_rows(i, book.items[i], period), period)
             if current >= book.margin:
                 continue
             renewed = self.continued_commitment(world, int(i), period, np.zeros((0, 2)), statics)
