@@ -437,3 +437,34 @@ def test_a_reactive_check_holds_a_car_to_stopping_behind_a_vehicle_once_it_sees_
         assert book.check(0, cruise, 0, statics)[0] < book.margin
         book.reaction = (np.array([3.0, 3.0]), dt)
         assert (book.check(0, cruise, 0, statics)[0] >= book.margin) == passes
+
+
+@pytest.mark.parametrize("walker_brake", [False, True])
+def test_a_walker_set_down_in_a_committed_robots_way_makes_it_brake_at_once_with_walker_brake(walker_brake):
+    """A walker appears (as SUMO sets a pedestrian down) standing in the lane 14 m ahead of a
+    robot at 10 m/s whose commitment runs through her region. With ``aac.walker_brake`` the robot
+    brakes to a stop from that period on (mode ``traffic_brake``), stops short of her, and nothing
+    touches; without it, it keeps its commitment into her region."""
+    import dataclasses
+
+    scenario = config.load("scenarios/braking.toml", ["controller.coordinator=aac", "aac.commit=true", "aac.tail_brake=0.3333",
+                                                      "braking.gap=80", "aac.safety_stop=false", f"aac.walker_brake={str(walker_brake).lower()}"])
+    setup = experiments.build(scenario)
+    sim, coord = setup.sim, setup.coordinator
+    for _ in range(5):
+        sim.step(coord.decide(sim.observe()).inputs)
+    world = sim.observe()
+    ego = world.robot_centres()[0]
+    walker = Obstacle("p0", "pedestrian", ego + np.array([14.0, 0.0]), np.zeros(2), 0.0, 0.5, 0.5)
+    decision = coord.decide(dataclasses.replace(world, obstacles=world.obstacles + [walker]))
+    book, period = coord.book, coord.period - 1
+    commitment = book.items[0]
+    rows = book.footprints(0, commitment, period)
+    if walker_brake:
+        assert decision.notes["traffic_brakes"] == 1 and decision.robots[0].mode == "traffic_brake"
+        assert commitment.start == period and commitment.planned == 0
+        stand = rows[-1, 0] + 0.5 * rows[-1, 2]  # the robot's front where it stands
+        assert stand < walker.centre[0] - 0.25
+    else:
+        assert decision.notes["traffic_brakes"] == 0
+        assert book.walkers.slack(rows) < 0.0

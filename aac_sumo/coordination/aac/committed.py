@@ -131,7 +131,7 @@ class CommittedAac(Creeping, TrafficBraking, AacCoordinator):
             cuts += cut
             kept += keep
         extended = self.extend_by_tracking(world, period, parked, holders, records, statics)
-        braked = self.brake_for_traffic(world, period, parked, records, statics) if self.book.traffic else 0
+        braked = self.brake_for_traffic(world, period, parked, records, statics) if self.book.traffic or self.params.walker_brake else 0
         inputs = self.book.inputs(period)
         stopped = 0
         if self.params.safety_stop:

@@ -95,6 +95,9 @@ class AacParams:
                                    "at the firm tail (firm_tail, else tail_brake): a car can always stop behind where a car ahead "
                                    "could, once it sees it brake (as a driver's time gap keeps), rather than on its own committed "
                                    "tail; false: the commitment's own course")
+    walker_brake: bool = param(False, "with commit, a robot whose commitment already meets a walker's region (one SUMO sets down "
+                               "beside the road, or one who leaves what the check assumed of her) renews its continuation or "
+                               "brakes at once, as for SUMO's cars (mode traffic_brake)")
     keep_right: float = param(0.0, "right-hand rule: the authority's reference shifts this far to the right while another "
                               "robot is ahead within keep_right_range (0: off, the paper) [m]", **NN)
     keep_right_range: float = param(4.0, "distance within which a robot ahead triggers keep_right [m]", **P)

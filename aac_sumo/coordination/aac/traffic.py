@@ -27,17 +27,25 @@ class TrafficBraking:
                           statics: np.ndarray) -> int:
         """Robots whose commitment already meets the braking course of an uncontrolled vehicle
         ahead (one that changed lanes into its way, or braked harder than ``traffic_decel``:
-        outside what the check assumes) renew their continuation where it passes the check (a
-        faster car that cut in pulls away), and otherwise brake to a stop at once: with the gentle
-        tail, else the firm one, where that keeps the margin from the vehicles, else at their
-        strongest where that leaves more room;
-        each only where it leaves more room than the commitment and keeps ``commit_margin`` from
-        every other commitment and standing obstacle (mode ``traffic_brake``). Returns how many
+        outside what the check assumes), or with ``walker_brake`` a walker's region (a walker
+        SUMO sets down beside the road, or one who leaves what the check assumed of her), renew
+        their continuation where it passes the check (a faster car that cut in pulls away), and
+        otherwise brake to a stop at once: with the gentle tail, else the firm one, where that
+        keeps the margin from them, else at their strongest where that leaves more room; each
+        only where it leaves more room than the commitment and keeps ``commit_margin`` from every
+        other commitment and standing obstacle (mode ``traffic_brake``). Returns how many
         braked."""
         book, braked = self.book, 0
         strongest = -self.fleet.a_min
+        walkers = book.walkers if self.params.walker_brake and book.walkers is not None and len(book.walkers.centres) else None
+
+        def room(rows: np.ndarray, held: np.ndarray) -> float:  # least room [m] to the vehicles ahead and the walkers
+            gap = book.traffic_gap(held, period) if book.traffic else np.inf
+            return gap if walkers is None else min(gap, book.margin + walkers.slack(rows))
+
         for i in np.flatnonzero(~parked & world.on_road):
-            current = book.traffic_gap(book.traffic_rows(i, book.items[i], period), period)
+            own = book.items[i]
+            current = room(book.footprints(i, own, period), book.traffic_rows(i, own, period))
             if current >= book.margin:
                 continue
             renewed = self.continued_commitment(world, int(i), period, np.zeros((0, 2)), statics)
@@ -51,7 +59,8 @@ class TrafficBraking:
                                                 self.last_inputs[i, 1], self.planner.config.dt)
                 if book.clearance(i, candidate, period, statics, walkers=False, traffic=False) < book.margin:
                     continue  # braking is never refused for a walker, but it keeps the commitments apart
-                gap = book.traffic_gap(book.footprints(i, candidate, period), period)
+                rows = book.footprints(i, candidate, period)
+                gap = room(rows, rows)
                 if gap > best:
                     best, choice = gap, candidate
                 if gap >= book.margin:
