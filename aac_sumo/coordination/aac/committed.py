@@ -14,7 +14,6 @@ exact check allows; detours route robots round standing footprints.
 
 from __future__ import annotations
 
-
 import numpy as np
 
 from aac_sumo.coordination.aac.authority import SHIFT_DECAY, SHIFT_GROWTH, SLOW_SHARE, AacCoordinator
@@ -50,8 +49,8 @@ LEAD_LOOK = 1.0
 #: A continuation stops its rear axle this much [m] behind where it must (on top of its front and
 #: ``commit_margin``) for the uncontrolled vehicles ahead (:func:`~aac_sumo.coordination.commitments.standing_points`).
 TRAFFIC_SPARE = 0.5
-#: and its speed stays where braking at HARD_SHARE of its stopping tail's deceleration stops it
-#: there (the speed law reaches its target with a lag: at the whole of it, it crossed the bound by up to 0.7 m)
+#: Its speed stays where braking at HARD_SHARE of the deceleration the check holds it to stops it
+#: there (the speed law reaches its target with a lag: at the whole of it, it crossed the bound by up to 0.7 m).
 HARD_SHARE = 0.9
 #: Grid cell [m] of the detour planner, and how often [s] a robot checks its reference for standing footprints.
 DETOUR_CELL = 0.1
@@ -197,7 +196,9 @@ class CommittedAac(Creeping, TrafficBraking, AacCoordinator):
         and stops before a walker who counts, as the MPC's reference does), with what moves
         along the path going on at its speed, for the other robots the speed their commitments
         have ``LEAD_LOOK`` on, braking at most at the comfort envelope and speeding up at most
-        at the anticipation's ``accel``. None without ``cruise``, without anticipation, on a
+        at the anticipation's ``accel``, and staying where it can stop (at ``HARD_SHARE`` of
+        :meth:`held_decel`) behind where each uncontrolled vehicle ahead could stand
+        (:func:`~aac_sumo.coordination.commitments.standing_points`). None without ``cruise``, without anticipation, on a
         path that ends in a stop, or when nothing passes (a car on a road does not crawl between
         its turns: a tail right after each plan braked it at every turn it did not get)."""
         cfg, task = self.planner.config, self.path(i)
