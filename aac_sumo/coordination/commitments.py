@@ -21,7 +21,8 @@ every moment, at or beyond that course, so a commitment clear of the course stay
 vehicle: a car following it keeps the room to stop behind where it can stop. Only the vehicles
 ahead of the robot checked count (their centres ahead of its footprint centre along its
 heading): one behind it keeps its own distance, as its driver does, within the lane-change gap
-rule.
+rule. With :attr:`CommitmentBook.reaction` set, a commitment is held against them reactively:
+its first period, then braking (:meth:`CommitmentBook.traffic_rows`).
 
 Frames and units: world frame [m], headings [rad], speeds [m/s], periods of ``dt`` [s].
 """
