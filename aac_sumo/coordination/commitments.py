@@ -240,8 +240,7 @@ class CommitmentBook:
             starts = np.r_[0, np.cumsum(lengths)[:-1]].astype(np.int64) if len(lengths) else lengths
             self._traffic = (period, self.traffic, flat, starts, lengths, course_boxes(flat, starts, lengths))
         _, _, flat, starts, lengths, boxes = self._traffic
-        here = rows[0]
-        ahead = np.flatnonzero((flat[starts, 0] - here[0]) * np.cos(here[4]) + (flat[starts, 1] - here[1]) * np.sin(here[4]) > 0.0)
+        ahead = np.flatnonzero(ahead_of(flat[starts, :2], rows[0, :2], float(rows[0, 4])))
         if ahead.size == 0:
             return np.inf
         return float(ragged_nearest(rows, flat, starts[ahead], lengths[ahead], boxes[ahead], -1, self.margin)[0])
@@ -315,6 +314,12 @@ def braking_courses(obstacles, decel: float, dt: float) -> list[np.ndarray]:
     return out
 
 
+def ahead_of(points: np.ndarray, here: np.ndarray, heading: float) -> np.ndarray:
+    """Whether each of ``points`` (K, 2) [m] lies ahead of ``here`` (2,) [m] along ``heading``
+    [rad]: the uncontrolled vehicles a robot's check counts."""
+    return (points[:, 0] - here[0]) * np.cos(heading) + (points[:, 1] - here[1]) * np.sin(heading) > 0.0
+
+
 def standing_points(path: PathReference, traffic: list[np.ndarray], here: np.ndarray, heading: float, reach: float,
                     gap: float) -> np.ndarray:
     """Arc lengths [m] along ``path`` (K,) where a robot's rear axle must stand to keep ``gap``
@@ -327,7 +332,7 @@ def standing_points(path: PathReference, traffic: list[np.ndarray], here: np.nda
         return np.empty(0)
     first = np.array([c[0] for c in traffic])
     ends = np.array([c[-1] for c in traffic])
-    ends = ends[(first[:, 0] - here[0]) * np.cos(heading) + (first[:, 1] - here[1]) * np.sin(heading) > 0.0]
+    ends = ends[ahead_of(first[:, :2], here, heading)]
     if len(ends) == 0:
         return np.empty(0)
     s, off = path.project_many(ends[:, :2])
