@@ -473,12 +473,13 @@ def test_compiled_continuation_is_the_loop_of_the_anticipated_speed_law(seed, st
     stops = np.column_stack([rng.uniform(-5.0, 120.0, n_stops), rng.uniform(0.0, 10.0, n_stops), rng.uniform(0.0, 1.5, n_stops)])
     dt, lag, decel, accel_up, calm = 0.1, 0.3, 1.5, 1.5, 2.0
     lookahead, gain, shift, lat, steer0 = 10.0, 1.0, float(rng.choice([0.0, 0.5])), 2.0, float(rng.uniform(-0.05, 0.05))
+    accel0, jerk = float(rng.uniform(-3.0, 3.0)), float(rng.choice([0.0, 5.0]))
     lim = robot.model.limits
     got = continuation_inputs(*(float(c) for c in state), steps, t0, dt, stops, decel, accel_up, calm, lag, robot.model.wheelbase,
                               lim.a_min, lim.a_max, lim.steer_max, lim.v_min, lim.v_max, lim.a_lat_max, min(lim.a_lat_max, lat),
                               lim.steer_rate_max, lim.comfort_decel, steer0, *task.arrays(), task.speed, task.decel, lookahead, gain, shift,
-                              np.empty(0), 1.0)
-    steer = steer0
+                              np.empty(0), 1.0, accel0, jerk)
+    steer, before = steer0, accel0
     for k in range(steps):
         t = (t0 + k) * dt
         moved = stops + np.column_stack([stops[:, 1] * t, np.zeros((len(stops), 2))])
@@ -486,17 +487,23 @@ def test_compiled_continuation_is_the_loop_of_the_anticipated_speed_law(seed, st
         target = min(float(speed_cap(moved, [ahead], decel)[0]), float(task.speed_at(ahead)))
         want = track(robot, state, task, lookahead, gain, steer, dt, shift, target_speed=target, a_lat=lat)
         want[0] = min(max((target - float(state[3])) / lag, -calm), accel_up)
+        if jerk > 0.0:  # no faster than easing off at jerk reaches the target, within jerk * dt of the acceleration before,
+            gap = target - float(state[3])  # then within the envelope, which wins
+            want[0] = np.sign(gap) * min(abs(want[0]), np.sqrt(2.0 * jerk * abs(gap)))
+            want[0] = min(max(min(max(want[0], before - jerk * dt), before + jerk * dt), -calm), accel_up)
         np.testing.assert_allclose(got[k], want, rtol=1e-9, atol=1e-12)  # libm may round the last bit differently
-        state, steer = robot.model.step(state, got[k], dt), float(got[k][1])
+        state, steer, before = robot.model.step(state, got[k], dt), float(got[k][1]), float(got[k][0])
 
 
 @settings(max_examples=40, deadline=None)
-@given(v0=st.floats(0.0, 16.0), spare=st.floats(0.5, 60.0), tail=st.floats(1.0, 2.0))
-def test_a_continuation_behind_a_standing_point_can_always_stop_before_it(v0, spare, tail):
+@given(v0=st.floats(0.0, 16.0), spare=st.floats(0.5, 60.0), tail=st.floats(1.0, 2.0), accel0=st.floats(-2.0, 2.0),
+       jerk=st.sampled_from([0.0, 6.0]), lag=st.sampled_from([0.1, 0.3]))
+def test_a_continuation_behind_a_standing_point_can_always_stop_before_it(v0, spare, tail, accel0, jerk, lag):
     """With a standing point ``s_h`` ahead (where an uncontrolled vehicle ahead could stand),
     a continuation capped at ``HARD_SHARE`` of a stopping tail's deceleration ``tail`` (within
     the comfort envelope, 2 m/s^2) that starts able to stop before it stays able to within
-    5 cm at every period (the tail from anywhere on it stops there), and never passes it by more."""
+    5 cm at every period (the tail from anywhere on it stops there), and never passes it by more,
+    whether or not its acceleration changes at a limited jerk from the one before."""
     from aac_sumo.coordination.aac.committed import HARD_SHARE
     from aac_sumo.kernels.motion import continuation_inputs
     from aac_sumo.references import PathReference
@@ -505,13 +512,13 @@ def test_a_continuation_behind_a_standing_point_can_always_stop_before_it(v0, sp
     limits = VehicleLimits(a_min=-6.0, a_max=3.0, steer_max=0.5, v_max=20.0, a_lat_max=3.0, steer_rate_max=0.5, a_comfort=3.0)
     robot = RobotSpec("r", 4.0, 1.8, BicycleModel(2.6, limits))
     task = PathReference(np.array([[0.0, 0.0], [500.0, 0.0]]), 16.0, stop_at_end=False)
-    dt, lag, calm = 0.1, 0.3, 2.0
+    dt, calm = 0.1, 2.0
     s_h = v0 * lag + v0**2 / (2.0 * HARD_SHARE * tail) + spare
     lim = robot.model.limits
     inputs = continuation_inputs(0.0, 0.0, 0.0, v0, 200, 0, dt, np.zeros((0, 3)), 1.5, 1.5, calm, lag, robot.model.wheelbase,
                                  lim.a_min, lim.a_max, lim.steer_max, lim.v_min, lim.v_max, lim.a_lat_max, 2.0, lim.steer_rate_max,
                                  lim.comfort_decel, 0.0, *task.arrays(), task.speed, task.decel, 10.0, 1.0, 0.0,
-                                 np.array([s_h]), HARD_SHARE * tail)
+                                 np.array([s_h]), HARD_SHARE * tail, accel0, jerk)
     state = np.array([0.0, 0.0, 0.0, v0])
     for u in inputs:
         state = robot.model.step(state, u, dt)

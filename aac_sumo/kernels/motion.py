@@ -191,18 +191,22 @@ def tracking_course(x, y, h, v, steps, dt, wheelbase, a_min, a_max, steer_max, v
 @numba.njit(cache=True)
 def continuation_inputs(x, y, h, v, steps, t0, dt, stops, cap_decel, accel_up, calm, lag, wheelbase, a_min, a_max, steer_max, v_min, v_max,
                         a_lat_max, a_lat_comfort, steer_rate_max, comfort, previous_steer, points, seg_len, cum, seg_dir, seg_heading, t_max,
-                        chunk_centre, chunk_radius, chunk, limits, speed, decel, lookahead, speed_gain, offset, hard, hard_decel):
+                        chunk_centre, chunk_radius, chunk, limits, speed, decel, lookahead, speed_gain, offset, hard, hard_decel,
+                        accel_prev, jerk):
     """Inputs (steps, 2) of a continuation along a path that does not stop, from the rear-axle
     state ``(x, y, h, v)`` reached ``t0`` periods of ``dt`` [s] from now: each period the speed
     that reaches, in ``lag`` [s], the lower of the path's speed, the anticipation's speed cap
     (braking at ``cap_decel`` [m/s^2] to every stop row ``[s_stop, v_lead, grow]`` of ``stops``
     (K, 3), each moving on at its ``v_lead`` meanwhile) and the speed from which braking at
     ``hard_decel`` stops at each arc length of ``hard`` (H,) [m], where the car will be ``lag`` on, within
-    [-``calm``, ``accel_up``]; the steering of one period of :func:`tracking_course` with that
-    target speed; then one :func:`_bicycle_step`. The compiled loop of
+    [-``calm``, ``accel_up``] and, with ``jerk`` > 0 [m/s^3], at most what easing off at ``jerk``
+    from reaches the target with no acceleration left (sqrt(2 ``jerk`` |target - v|)) and within ``jerk`` * ``dt`` of the
+    acceleration before (``accel_prev`` [m/s^2] before the first period), except that it slows
+    for a standing point of ``hard`` as fast as it must (that stop keeps its bound); the steering of
+    one period of :func:`tracking_course` with that target speed; then one :func:`_bicycle_step`. The compiled loop of
     :meth:`~aac_sumo.coordination.aac.committed.CommittedAac.continued_commitment`."""
     out = np.empty((steps, 2))
-    steer = previous_steer
+    steer, before = previous_steer, accel_prev
     for k in range(steps):
         t = (t0 + k) * dt
         i, f, _ = closest_on_polyline(points, seg_len, t_max, x, y, chunk_centre, chunk_radius, chunk)
@@ -212,15 +216,23 @@ def continuation_inputs(x, y, h, v, steps, t0, dt, stops, cap_decel, accel_up, c
             room = (stops[r, 0] + stops[r, 1] * t) - ahead
             lead, bk = stops[r, 1], cap_decel * stops[r, 2]
             cap = min(cap, max(math.sqrt(max(bk**2 + lead**2 + 2.0 * cap_decel * room, 0.0)) - bk, 0.0))
+        hard_cap = math.inf
         for r in range(hard.shape[0]):
-            cap = min(cap, math.sqrt(2.0 * hard_decel * max(hard[r] - ahead, 0.0)))
+            hard_cap = min(hard_cap, math.sqrt(2.0 * hard_decel * max(hard[r] - ahead, 0.0)))
+        cap = min(cap, hard_cap)
         path_speed = speed if limits.shape[0] == 0 else min(speed, np.interp(ahead, cum, limits))
         target = min(cap, path_speed)
         row = tracking_course(x, y, h, v, 1, dt, wheelbase, a_min, a_max, steer_max, v_min, v_max, a_lat_max, a_lat_comfort,
                               steer_rate_max, comfort, steer, points, seg_len, cum, seg_dir, seg_heading, t_max, chunk_centre,
                               chunk_radius, chunk, limits, speed, decel, False, 0.0, lookahead, speed_gain, offset, target)
-        accel = min(max((target - v) / lag, -calm), accel_up)
+        gap = target - v
+        accel = min(max(gap / lag, -calm), accel_up)
+        if jerk > 0.0 and hard_cap <= target:  # towards a standing point ahead: speeding up at jerk, braking as it must
+            accel = min(max(min(accel, before + jerk * dt), -calm), accel_up)
+        elif jerk > 0.0:  # no faster than it can ease off at jerk to reach the target with no acceleration left
+            accel = math.copysign(min(abs(accel), math.sqrt(2.0 * jerk * abs(gap))), gap)
+            accel = min(max(min(max(accel, before - jerk * dt), before + jerk * dt), -calm), accel_up)
         out[k, 0], out[k, 1] = accel, row[0, 1]
         x, y, h, v = _bicycle_step(x, y, h, v, accel, row[0, 1], dt, wheelbase, v_min, v_max)
-        steer = row[0, 1]
+        steer, before = row[0, 1], accel
     return out
