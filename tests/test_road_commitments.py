@@ -95,3 +95,38 @@ def test_the_bundled_lane_change_completes_with_committed_plans_and_no_emergency
     assert "error" not in m
     assert m["completed"] is True and m["collisions"] == 0 and m["sim_collisions"] == 0
     assert m["safety_stops"] == 0 and m["min_pedestrian_clearance_m"] >= 1.0
+
+
+def test_a_car_held_reactively_brakes_for_a_vehicle_ahead_though_the_car_behind_committed_against_its_gentler_course():
+    """Held reactively (``aac.traffic_reaction``), a car's commitment may run into a vehicle's
+    braking course as long as its reaction (one period, then 3 m/s^2) stops short of it. Here a
+    car at 10 m/s has a SUMO car standing 20 m ahead (its 2 m/s^2 tail needs 25 m, its reaction
+    18 m) and a car 18 m behind it at 12.4 m/s, committed against its gentler course. When its
+    reaction comes within the 1 m margin it must take it up, although that stop meets the
+    follower's commitment; the follower then takes up its own reaction in the same period. Before
+    that (seed 12 of ``highway_work_zone``, aac.50 into bg.17 at t = 216.6 s) the firmer stop was
+    refused for the follower's commitment and the car drove its gentle tail into the vehicle.
+    Every commitment keeps the margin from the others, the car stops at least the margin short
+    of the vehicle, and nothing touches."""
+    cars = [RobotSpec(f"car{i}", 4.0, 1.8, BicycleModel(2.6, LIMITS)) for i in range(2)]
+    tasks = [PathReference([[-50.0, 0.0], [800.0, 0.0]], 16.0, stop_at_end=False) for _ in cars]
+    config_ = MpcConfig(dt=DT, horizon=10, comfort_accel=2.0, comfort_lat=2.0, pedestrian_margin=1.0)
+    params = AacParams(commit=True, safety_stop=False, make_room=False, cruise=4.0, lookahead=10.0, tail_brake=0.3333, firm_tail=0.5,
+                       traffic_reaction=True, commit_margin=1.0, fallback="brake", ignore_followers=False)
+    aac = AacCoordinator(MpcPlanner(config_), tasks, params=params)
+    aac.anticipation = Anticipation(pedestrian_margin=1.0)
+    states = np.array([[8.0, 0.0, 0.0, 12.4], [30.0, 0.0, 0.0, 10.0]])  # the follower, the car
+    lead = Obstacle("bg.0", "scripted", np.array([30.0 + 3.3 + 20.0 + 2.25, 0.0]), np.zeros(2), 0.0, 4.5, 1.8)
+    braked = 0
+    for k in range(70):
+        world = WorldState(k * DT, states, cars, [lead])
+        decision = aac.decide(world)
+        book, period = aac.book, aac.period - 1
+        braked += decision.notes["traffic_brakes"]
+        gaps = book.pairwise_clearance(period)
+        assert gaps.min() >= book.margin - 1e-9, f"period {period}: commitments {gaps.min():.3f} m apart"
+        centres = world.robot_centres()[:, 0]
+        assert lead.centre[0] - 2.25 - (centres[1] + 2.0) >= book.margin - 1e-6, f"period {period}: the car within the margin of the vehicle"
+        assert centres[1] - centres[0] - 4.0 > 0.0
+        states = aac.fleet.rollout(np.arange(2), states, decision.inputs[:, None, :], DT)[:, -1]
+    assert braked > 0 and states[1, 3] < 0.05

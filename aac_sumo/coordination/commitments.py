@@ -22,7 +22,12 @@ vehicle: a car following it keeps the room to stop behind where it can stop. Onl
 ahead of the robot checked count (their centres ahead of its footprint centre along its
 heading): one behind it keeps its own distance, as its driver does, within the lane-change gap
 rule. With :attr:`CommitmentBook.reaction` set, a commitment is held against them reactively:
-its first period, then braking (:meth:`CommitmentBook.traffic_rows`).
+its first period, then braking (:meth:`CommitmentBook.traffic_rows`). A robot then relies on
+braking at that reaction once a vehicle ahead brakes, so with :attr:`CommitmentBook.reaction` the
+robots' reactions also keep the margin from each other (:meth:`CommitmentBook.check`), and
+any robot may at the next period take up its reaction of now as its commitment
+(:attr:`CommitmentBook.fallbacks`): a robot that must brake for a vehicle does, and every robot
+whose commitment that braking meets takes up its own reaction in the same period.
 
 Frames and units: world frame [m], headings [rad], speeds [m/s], periods of ``dt`` [s].
 """
@@ -55,6 +60,8 @@ class Commitment:
     inputs: np.ndarray
     planned: int
     rows: np.ndarray | None = field(default=None, repr=False, compare=False)  # footprint rows (T+1, 5) of ``states``, once asked for
+    reacted: bool = False  # a reaction's stop taken up as the commitment (CommitmentBook.fallbacks): its own reaction from then on
+    react: tuple | None = field(default=None, repr=False, compare=False)  # (period, footprint rows of its reaction then), once asked for
 
     def input_at(self, period: int) -> np.ndarray:
         """The input [accel, steer] of ``period``: zero once the commitment has ended."""
@@ -124,6 +131,8 @@ class CommitmentBook:
         self.traffic: list[np.ndarray] = []  # footprint rows of the uncontrolled vehicles' braking courses this period (see check)
         self._traffic: tuple | None = None  # (period, the list above, its flat rows, starts, lengths, boxes)
         self.reaction: tuple[np.ndarray, float] | None = None  # (per robot deceleration [m/s^2], dt [s]): see traffic_rows
+        self.fallbacks: list[Commitment] | None = None  # with reaction: each robot's reaction of the period before (see hold_fallbacks)
+        self._reactions: tuple | None = None  # (period, flat reaction rows, starts, lengths, boxes): see reaction_gap
         # every commitment's states, each padded with its last state to one length (n, L, 4), for courses
         self._states = np.zeros((len(self.items), 1, 4))
         self._start = np.zeros(len(self.items), dtype=int)  # each commitment's first period
@@ -163,6 +172,12 @@ class CommitmentBook:
             starts[i], lengths[i] = len(flat), len(rows)
             boxes[i] = course_boxes(rows, np.zeros(1, dtype=np.int64), lengths[i: i + 1])[0]
             self._flat = (np.concatenate([flat, rows]), starts, lengths, statics, boxes)
+        if self._reactions is not None and self._reactions[0] == period:  # its new reaction likewise
+            rows = self.traffic_rows(i, commitment, period)
+            _, flat, starts, lengths, boxes = self._reactions
+            starts[i], lengths[i] = len(flat), len(rows)
+            boxes[i] = course_boxes(rows, np.zeros(1, dtype=np.int64), lengths[i: i + 1])[0]
+            self._reactions = (period, np.concatenate([flat, rows]), starts, lengths, boxes)
 
     def park(self, off_road: np.ndarray, states: np.ndarray, period: int) -> None:
         """Robots ``off_road`` (n,) bool, taken off the road, stand at their ``states`` (n, 4)
@@ -206,6 +221,10 @@ class CommitmentBook:
         flat, starts, lengths, _, boxes = self._flat
         rows = self.footprints(i, candidate, period)
         gap, nearest = ragged_nearest(rows, flat, starts, lengths, boxes, i, self.margin)
+        if self.reaction is not None and gap >= self.margin:  # the robots' reactions keep apart too
+            apart, other = self.reaction_gap(i, candidate, period)
+            if apart < gap:
+                gap, nearest = apart, other
         if traffic and self.traffic and gap >= self.margin:
             ahead = self.traffic_gap(self.traffic_rows(i, candidate, period), period)
             if ahead < gap:
@@ -221,14 +240,52 @@ class CommitmentBook:
         vehicles from ``period`` on: the commitment's own, or with :attr:`reaction` set, its
         first period and then braking to a stop at the reaction's deceleration (straight on, as
         the robot would brake once a vehicle ahead brakes: the check against them is reactive)."""
-        if self.reaction is None:
+        if self.reaction is None or commitment.reacted:
             return self.footprints(i, commitment, period)
+        if commitment.react is None or commitment.react[0] != period:
+            react = self.reaction_course(i, commitment, period)
+            commitment.react = (period, footprint_rows(react.states[None], self.fleet.offset[[i]], self.fleet.length[[i]], self.fleet.width[[i]])[0])
+        return commitment.react[1]
+
+    def reaction_course(self, i: int, commitment: Commitment, period: int) -> Commitment:
+        """Robot ``i``'s reaction along ``commitment`` from ``period`` (:attr:`reaction` set):
+        the commitment's input of ``period``, then braking straight on to a stop at the
+        reaction's deceleration (a reaction taken up, :attr:`Commitment.reacted`, is its own)."""
+        if commitment.reacted:
+            return commitment
         decel, dt = self.reaction
         k = min(max(period - commitment.start, 0), len(commitment.inputs))
         state, head = commitment.states[k], commitment.inputs[k:k + 1]
         steer = float(head[0, 1]) if len(head) else 0.0
         react = stopping_commitment(self.fleet, i, period, state, head, float(state[2]), float(decel[i]), steer, dt)
-        return footprint_rows(react.states[None], self.fleet.offset[[i]], self.fleet.length[[i]], self.fleet.width[[i]])[0]
+        react.reacted = True
+        return react
+
+    def hold_fallbacks(self, period: int) -> None:
+        """With :attr:`reaction`, at the start of ``period`` (before any commitment changes):
+        each robot's reaction along its commitment of the period before (:attr:`fallbacks`).
+        The robot has driven that reaction's first input, so from ``period`` on it is a
+        commitment the robot can take up, checked against every other robot's reaction when
+        made (:meth:`check`), and against the vehicles ahead (:meth:`traffic_gap`, by
+        ``brake_for_traffic``). A commitment made this period is its own fallback."""
+        if self.reaction is None:
+            self.fallbacks = None
+            return
+        self.fallbacks = [c if c.start >= period else self.reaction_course(j, c, period - 1) for j, c in enumerate(self.items)]
+
+    def reaction_gap(self, i: int, candidate: Commitment, period: int) -> tuple[float, int]:
+        """Least clearance [m] of robot ``i``'s reaction along ``candidate`` to every other
+        robot's reaction along its commitment, from ``period`` on, and the robot that gives it
+        (exact below ``margin``; -1 for none)."""
+        if self._reactions is None or self._reactions[0] != period:
+            rows = [self.traffic_rows(j, c, period) for j, c in enumerate(self.items)]
+            lengths = np.array([len(r) for r in rows], dtype=np.int64)
+            starts = np.r_[0, np.cumsum(lengths)[:-1]].astype(np.int64)
+            flat = np.concatenate(rows)
+            self._reactions = (period, flat, starts, lengths, course_boxes(flat, starts, lengths))
+        _, flat, starts, lengths, boxes = self._reactions
+        gap, nearest = ragged_nearest(self.traffic_rows(i, candidate, period), flat, starts, lengths, boxes, i, self.margin)
+        return float(gap), int(nearest)
 
     def traffic_gap(self, rows: np.ndarray, period: int) -> float:
         """Least clearance [m] of the footprint rows ``rows`` (a course from ``period`` on) to

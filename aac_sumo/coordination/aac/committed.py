@@ -95,6 +95,7 @@ class CommittedAac(Creeping, TrafficBraking, AacCoordinator):
         if self.params.traffic_reaction:
             self.book.reaction = (self.tail_decel(self.params.firm_tail > self.params.tail_brake), cfg.dt)
         self.book.park(~world.on_road, world.states, period)
+        self.book.hold_fallbacks(period)
         for i in range(n) if first else ():  # with cruise, every car drives on from the start where the exact check lets it
             start = self.continued_commitment(world, i, period, np.zeros((0, 2)), statics)
             if start is not None:
@@ -131,7 +132,8 @@ class CommittedAac(Creeping, TrafficBraking, AacCoordinator):
             cuts += cut
             kept += keep
         extended = self.extend_by_tracking(world, period, parked, holders, records, statics)
-        braked = self.brake_for_traffic(world, period, parked, records, statics) if self.book.traffic or self.params.walker_brake else 0
+        braked = (self.brake_for_traffic(world, period, parked, records, statics)
+                  if self.book.traffic or self.params.walker_brake or self.book.reaction is not None else 0)
         inputs = self.book.inputs(period)
         stopped = 0
         if self.params.safety_stop:

@@ -6,6 +6,14 @@ lane (:func:`~aac_sumo.coordination.commitments.braking_courses`). One that chan
 car's way, or brakes harder, can leave a car's commitment running into its course; that car
 then renews its continuation, or brakes.
 
+With ``aac.traffic_reaction`` a commitment is held against those vehicles only as its reaction
+(its first period, then braking at the firm tail), so the car must be able to take that reaction
+up whenever a vehicle ahead brakes, even where a car behind it committed only against its
+gentler commitment. It does: it takes up its reaction of the period before
+(:attr:`~aac_sumo.coordination.commitments.CommitmentBook.fallbacks`), and every robot whose
+commitment or reaction that meets takes up its own in the same period; the reactions of every two
+robots keep the margin (the exact check), so those that brake keep it from each other.
+
 Frames and units: world frame [m], speeds [m/s], decelerations [m/s^2], periods of ``dt`` [s].
 """
 
@@ -53,6 +61,9 @@ class TrafficBraking:
                 book.replace(int(i), renewed, period)
                 records[i].mode = "tracking"
                 continue
+            if book.reaction is not None and book.fallbacks is not None:  # the reaction it was held to, taken up
+                braked += self.take_up_reaction(world, int(i), period, records, statics, room)
+                continue
             best, choice = current, None
             for decel in (self.tail_decel()[i], self.tail_decel(self.params.firm_tail > self.params.tail_brake)[i], strongest[i]):
                 candidate = stopping_commitment(self.fleet, i, period, world.states[i], np.zeros((0, 2)), self.path(i), decel,
@@ -69,4 +80,58 @@ class TrafficBraking:
                 book.replace(int(i), choice, period)
                 records[i].mode = "traffic_brake"
                 braked += 1
+        if book.reaction is not None and book.fallbacks is not None:
+            braked += self.brake_behind(world, period, parked, records, statics)
         return braked
+
+    def take_up_reaction(self, world: WorldState, i: int, period: int, records: list[RobotDecision], statics: np.ndarray,
+                         room) -> int:
+        """Robot ``i``, whose reaction no longer keeps the margin from a vehicle ahead (or a
+        walker), brakes: with its gentle tail from now where that passes the whole check, else on
+        its fallback (its reaction of the period before, clear of that vehicle's course then, so
+        of the vehicle now, as long as it keeps to what the check assumes), else, where a vehicle
+        broke that assumption, at its strongest where that leaves more room and keeps the margin
+        from the other commitments. Braking is never refused for a walker. Returns 1 when it
+        braked."""
+        book = self.book
+        gentle = stopping_commitment(self.fleet, i, period, world.states[i], np.zeros((0, 2)), self.path(i), self.tail_decel()[i],
+                                     self.last_inputs[i, 1], self.planner.config.dt)
+        rows = book.footprints(i, gentle, period)
+        if book.clearance(i, gentle, period, statics, walkers=False) >= book.margin and room(rows, book.traffic_rows(i, gentle, period)) >= book.margin:
+            choice = gentle
+        else:
+            choice = book.fallbacks[i]
+            rows = book.footprints(i, choice, period)
+            if room(rows, rows) < book.margin:  # a vehicle cut in or braked harder than the check assumes: the strongest stop
+                strong = stopping_commitment(self.fleet, i, period, world.states[i], np.zeros((0, 2)), self.path(i), -self.fleet.a_min[i],
+                                             self.last_inputs[i, 1], self.planner.config.dt)
+                firm = book.footprints(i, strong, period)
+                if room(firm, firm) > room(rows, rows) and book.clearance(i, strong, period, statics, walkers=False, traffic=False) >= book.margin:
+                    choice = strong
+        book.replace(i, choice, period)
+        records[i].mode = "traffic_brake"
+        return 1
+
+    def brake_behind(self, world: WorldState, period: int, parked: np.ndarray, records: list[RobotDecision], statics: np.ndarray) -> int:
+        """With ``traffic_reaction``: every robot whose commitment or reaction now comes within
+        the margin of another robot's (one that braked for a vehicle, or whose reaction its own
+        has caught up with) takes up its fallback, until none does (each at most once; robots
+        on their fallbacks keep the margin from each other, as their reactions did). Returns how
+        many did (mode ``traffic_brake``)."""
+        book, n, count = self.book, len(self.book.items), 0
+        taken = np.zeros(n, dtype=bool)
+        active = np.flatnonzero(~parked & world.on_road)
+        changed = True
+        while changed:
+            changed = False
+            for j in active:
+                if taken[j] or book.fallbacks[j] is book.items[j]:  # already on it: nothing to take up
+                    continue
+                gap, blocker = book.check(int(j), book.items[j], period, statics, walkers=False, traffic=False)
+                if gap >= book.margin or not 0 <= blocker < n:
+                    continue
+                book.replace(int(j), book.fallbacks[j], period)
+                records[j].mode = "traffic_brake"
+                taken[j], changed = True, True
+                count += 1
+        return count
