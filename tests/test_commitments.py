@@ -11,7 +11,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from aac_sumo import config, experiments
-from aac_sumo.coordination.commitments import CommitmentBook, braking_courses, clusters, reach_radii, standing_points, stopping_commitment
+from aac_sumo.coordination.commitments import CommitmentBook, clusters, reach_radii, stopping_commitment
+from aac_sumo.coordination.traffic_courses import braking_courses, standing_points
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.geometry import pairwise_rect_clearance

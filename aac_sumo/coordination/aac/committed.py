@@ -20,7 +20,8 @@ from aac_sumo.coordination.aac.authority import SHIFT_DECAY, SHIFT_GROWTH, SLOW_
 from aac_sumo.coordination.aac.creeping import Creeping
 from aac_sumo.coordination.aac.traffic import TrafficBraking
 from aac_sumo.coordination.base import Decision, RobotDecision
-from aac_sumo.coordination.commitments import CommitmentBook, braking_courses, reach_radii, standing_points, stopping_commitment
+from aac_sumo.coordination.commitments import CommitmentBook, reach_radii, stopping_commitment
+from aac_sumo.coordination.traffic_courses import braking_courses, standing_points
 from aac_sumo.coordination.detour import Detours
 from aac_sumo.coordination.make_room import STILL_SPEED, MakeRoom
 from aac_sumo.coordination.anticipation import near_pedestrian, stop_points
@@ -48,7 +49,7 @@ CONTINUATION_LAG = 0.1
 #: queue's cars follow the one ahead as it has committed to set off, not as it stands now).
 LEAD_LOOK = 1.0
 #: A continuation stops its rear axle this much [m] behind where it must (on top of its front and
-#: ``commit_margin``) for the uncontrolled vehicles ahead (:func:`~aac_sumo.coordination.commitments.standing_points`).
+#: ``commit_margin``) for the uncontrolled vehicles ahead (:func:`~aac_sumo.coordination.traffic_courses.standing_points`).
 TRAFFIC_SPARE = 0.5
 #: Its speed stays where braking at HARD_SHARE of the deceleration the check holds it to stops it
 #: there (the speed law reaches its target with a lag: at the whole of it, it crossed the bound by up to 0.7 m).
@@ -201,7 +202,7 @@ class CommittedAac(Creeping, TrafficBraking, AacCoordinator):
         have ``LEAD_LOOK`` on, braking at most at the comfort envelope and speeding up at most
         at the anticipation's ``accel``, and staying where it can stop (at ``HARD_SHARE`` of
         :meth:`held_decel`) behind where each uncontrolled vehicle ahead could stand
-        (:func:`~aac_sumo.coordination.commitments.standing_points`). None without ``cruise``, without anticipation, on a
+        (:func:`~aac_sumo.coordination.traffic_courses.standing_points`). None without ``cruise``, without anticipation, on a
         path that ends in a stop, or when nothing passes (a car on a road does not crawl between
         its turns: a tail right after each plan braked it at every turn it did not get)."""
         cfg, task = self.planner.config, self.path(i)

@@ -2,7 +2,7 @@
 :class:`~aac_sumo.coordination.aac.committed.CommittedAac`).
 
 The check holds an uncontrolled vehicle ahead as braking at ``aac.traffic_decel`` along its
-lane (:func:`~aac_sumo.coordination.commitments.braking_courses`). One that changes lanes into a
+lane (:func:`~aac_sumo.coordination.traffic_courses.braking_courses`). One that changes lanes into a
 car's way, or brakes harder, can leave a car's commitment running into its course; that car
 then renews its continuation, or brakes.
 
