@@ -97,8 +97,8 @@ class CommittedAac(Creeping, TrafficBraking, AacCoordinator):
             self.book.reaction = (self.tail_decel(self.params.firm_tail > self.params.tail_brake), cfg.dt)
         self.book.park(~world.on_road, world.states, period)
         self.book.hold_fallbacks(period)
-        for i in range(n) if first else ():  # with cruise, every car drives on from the start where the exact check lets it
-            start = self.continued_commitment(world, i, period, np.zeros((0, 2)), statics)
+        for i in self.front_first(world) if first else ():  # with cruise, every car drives on from the start where the check lets it
+            start = self.continued_commitment(world, int(i), period, np.zeros((0, 2)), statics)
             if start is not None:
                 self.book.replace(i, start, period)
         done = self.finished(world)
@@ -318,9 +318,7 @@ class CommittedAac(Creeping, TrafficBraking, AacCoordinator):
         mover_speed = np.array([(o.step_out_speed(cfg.pedestrian_reach, cfg.walkway_time) if o.kind == "pedestrian" else cfg.pedestrian_reach)
                                 + np.hypot(*o.velocity) for o in movers])
         centres = world.robot_centres()
-        order = range(len(world.robots))
-        if self.params.cruise > 0.0:  # a road: front first, so that a car renews after the one ahead of it
-            order = np.argsort([-self.path(j).project(world.states[j, :2])[0] for j in order], kind="stable")
+        order = self.front_first(world) if self.params.cruise > 0.0 else range(len(world.robots))
         for j in order:
             c = book.items[j]
             if parked[j] or world.robots[j].name in holders or self.next_extension[j] > period:
@@ -360,6 +358,11 @@ class CommittedAac(Creeping, TrafficBraking, AacCoordinator):
                 self.next_extension[j] = period + EXTENSION_RETRY
                 book.refuse(j, world.states[j], key, blocker, period, statics)
         return extended
+
+    def front_first(self, world: WorldState) -> np.ndarray:
+        """The robots' indices, furthest along their paths first (a road: a car renews its
+        continuation after the one ahead of it has, so its check sees where that one goes on)."""
+        return np.argsort([-self.path(j).project(world.states[j, :2])[0] for j in range(len(world.robots))], kind="stable")
 
     def tracking_inputs(self, world: WorldState, j: int, steps: int) -> np.ndarray:
         """Inputs (steps, 2) of robot ``j`` following the tracking law from where it is, on its
