@@ -469,3 +469,27 @@ def test_a_walker_set_down_in_a_committed_robots_way_makes_it_brake_at_once_with
     else:
         assert decision.notes["traffic_brakes"] == 0
         assert book.walkers.slack(rows) < 0.0
+
+
+@pytest.mark.parametrize("radius", [60.0, 150.0, 400.0])
+def test_a_stopping_tail_on_a_lane_that_curves_brakes_along_it(radius):
+    """A car at 10 m/s on a lane that curves (radius 60, 150 or 400 m; a path that goes on) brakes
+    at 2 m/s^2 along it: its rear axle stays within 0.25 m of the lane's centre line until it stands
+    about 25 m on. On a path that ends in a stop (a robot's way to its goal) the tail keeps the
+    heading of the segment where it starts and leaves the curve (1 m or more inside at 150 m)."""
+    from aac_sumo.references import PathReference
+
+    limits = VehicleLimits(a_min=-6.0, a_max=3.0, steer_max=0.5, v_max=20.0, a_lat_max=3.0, steer_rate_max=0.5, a_comfort=3.0)
+    fleet = Fleet([RobotSpec("car", 4.0, 1.8, BicycleModel(2.6, limits))])
+    angle = np.linspace(0.0, 60.0 / radius, 121)  # 60 m of arc, turning left
+    points = np.column_stack([radius * np.sin(angle), radius * (1.0 - np.cos(angle))])
+    state = np.array([0.0, 0.0, 0.0, 10.0])
+    lane = PathReference(points, 10.0, stop_at_end=False)
+    tail = stopping_commitment(fleet, 0, 0, state, np.zeros((0, 2)), lane, 2.0, 0.0, 0.1)
+    off = np.abs(np.hypot(tail.states[:, 0], tail.states[:, 1] - radius) - radius)
+    assert abs(tail.states[-1, 3]) <= 1e-12 and 24.0 <= lane.project(tail.states[-1, :2])[0] <= 26.0
+    assert off.max() <= 0.25
+    if radius == 150.0:
+        goal = PathReference(points, 10.0, stop_at_end=True)
+        straight = stopping_commitment(fleet, 0, 0, state, np.zeros((0, 2)), goal, 2.0, 0.0, 0.1)
+        assert np.abs(np.hypot(straight.states[-1, 0], straight.states[-1, 1] - radius) - radius) >= 1.0

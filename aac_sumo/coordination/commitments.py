@@ -96,10 +96,12 @@ def stopping_commitment(fleet: Fleet, i: int, start: int, state: np.ndarray, hea
                         tail_decel: float, previous_steer: float, dt: float) -> Commitment:
     """Robot ``i``'s commitment from ``state`` at period ``start``: the inputs ``head`` (m, 2),
     then a stopping tail at ``tail_decel`` turning towards ``heading`` [rad], or, for a path,
-    towards the path's heading where the head ends, within the robot's steering limits from
+    towards the path's heading where the head ends (a path that goes on, a lane: where the robot
+    will be, period after period, so that it brakes along a curve), within the robot's steering limits from
     the head's last steering (``previous_steer`` [rad], the steering applied before ``start``,
     when the head is empty). One compiled call (:func:`~aac_sumo.kernels.stopping_course`)."""
     head = np.ascontiguousarray(np.asarray(head, dtype=float).reshape(-1, 2))
+    along = isinstance(heading, PathReference) and not heading.stop_at_end
     if isinstance(heading, PathReference):
         points, seg_len, cum, _, seg_heading, t_max, centres, radii, chunk, _ = heading.arrays()
         heading = np.nan
@@ -107,7 +109,7 @@ def stopping_commitment(fleet: Fleet, i: int, start: int, state: np.ndarray, hea
         points, seg_len, cum, seg_heading, t_max, centres, radii, chunk = _NO_PATH
     states, inputs = stopping_course(np.asarray(state, dtype=float), head, float(previous_steer), float(heading), float(tail_decel),
                                      fleet.wheelbase[i], fleet.v_min[i], fleet.v_max[i], fleet.steer_limits[i], dt, TAIL_TURN_TIME,
-                                     points, seg_len, cum, seg_heading, t_max, centres, radii, chunk)
+                                     points, seg_len, cum, seg_heading, t_max, centres, radii, chunk, along)
     return Commitment(start, states, inputs, len(head))
 
 

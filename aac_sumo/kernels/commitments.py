@@ -97,14 +97,15 @@ def course_boxes(flat, starts, lengths):
 
 @numba.njit(cache=True)
 def stopping_course(state, head, previous_steer, heading, decel, wheelbase, v_min, v_max, steer_limits, dt, turn_time, points, seg_len,
-                    cum, seg_heading, t_max, chunk_centre, chunk_radius, chunk):
+                    cum, seg_heading, t_max, chunk_centre, chunk_radius, chunk, along):
     """States (T+1, 4) and inputs (T, 2) of one robot from ``state`` (4,): the inputs ``head``
     (m, 2) (:func:`rollouts`), then :func:`braking_tail` at ``decel`` [m/s^2] from the head's
     last steering (``previous_steer`` without a head), turning towards ``heading`` [rad], or,
     when the path ``points`` (M, 2) is not empty, towards the heading of the path's segment where
     the head ends (of the later segment at a vertex; the path as
     :meth:`~aac_sumo.references.PathReference.arrays` gives it), for at most
-    ``ceil(|v| / decel / dt) + 2`` periods."""
+    ``ceil(|v| / decel / dt) + 2`` periods; with ``along``, towards the path's heading
+    where the robot will be, period after period (a lane: :func:`braking_tail`)."""
     states = rollouts(state.reshape(1, 4), head.reshape(1, head.shape[0], 2), dt, np.array([wheelbase]), np.array([v_min]),
                       np.array([v_max]))[0]
     last = states[states.shape[0] - 1]
@@ -115,7 +116,13 @@ def stopping_course(state, head, previous_steer, heading, decel, wheelbase, v_mi
         heading = seg_heading[i]
     steer = head[head.shape[0] - 1, 1] if head.shape[0] > 0 else previous_steer
     max_steps = int(math.ceil(abs(last[3]) / decel / dt)) + 2
-    tail_states, tail_inputs = braking_tail(last, steer, heading, decel, wheelbase, v_min, v_max, steer_limits, dt, turn_time, max_steps)
+    if along and points.shape[0] > 0:
+        tail_states, tail_inputs = braking_tail(last, steer, heading, decel, wheelbase, v_min, v_max, steer_limits, dt, turn_time, max_steps,
+                                                points, seg_len, cum, seg_heading, t_max, chunk_centre, chunk_radius, chunk)
+    else:
+        tail_states, tail_inputs = braking_tail(last, steer, heading, decel, wheelbase, v_min, v_max, steer_limits, dt, turn_time, max_steps,
+                                                points[:0], seg_len[:0], cum, seg_heading[:0], t_max[:0], chunk_centre[:0], chunk_radius[:0],
+                                                chunk)
     out_states = np.empty((states.shape[0] + tail_states.shape[0] - 1, 4))
     out_states[: states.shape[0]] = states
     out_states[states.shape[0]:] = tail_states[1:]

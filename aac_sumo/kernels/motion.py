@@ -95,13 +95,17 @@ def _bicycle_step(x, y, h, v, accel, steer, dt, wheelbase, v_min, v_max):
 
 
 @numba.njit(cache=True)
-def braking_tail(state, previous_steer, heading, decel, wheelbase, v_min, v_max, steer_limits, dt, turn_time, max_steps):
+def braking_tail(state, previous_steer, heading, decel, wheelbase, v_min, v_max, steer_limits, dt, turn_time, max_steps, points, seg_len,
+                 cum, seg_heading, t_max, chunk_centre, chunk_radius, chunk):
     """Inputs (K, 2) and rear-axle states (K+1, 4) of one robot braking from ``state`` (4,) to
     standstill: acceleration ``clip(-v / dt, -decel, decel)`` [m/s^2] and steering that turns
     its heading towards ``heading`` [rad] with time constant ``turn_time`` [s] within
     :func:`limited_steer` of ``steer_limits`` (3,) from ``previous_steer`` [rad] (as
     :func:`braking_courses`), until the speed is within 1e-12 m/s of zero or after
-    ``max_steps`` periods."""
+    ``max_steps`` periods. With a path ``points`` (M, 2) (not empty; the arrays of
+    :meth:`~aac_sumo.references.PathReference.arrays`) the heading it turns towards is, each
+    period, the path's where the robot's projection will be ``turn_time`` on at its speed: it
+    brakes along a lane that curves."""
     states = np.empty((max_steps + 1, 4))
     inputs = np.empty((max_steps, 2))
     x, y, h, v = state[0], state[1], state[2], state[3]
@@ -109,8 +113,14 @@ def braking_tail(state, previous_steer, heading, decel, wheelbase, v_min, v_max,
     gain = min(1.0, dt / turn_time)
     k = 0
     steer = previous_steer
+    n_seg = seg_len.shape[0]
     while k < max_steps and abs(v) > 1e-12:
         accel = min(max(-v / dt, -decel), decel)
+        if points.shape[0] > 0:
+            i, t, _ = closest_on_polyline(points, seg_len, t_max, x, y, chunk_centre, chunk_radius, chunk)
+            ahead = cum[i] + t * seg_len[i] + abs(v) * turn_time
+            j = min(max(np.searchsorted(cum, ahead, side="right") - 1, 0), n_seg - 1)
+            heading = seg_heading[j]
         steer = limited_steer(_heading_hold(heading, h, v, wheelbase, gain, dt), v, accel, steer, wheelbase, steer_limits, dt)
         x, y, h, v = _bicycle_step(x, y, h, v, accel, steer, dt, wheelbase, v_min, v_max)
         inputs[k, 0], inputs[k, 1] = accel, steer
