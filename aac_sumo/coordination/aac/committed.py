@@ -43,7 +43,7 @@ RENEW_GAIN = 0.5
 RENEW_SLOW = 1.0
 #: A continuation aims at the anticipation's speed cap where the car will be CONTINUATION_LAG [s]
 #: on (at least a period), and reaches it in that time within the comfort envelope and ``continuation_jerk``
-#: (0.1 s against 0.3 s: 0.1-0.8 s shorter tasks on S2's seeds 10-14, as its continuations pass the check more often).
+#: (0.1 s against 0.3 s: tasks up to 0.8 s shorter on S2's seeds 10-14 with the bound, as its continuations pass the check more often).
 CONTINUATION_LAG = 0.1
 #: A continuation sees every other robot at the speed its commitment has LEAD_LOOK [s] on (a
 #: queue's cars follow the one ahead as it has committed to set off, not as it stands now).

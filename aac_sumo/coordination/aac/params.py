@@ -90,7 +90,7 @@ class AacParams:
                           check=lambda x: 0 <= x <= 60, expect="in [0, 60]")
     continuation_jerk: float = param(6.0, "with cruise, a continuation changes its acceleration by at most this per second, from "
                                      "the acceleration before it (except braking for where a SUMO car ahead could stand); 0: "
-                                     "no bound (chosen on S2's seeds 10-14: jerk p95 6 against 15 unbounded, tasks 0.2 s longer) [m/s^3]", **NN)
+                                     "no bound (chosen on S2's seeds 10-14: jerk p95 6 against 15-16 unbounded, tasks 0.2-0.5 s longer) [m/s^3]", **NN)
     traffic_decel: float = param(4.5, "with commit, the vehicles no coordinator drives (SUMO's own cars) are in the exact check as "
                                  "braking at this from their speed along their lanes until they stand (SUMO's default passenger "
                                  "vType decel) [m/s^2]", **P)
