@@ -1,5 +1,6 @@
 """Random crossing at scale: the KD-tree robot check gives the all-pairs rule's verdicts, the
-draws of up to 200 robots are those published before it."""
+draws of up to 200 robots are those published before it, and (slow) 300 robots cross without a
+collision."""
 
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ from hypothesis import strategies as st
 from aac_sumo import config
 from aac_sumo.config import ScenarioError
 from aac_sumo.experiments.random_crossing import Placed, clash_all_pairs, draw
+from aac_sumo.runs import runner
 
 #: Starts, goals and debris drawn by the all-pairs implementation (before the KD-tree), keys
 #: ``n{robots}_s{seed}_{field}``.
@@ -65,3 +67,15 @@ def test_n_robots_up_to_1000():
         config.load("random_crossing", ["random_crossing.n_robots=1001"])
     assert err.value.key == "random_crossing.n_robots" and "2..1000" in str(err.value)
 
+
+
+@pytest.mark.slow
+def test_300_robots_cross_without_a_collision():
+    """300 robots at the 1,000-robot row's 8 m^2 a robot (a 49 m square, 48 debris): every robot
+    arrives (in 205 s of simulated time, about 3 minutes here) and none collides."""
+    result = runner.run(config.load("random_crossing", [
+        "random_crossing.n_robots=300", "random_crossing.area_per_robot=8", "scenario.duration=300"]))
+    m = result.metrics
+    assert m["n_robots"] == 300 and m.get("error") is None
+    assert m["collisions"] == 0
+    assert m["completed"], m.get("incomplete_reason")
