@@ -86,6 +86,8 @@ def rows(*fields: str) -> dict:
 P = dict(check=_positive, expect="> 0")
 #: Upper bounds that keep a typo (``n_robots=1000000000``) from hanging a run or exhausting memory.
 MAX_ROBOTS = 200
+#: The random crossing's own bound: its draw and its clusters were measured at 1,000 robots (docs/benchmarks.md).
+MAX_CROSSING_ROBOTS = 1_000
 MAX_SEED = 2**31 - 1
 NN = dict(check=_non_negative, expect=">= 0")
 

@@ -20,6 +20,8 @@ same scenario), goes in this order:
    - the straight path, the robot's reference, keeps ``path_clearance`` from every debris
      footprint.
 
+   The robot checks test only the placed robots a KD-tree finds near a candidate (:class:`Placed`:
+   the same verdicts as testing all of them, in O(log n) rather than O(n) a candidate).
    Candidates are drawn in batches of ``BATCH``. After ``MAX_TRIES`` rejected candidates for one
    robot the attempt is a dead end (the robots placed so far may leave no room) and the draw
    starts afresh, debris included, from the same random stream; after ``ATTEMPTS`` dead ends it
@@ -36,17 +38,20 @@ axle is within ``goal_tolerance`` of its goal.
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from aac_sumo.config import Scenario, ScenarioError
-from aac_sumo.config.keys import MAX_ROBOTS, NN, P
+from aac_sumo.config.keys import MAX_CROSSING_ROBOTS, NN, P
 from aac_sumo.config.schema import from_section, param
 from aac_sumo.experiments.common import Setup, check_start, coordinator, robot_params, robot_spec
 from aac_sumo.experiments.swarm import GOAL_APPROACH, cruise_speed_param, goal_tolerance_param, turn_radius
 from aac_sumo.geometry import pairwise_rect_clearance, rect_corners
+from aac_sumo.kernels.geometry import paired_clearance
 from aac_sumo.references import PathReference
 from aac_sumo.registry import register_experiment
 from aac_sumo.sim.internal import InternalSimulator
@@ -57,6 +62,7 @@ BATCH = 64         # candidate start-goal pairs drawn at once
 MAX_TRIES = 5_000  # rejected candidates per robot before an attempt is a dead end
 ATTEMPTS = 8       # fresh draws (debris and robots) before the scenario is rejected
 MAX_DEBRIS = 2_000 # debris pieces at most (a bound on memory and time)
+NEAR_SLACK = 1e-6  # [m] added to the KD-tree's search radius: pairs at the boundary are tested exactly
 
 #: Rejection reasons, and the key to change when one of them keeps a robot from being placed.
 REASONS = {
@@ -74,7 +80,8 @@ class RandomCrossingParams:
     [m]) and the goal-reaching settings (see the module)."""
 
     n_robots: int = param(20, "robots, each with a seeded random start and a goal far across the area",
-                          check=lambda n: 2 <= n <= MAX_ROBOTS, expect=f"in 2..{MAX_ROBOTS}")
+                          check=lambda n: 2 <= n <= MAX_CROSSING_ROBOTS,
+                          expect=f"in 2..{MAX_CROSSING_ROBOTS}")
     area_per_robot: float = param(6.0, "the square area's side is sqrt(n_robots * area_per_robot): the density stays "
                                   "constant as n grows [m^2]", **P)
     density: float = param(0.0, "robots per 100 m^2 of area; above 0 it sets the area instead of area_per_robot "
@@ -176,6 +183,7 @@ def _attempt(scenario: Scenario, rng: np.random.Generator, side: float, reach: f
     min_travel = max(p.min_travel_fraction * side, 2.0 * p.goal_tolerance)
     starts, goals, footprints = np.zeros((n, 3)), np.zeros((n, 2)), np.zeros((n, 5))
     for i in range(n):
+        placed = Placed(footprints[:i], goals[:i], foot_gap=gap, goal_gap=2 * reach + gap) if i else None
         tally = dict.fromkeys(REASONS, 0)
         tries = 0
         while True:
@@ -189,8 +197,7 @@ def _attempt(scenario: Scenario, rng: np.random.Generator, side: float, reach: f
             bad = {reason: np.zeros(BATCH, dtype=bool) for reason in REASONS}
             bad["travel"] = travel < min_travel
             if i:
-                bad["robots"] |= pairwise_rect_clearance(rows, footprints[:i]).min(axis=1) < gap
-                bad["robots"] |= _pair_dist(g_xy, goals[:i]).min(axis=1) < 2 * reach + gap
+                bad["robots"] = placed.clash(rows, g_xy)
             if len(debris):
                 bad["debris"] |= pairwise_rect_clearance(rows, debris).min(axis=1) < gap
                 bad["debris"] |= _point_rects(g_xy, debris).min(axis=1) < reach + gap
@@ -220,6 +227,48 @@ def _give_up(scenario: Scenario, i: int, side: float, tries: int, tally: dict[st
         f"robots that fit the {side:.1f} m x {side:.1f} m area ({area_per_robot(p):g} m^2 a robot, "
         f"clearance {p.clearance} m, debris_density {p.debris_density}): could not place robot {i} of {n} "
         f"in {tries} candidates (failed: {shares}; best of {ATTEMPTS} fresh draws)", getattr(p, key))
+
+
+class Placed:
+    """The robots placed so far, for the robot check of a batch of candidates: a candidate clashes
+    when its start footprint comes within ``foot_gap`` of a placed start footprint (exact
+    rectangle clearance) or its goal within ``goal_gap`` of a placed goal (centre distance).
+
+    The same verdicts as testing every placed robot (:func:`clash_all_pairs`), pair by pair with
+    the same arithmetic, but only for the pairs a KD-tree finds near enough to fail: footprints
+    whose centres are farther apart than both circumradii plus ``foot_gap`` keep at least
+    ``foot_gap`` between them (a margin of ``NEAR_SLACK`` covers round-off)."""
+
+    def __init__(self, footprints: np.ndarray, goals: np.ndarray, foot_gap: float, goal_gap: float):
+        self.footprints, self.goals, self.foot_gap, self.goal_gap = footprints, goals, foot_gap, goal_gap
+        self.foot_tree, self.goal_tree = cKDTree(footprints[:, :2]), cKDTree(goals)
+        self.circumradius = 0.5 * float(np.max(np.hypot(footprints[:, 2], footprints[:, 3])))
+
+    def clash(self, rows: np.ndarray, g_xy: np.ndarray) -> np.ndarray:
+        """Whether each candidate (start footprint ``rows`` (k, 5), goal ``g_xy`` (k, 2)) clashes."""
+        reach = self.circumradius + 0.5 * float(np.max(np.hypot(rows[:, 2], rows[:, 3])))
+        k, j = _near(self.foot_tree, rows[:, :2], reach + self.foot_gap)
+        bad = np.zeros(len(rows), dtype=bool)
+        bad[k[paired_clearance(rows[k], self.footprints[j]) < self.foot_gap]] = True
+        k, j = _near(self.goal_tree, g_xy, self.goal_gap)
+        a, b = g_xy[k], self.goals[j]
+        bad[k[np.hypot(a[:, 0] - b[:, 0], a[:, 1] - b[:, 1]) < self.goal_gap]] = True
+        return bad
+
+
+def _near(tree: cKDTree, points: np.ndarray, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """Index pairs (k, j): the tree's point j within ``radius + NEAR_SLACK`` of ``points[k]``."""
+    found = tree.query_ball_point(points, radius + NEAR_SLACK, return_sorted=False)
+    counts = np.fromiter(map(len, found), dtype=np.intp, count=len(points))
+    j = np.fromiter(itertools.chain.from_iterable(found), dtype=np.intp, count=int(counts.sum()))
+    return np.repeat(np.arange(len(points)), counts), j
+
+
+def clash_all_pairs(rows: np.ndarray, g_xy: np.ndarray, footprints: np.ndarray, goals: np.ndarray,
+                    foot_gap: float, goal_gap: float) -> np.ndarray:
+    """:meth:`Placed.clash` by testing every placed robot (the draw's rule before the KD-tree)."""
+    bad = pairwise_rect_clearance(rows, footprints).min(axis=1) < foot_gap
+    return bad | (_pair_dist(g_xy, goals).min(axis=1) < goal_gap)
 
 
 def _pair_dist(a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -56,6 +56,15 @@ def pairwise_clearance(a, b):
 
 
 @numba.njit(cache=True)
+def paired_clearance(a, b):
+    """Clearances (p,) [m] of :func:`rect_clearance` between rows ``a[k]`` and ``b[k]`` (p, 5)."""
+    out = np.empty(a.shape[0])
+    for k in range(a.shape[0]):
+        out[k] = rect_clearance(a[k], b[k])
+    return out
+
+
+@numba.njit(cache=True)
 def swept_hull_ellipses(rows, theta):
     """Ellipses ``[cx, cy, a, b, theta]`` (m, K, 5) containing, per stage k, the corners of the
     footprints ``rows`` (m, K+1, 5) at k and k+1, oriented by ``theta`` (m, K) [rad]: in the

@@ -195,7 +195,8 @@ def write(out: Path, mpc: BenchReport | None = None, aac: BenchReport | None = N
             "building the experiment, loading or compiling its problems; the simulator is included): the median over "
             "the runs, and its range. AAC speed-up = LFC median / AAC median. The "
             f"random_crossing_<n> rows are AAC alone with one authority per cluster (`aac.authorities = \"clusters\"`), "
-            f"N = 10, over the first {SCALING_SECONDS:.0f} s of each run; growth = that row's median over the smallest one's.\n\n"
+            f"N = 10, over the first {SCALING_SECONDS:.0f} s of each run ({_scaling_notes()}); growth = that row's median over "
+            "the smallest one's.\n\n"
             + markdown_aac(aac)
         )
     (out / "bench.md").write_text(text)
@@ -207,8 +208,11 @@ def write(out: Path, mpc: BenchReport | None = None, aac: BenchReport | None = N
 AAC_SCENARIOS = ("swarm_rescue", "lane_change", "random_crossing", "highway_work_zone")
 #: Robot counts of the random-crossing scaling rows (AAC with one authority per cluster, N = 10,
 #: the first SCALING_SECONDS of each run: the crowded part).
-SCALING = (15, 100)
+SCALING = (15, 100, 1000)
 SCALING_SECONDS = 20.0
+#: Further settings of a scaling row: at 6 m^2 a robot (the scenario's own) 1,000 robots do not fit
+#: (the goals' discs near their packing limit), at 8 m^2 the draw takes about 20 s.
+SCALING_SETS = {1000: ["random_crossing.area_per_robot=8"]}
 #: The highway work zone's rows (N = 10, whole runs): AAC with one authority per cluster (the
 #: scenario's stored plans and safety stop; committed plans are not fit for SUMO's traffic,
 #: docs/highway_work_zone.md) with 15 controlled cars (the flow's first 15; SUMO drives the other
@@ -246,13 +250,20 @@ def bench_aac(horizons=HORIZONS, scenarios=AAC_SCENARIOS, repeats=3, progress=No
     return report
 
 
+def _scaling_notes() -> str:
+    """The scaling rows' settings beyond the robot count, for bench.md."""
+    rest = "; ".join(f"{n} robots: {', '.join(sets)}" for n, sets in SCALING_SETS.items() if n in SCALING)
+    return "6 m^2 a robot" + (f"; {rest}" if rest else "")
+
+
 def _scaling_records(repeats: int, notes: list[str], progress=None) -> list[BenchRecord]:
     """AAC with ``authorities = "clusters"`` on the random crossing at each robot count of
     SCALING, N = 10, the first SCALING_SECONDS; each record's ratio is its median over the
     smallest count's (the growth of the per-period time)."""
     records = []
     for n in SCALING:
-        sets = [f"random_crossing.n_robots={n}", 'aac.authorities="clusters"', f"scenario.duration={SCALING_SECONDS}"]
+        sets = [f"random_crossing.n_robots={n}", 'aac.authorities="clusters"', f"scenario.duration={SCALING_SECONDS}",
+                *SCALING_SETS.get(n, [])]
         record = _coordinator_record("aac", "random_crossing", 10, repeats, notes, progress, sets, f"random_crossing_{n}")
         if records:
             record.ratio_to, record.ratio = records[0].name, record.median_ms / records[0].median_ms
