@@ -170,17 +170,12 @@ class CommitmentBook:
         self.items[i] = commitment
         self._pad(i, commitment)
         if self._period == period and self._flat is not None:  # its new rows go at the end; the old ones are left unread
-            rows = self.footprints(i, commitment, period)
             flat, starts, lengths, statics, boxes = self._flat
-            starts[i], lengths[i] = len(flat), len(rows)
-            boxes[i] = course_boxes(rows, np.zeros(1, dtype=np.int64), lengths[i: i + 1])[0]
-            self._flat = (np.concatenate([flat, rows]), starts, lengths, statics, boxes)
+            self._flat = (_appended(flat, starts, lengths, boxes, i, self.footprints(i, commitment, period)), starts, lengths, statics, boxes)
         if self._reactions is not None and self._reactions[0] == period:  # its new reaction likewise
-            rows = self.traffic_rows(i, commitment, period)
             _, flat, starts, lengths, boxes = self._reactions
-            starts[i], lengths[i] = len(flat), len(rows)
-            boxes[i] = course_boxes(rows, np.zeros(1, dtype=np.int64), lengths[i: i + 1])[0]
-            self._reactions = (period, np.concatenate([flat, rows]), starts, lengths, boxes)
+            self._reactions = (period, _appended(flat, starts, lengths, boxes, i, self.traffic_rows(i, commitment, period)), starts, lengths,
+                               boxes)
 
     def park(self, off_road: np.ndarray, states: np.ndarray, period: int) -> None:
         """Robots ``off_road`` (n,) bool, taken off the road, stand at their ``states`` (n, 4)
@@ -216,11 +211,8 @@ class CommitmentBook:
         if self._period != period or self._flat is None or self._flat[3] is not statics:
             self._period = period
             fixed = np.asarray(statics, dtype=float).reshape(-1, 5)
-            rows = [self.footprints(j, c, period) for j, c in enumerate(self.items)]
-            lengths = np.r_[[len(r) for r in rows], np.ones(len(fixed))].astype(np.int64)
-            starts = np.r_[0, np.cumsum(lengths)[:-1]].astype(np.int64)
-            flat = np.concatenate(rows + [fixed])
-            self._flat = (flat, starts, lengths, statics, course_boxes(flat, starts, lengths))
+            flat, starts, lengths, boxes = _ragged([self.footprints(j, c, period) for j, c in enumerate(self.items)] + list(fixed[:, None]))
+            self._flat = (flat, starts, lengths, statics, boxes)
         flat, starts, lengths, _, boxes = self._flat
         rows = self.footprints(i, candidate, period)
         gap, nearest = ragged_nearest(rows, flat, starts, lengths, boxes, i, self.margin)
@@ -281,11 +273,7 @@ class CommitmentBook:
         robot's reaction along its commitment, from ``period`` on, and the robot that gives it
         (exact below ``margin``; -1 for none)."""
         if self._reactions is None or self._reactions[0] != period:
-            rows = [self.traffic_rows(j, c, period) for j, c in enumerate(self.items)]
-            lengths = np.array([len(r) for r in rows], dtype=np.int64)
-            starts = np.r_[0, np.cumsum(lengths)[:-1]].astype(np.int64)
-            flat = np.concatenate(rows)
-            self._reactions = (period, flat, starts, lengths, course_boxes(flat, starts, lengths))
+            self._reactions = (period, *_ragged([self.traffic_rows(j, c, period) for j, c in enumerate(self.items)]))
         _, flat, starts, lengths, boxes = self._reactions
         gap, nearest = ragged_nearest(self.traffic_rows(i, candidate, period), flat, starts, lengths, boxes, i, self.margin)
         return float(gap), int(nearest)
@@ -295,10 +283,7 @@ class CommitmentBook:
         the braking courses of the uncontrolled vehicles whose centres are ahead of ``rows[0]``
         along its heading (inf without any)."""
         if self._traffic is None or self._traffic[0] != period or self._traffic[1] is not self.traffic:
-            flat = np.concatenate(self.traffic) if self.traffic else np.zeros((0, 5))
-            lengths = np.array([len(r) for r in self.traffic], dtype=np.int64)
-            starts = np.r_[0, np.cumsum(lengths)[:-1]].astype(np.int64) if len(lengths) else lengths
-            self._traffic = (period, self.traffic, flat, starts, lengths, course_boxes(flat, starts, lengths))
+            self._traffic = (period, self.traffic, *_ragged(self.traffic))
         _, _, flat, starts, lengths, boxes = self._traffic
         ahead = np.flatnonzero(ahead_of(flat[starts, :2], rows[0, :2], float(rows[0, 4])))
         if ahead.size == 0:
@@ -349,6 +334,23 @@ class CommitmentBook:
                 fixed = np.repeat(np.asarray(statics, dtype=float).reshape(-1, 1, 5), steps + 1, axis=1)
                 out[i, n] = course_clearance(rows[i], fixed, np.inf)
         return out
+
+
+def _ragged(courses: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Footprint-row courses (each (K_j, 5)) as one flat array, each course's first row and
+    length in it, and their bounding boxes (:func:`~aac_sumo.kernels.course_boxes`)."""
+    lengths = np.array([len(c) for c in courses], dtype=np.int64)
+    starts = np.r_[0, np.cumsum(lengths)[:-1]].astype(np.int64) if len(lengths) else lengths
+    flat = np.concatenate(courses) if courses else np.zeros((0, 5))
+    return flat, starts, lengths, course_boxes(flat, starts, lengths)
+
+
+def _appended(flat: np.ndarray, starts: np.ndarray, lengths: np.ndarray, boxes: np.ndarray, i: int, rows: np.ndarray) -> np.ndarray:
+    """Course ``i`` of a :func:`_ragged` array replaced by ``rows``: they go at the end of the flat
+    array (returned), ``starts``, ``lengths`` and ``boxes`` are changed in place; the old rows stay unread."""
+    starts[i], lengths[i] = len(flat), len(rows)
+    boxes[i] = course_boxes(rows, np.zeros(1, dtype=np.int64), lengths[i: i + 1])[0]
+    return np.concatenate([flat, rows])
 
 
 def reach_radii(fleet: Fleet, states: np.ndarray, horizon: int, dt: float, tail_decel=None) -> np.ndarray:

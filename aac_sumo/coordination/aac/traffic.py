@@ -66,8 +66,7 @@ class TrafficBraking:
                 continue
             best, choice = current, None
             for decel in (self.tail_decel()[i], self.tail_decel(self.params.firm_tail > self.params.tail_brake)[i], strongest[i]):
-                candidate = stopping_commitment(self.fleet, i, period, world.states[i], np.zeros((0, 2)), self.path(i), decel,
-                                                self.last_inputs[i, 1], self.planner.config.dt)
+                candidate = self.stop_from_now(world, i, period, decel)
                 if book.clearance(i, candidate, period, statics, walkers=False, traffic=False) < book.margin:
                     continue  # braking is never refused for a walker, but it keeps the commitments apart
                 rows = book.footprints(i, candidate, period)
@@ -84,6 +83,11 @@ class TrafficBraking:
             braked += self.brake_behind(world, period, parked, records, statics)
         return braked
 
+    def stop_from_now(self, world: WorldState, i: int, period: int, decel: float):
+        """Robot ``i``'s commitment to brake from now to a stop at ``decel`` [m/s^2] along its path."""
+        return stopping_commitment(self.fleet, i, period, world.states[i], np.zeros((0, 2)), self.path(i), decel, self.last_inputs[i, 1],
+                                   self.planner.config.dt)
+
     def take_up_reaction(self, world: WorldState, i: int, period: int, records: list[RobotDecision], statics: np.ndarray,
                          room) -> int:
         """Robot ``i``, whose reaction no longer keeps the margin from a vehicle ahead (or a
@@ -94,8 +98,7 @@ class TrafficBraking:
         from the other commitments. Braking is never refused for a walker. Returns 1 when it
         braked."""
         book = self.book
-        gentle = stopping_commitment(self.fleet, i, period, world.states[i], np.zeros((0, 2)), self.path(i), self.tail_decel()[i],
-                                     self.last_inputs[i, 1], self.planner.config.dt)
+        gentle = self.stop_from_now(world, i, period, self.tail_decel()[i])
         rows = book.footprints(i, gentle, period)
         if book.clearance(i, gentle, period, statics, walkers=False) >= book.margin and room(rows, book.traffic_rows(i, gentle, period)) >= book.margin:
             choice = gentle
@@ -103,8 +106,7 @@ class TrafficBraking:
             choice = book.fallbacks[i]
             rows = book.footprints(i, choice, period)
             if room(rows, rows) < book.margin:  # a vehicle cut in or braked harder than the check assumes: the strongest stop
-                strong = stopping_commitment(self.fleet, i, period, world.states[i], np.zeros((0, 2)), self.path(i), -self.fleet.a_min[i],
-                                             self.last_inputs[i, 1], self.planner.config.dt)
+                strong = self.stop_from_now(world, i, period, -self.fleet.a_min[i])
                 firm = book.footprints(i, strong, period)
                 if room(firm, firm) > room(rows, rows) and book.clearance(i, strong, period, statics, walkers=False, traffic=False) >= book.margin:
                     choice = strong
