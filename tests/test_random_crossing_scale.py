@@ -13,12 +13,20 @@ from hypothesis import strategies as st
 
 from aac_sumo import config
 from aac_sumo.config import ScenarioError
-from aac_sumo.experiments.random_crossing import Placed, clash_all_pairs, draw
+from aac_sumo.experiments.random_crossing import Placed, draw
+from aac_sumo.geometry import pairwise_rect_clearance
 from aac_sumo.runs import runner
 
 #: Starts, goals and debris drawn by the all-pairs implementation (before the KD-tree), keys
 #: ``n{robots}_s{seed}_{field}``.
 REFERENCE = Path(__file__).resolve().parent / "data" / "random_crossing_draws.npz"
+
+
+def clash_all_pairs(rows: np.ndarray, g_xy: np.ndarray, footprints: np.ndarray, goals: np.ndarray,
+                    foot_gap: float, goal_gap: float) -> np.ndarray:
+    """:meth:`Placed.clash` by testing every placed robot (the draw's rule before the KD-tree)."""
+    bad = pairwise_rect_clearance(rows, footprints).min(axis=1) < foot_gap
+    return bad | (np.hypot(g_xy[:, None, 0] - goals[None, :, 0], g_xy[:, None, 1] - goals[None, :, 1]).min(axis=1) < goal_gap)
 
 
 def test_draws_up_to_200_robots_are_unchanged():

@@ -234,7 +234,7 @@ class Placed:
     when its start footprint comes within ``foot_gap`` of a placed start footprint (exact
     rectangle clearance) or its goal within ``goal_gap`` of a placed goal (centre distance).
 
-    The same verdicts as testing every placed robot (:func:`clash_all_pairs`), pair by pair with
+    The same verdicts as testing every placed robot (the rule before, kept in the tests), pair by pair with
     the same arithmetic, but only for the pairs a KD-tree finds near enough to fail: footprints
     whose centres are farther apart than both circumradii plus ``foot_gap`` keep at least
     ``foot_gap`` between them (a margin of ``NEAR_SLACK`` covers round-off)."""
@@ -262,18 +262,6 @@ def _near(tree: cKDTree, points: np.ndarray, radius: float) -> tuple[np.ndarray,
     counts = np.fromiter(map(len, found), dtype=np.intp, count=len(points))
     j = np.fromiter(itertools.chain.from_iterable(found), dtype=np.intp, count=int(counts.sum()))
     return np.repeat(np.arange(len(points)), counts), j
-
-
-def clash_all_pairs(rows: np.ndarray, g_xy: np.ndarray, footprints: np.ndarray, goals: np.ndarray,
-                    foot_gap: float, goal_gap: float) -> np.ndarray:
-    """:meth:`Placed.clash` by testing every placed robot (the draw's rule before the KD-tree)."""
-    bad = pairwise_rect_clearance(rows, footprints).min(axis=1) < foot_gap
-    return bad | (_pair_dist(g_xy, goals).min(axis=1) < goal_gap)
-
-
-def _pair_dist(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Distances (k, m) between points a (k, 2) and b (m, 2)."""
-    return np.hypot(a[:, None, 0] - b[None, :, 0], a[:, None, 1] - b[None, :, 1])
 
 
 def _local(points: np.ndarray, rects: np.ndarray) -> np.ndarray:
