@@ -130,3 +130,26 @@ def test_a_car_held_reactively_brakes_for_a_vehicle_ahead_though_the_car_behind_
         assert centres[1] - centres[0] - 4.0 > 0.0
         states = aac.fleet.rollout(np.arange(2), states, decision.inputs[:, None, :], DT)[:, -1]
     assert braked > 0 and states[1, 3] < 0.05
+
+
+def test_a_car_behind_a_queue_setting_off_plans_at_the_speeds_the_queue_has_committed_to():
+    """Two cars at 2 m/s, 8 m apart (4 m between bumpers, inside the 1 s time gap): the front
+    car's commitment speeds up along the free lane. The rear car's reference, seeing the front
+    car at the speed its commitment has 1 s on, speeds up where the same reference with the
+    speeds of now slows down to open the gap first, as the paper's LFC reference does."""
+    tasks = [PathReference([[-50.0, 0.0], [800.0, 0.0]], 10.0, stop_at_end=False) for _ in CARS]
+    config_ = MpcConfig(dt=DT, horizon=10, comfort_accel=2.0, comfort_lat=2.0, pedestrian_margin=1.0)
+    aac = AacCoordinator(MpcPlanner(config_), tasks, params=AacParams(commit=True, safety_stop=False, make_room=False, cruise=4.0,
+                                                                      lookahead=10.0))
+    aac.anticipation = Anticipation(pedestrian_margin=1.0)
+    world = WorldState(0.0, np.array([[0.0, 0.0, 0.0, 2.0], [8.0, 0.0, 0.0, 2.0]]), CARS, [])
+    aac.decide(world)
+    period = aac.period
+    front = aac.book.items[1].course(period, 10)
+    assert front[-1, 3] > 2.5  # the front car has committed to set off
+    seen = aac.lead_speeds(world, 0, period)
+    assert seen[0] == 2.0 and seen[1] == pytest.approx(front[-1, 3])
+    now = aac.reference(world, 0)[:, 3]
+    committed = aac.reference(world, 0, seen)[:, 3]
+    assert now[-1] < 2.0 < committed[-1]
+    assert np.all(committed >= now - 1e-9)

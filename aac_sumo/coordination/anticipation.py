@@ -215,7 +215,8 @@ def speed_cap(stops: np.ndarray, s, decel: float) -> np.ndarray:
 
 
 def anticipated_reference(world: WorldState, i: int, task: PathReference, steps: int, dt: float, params: Anticipation,
-                          held: dict | None = None, stop_ahead=(), courses: np.ndarray | None = None) -> np.ndarray:
+                          held: dict | None = None, stop_ahead=(), courses: np.ndarray | None = None,
+                          speeds: np.ndarray | None = None) -> np.ndarray:
     """Robot ``i``'s reference (steps+1, 4) along ``task``'s path: its speeds start at the
     robot's speed and change by at most ``accel`` / ``decel`` [m/s^2] from stage to stage
     towards the path's speed, capped by :func:`speed_cap` of :func:`stop_points`; with ``brake``
@@ -224,21 +225,22 @@ def anticipated_reference(world: WorldState, i: int, task: PathReference, steps:
     (``robot.a_comfort``). Its positions follow the speeds.
     ``held``: the walkers it yields to, as in :func:`stop_points`. ``stop_ahead`` [m]: more
     places to stop at, as distances of the rear axle along the path from where it is (before a
-    walker's path, where the safety stop holds the robot). ``courses``: as in :func:`stop_points`."""
+    walker's path, where the safety stop holds the robot). ``courses`` and ``speeds``: as in :func:`stop_points`."""
     state = world.states[i]
-    s, v = anticipated_speeds(world, i, task, steps, dt, params, held, stop_ahead, courses)
+    s, v = anticipated_speeds(world, i, task, steps, dt, params, held, stop_ahead, courses, speeds)
     poses = task.pose_at(s)
     heading = state[2] + wrap_angle(poses[:, 2] - state[2])
     return np.column_stack([poses[:, :2], heading, v])
 
 
 def anticipated_speeds(world: WorldState, i: int, task: PathReference, steps: int, dt: float, params: Anticipation,
-                       held: dict | None = None, stop_ahead=(), courses: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                       held: dict | None = None, stop_ahead=(), courses: np.ndarray | None = None,
+                       speeds: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The arc lengths [m] and speeds [m/s] (steps+1,) of :func:`anticipated_reference`."""
     state = world.states[i]
     projected = task.project(state[:2])
     s0 = projected[0]
-    stops = stop_points(world, i, task, params, held, projected, courses)
+    stops = stop_points(world, i, task, params, held, projected, courses, speeds)
     ahead = np.asarray(stop_ahead, dtype=float).reshape(-1)
     if ahead.size:
         stops = np.vstack([stops, np.column_stack([s0 + ahead, np.zeros((ahead.size, 2))])])

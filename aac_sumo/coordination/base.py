@@ -176,13 +176,14 @@ class Coordinator(ABC):
         stored plan, made for the old task, and follows the new one from its next input on."""
         self.plans[i] = None
 
-    def reference(self, world: WorldState, i: int) -> np.ndarray:
+    def reference(self, world: WorldState, i: int, speeds: np.ndarray | None = None) -> np.ndarray:
         """Robot ``i``'s reference over the horizon (N+1, 4): its task's, with speeds that
-        anticipate what lies ahead on its path when ``anticipation`` is set."""
+        anticipate what lies ahead on its path when ``anticipation`` is set (seeing the robots
+        at ``speeds`` (n,) [m/s], None: at their speeds now)."""
         cfg = self.planner.config
         if self.anticipation is not None and not self.tasks[i].heading_free(world.states[i]):
             return anticipated_reference(world, i, self.tasks[i], cfg.horizon, cfg.dt, self.anticipation, self.held[i],
-                                         self.strips_ahead(i), self.courses)
+                                         self.strips_ahead(i), self.courses, speeds)
         return self.tasks[i].horizon(world.states[i], cfg.horizon, cfg.dt)
 
     def tracking_lat(self) -> float | None:

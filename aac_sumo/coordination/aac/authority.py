@@ -174,8 +174,8 @@ class AacCoordinator(Coordinator):
         self.last_reason[int(members[0])] = reason
         return i, reason
 
-    def reference(self, world: WorldState, i: int) -> np.ndarray:
-        """Robot ``i``'s reference (N+1, 4): a make-room target's or, for a robot that can reverse
+    def reference(self, world: WorldState, i: int, speeds: np.ndarray | None = None) -> np.ndarray:
+        """Robot ``i``'s reference (N+1, 4) (``speeds``: as in :meth:`Coordinator.reference`): a make-room target's or, for a robot that can reverse
         and has stood long (:meth:`~aac_sumo.coordination.make_room.MakeRoom.backing_off`),
         straight back at half its cruise speed (a short horizon finds no way round an obstacle
         it faces at close range); else its task's, shifted ``keep_right`` [m] to the right of its
@@ -196,7 +196,7 @@ class AacCoordinator(Coordinator):
             cfg = self.planner.config
             ref = self.detours.routes[i].horizon(world.states[i], cfg.horizon, cfg.dt)
         else:
-            ref = super().reference(world, i)
+            ref = super().reference(world, i, speeds)
         shift = self.keep_right_shift(world, i)
         if shift == 0.0 or np.isnan(ref[:, 2]).any():  # no shift on a free heading (the goal approach)
             return ref

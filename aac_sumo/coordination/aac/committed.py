@@ -211,10 +211,7 @@ class CommittedAac(Creeping, TrafficBraking, AacCoordinator):
             return None
         head = np.asarray(head, dtype=float).reshape(-1, 2)
         rules, robot = self.anticipation, world.robots[i]
-        speeds, look = world.states[:, 3].copy(), int(round(LEAD_LOOK / cfg.dt))
-        others = np.flatnonzero(np.arange(len(speeds)) != i)
-        speeds[others] = self.book.courses(period, others, look)[:, look, 3]  # the others at their committed speeds LEAD_LOOK on
-        stops = stop_points(world, i, task, rules, self.held[i], courses=self.courses, speeds=speeds)  # [s_stop, v_lead, grow]: what it must stay behind
+        stops = stop_points(world, i, task, rules, self.held[i], courses=self.courses, speeds=self.lead_speeds(world, i, period))  # [s_stop, v_lead, grow]: what it must stay behind
         x, y, h, v = self.fleet.rollout(np.array([i]), world.states[[i]], head[None], cfg.dt)[0, -1]
         steer, accel = (float(head[-1, 1]), float(head[-1, 0])) if len(head) else (float(self.last_inputs[i, 1]), float(self.last_inputs[i, 0]))
         calm = cfg.comfort_accel if cfg.comfort_accel > 0.0 else float(self.fleet.comfort[i])  # brakes within the comfort envelope
@@ -258,7 +255,7 @@ class CommittedAac(Creeping, TrafficBraking, AacCoordinator):
             obstacles = [obstacles[k] if k < len(obstacles) else next(swept) for k in ranked]
         else:
             obstacles = obstacles + self.fleet.swept_regions(others, traj, cfg.horizon, cfg.barrier, cfg.fcbf)
-        ref = self.reference(world, i)
+        ref = self.reference(world, i, self.lead_speeds(world, i, period))
         own = book.items[i]
         guess = (own.course(period, cfg.horizon), own.inputs_ahead(period, cfg.horizon))
         if own.stage(period) == "hold":  # standing: a standing guess keeps it standing; start from the tracking law instead
@@ -331,8 +328,7 @@ class CommittedAac(Creeping, TrafficBraking, AacCoordinator):
             if renewing and not (self.params.cruise > 0.0 and due):
                 continue
             longer = self.continued_commitment(world, j, period, np.zeros((0, 2)), statics)  # with cruise: on as anticipated
-            if renewing and (longer is None or self.path(j).project(longer.states[-1, :2])[0]
-                             <= self.path(j).project(c.states[-1, :2])[0] + RENEW_GAIN):
+            if renewing and (longer is None or not self.gains(j, longer, c, period)):
                 continue  # a renewal only where it takes the car further than its commitment does
             if longer is not None:
                 book.replace(j, longer, period)
@@ -358,6 +354,24 @@ class CommittedAac(Creeping, TrafficBraking, AacCoordinator):
                 self.next_extension[j] = period + EXTENSION_RETRY
                 book.refuse(j, world.states[j], key, blocker, period, statics)
         return extended
+
+    def gains(self, j: int, new, old, period: int) -> bool:
+        """Whether robot ``j``'s commitment ``new`` (from ``period``) takes it at least
+        ``RENEW_GAIN`` [m] further along its path than ``old`` does by the time ``new`` ends
+        (the old one may run on longer: compared at the same moment, a queue's car sets off
+        on the continuation that speeds up sooner)."""
+        k = min(period - old.start + len(new.states) - 1, len(old.states) - 1)
+        s = self.path(j).project_many(np.array([new.states[-1, :2], old.states[k, :2]]))[0]
+        return bool(s[0] > s[1] + RENEW_GAIN)
+
+    def lead_speeds(self, world: WorldState, i: int, period: int) -> np.ndarray:
+        """The robots' speeds [m/s] (n,) as robot ``i``'s anticipation sees them: its own now,
+        the others' those their commitments have ``LEAD_LOOK`` on (its plan and its continuation
+        follow a queue as the cars ahead have committed to set off)."""
+        speeds, look = world.states[:, 3].copy(), int(round(LEAD_LOOK / self.planner.config.dt))
+        others = np.flatnonzero(np.arange(len(speeds)) != i)
+        speeds[others] = self.book.courses(period, others, look)[:, look, 3]
+        return speeds
 
     def front_first(self, world: WorldState) -> np.ndarray:
         """The robots' indices, furthest along their paths first (a road: a car renews its
