@@ -52,8 +52,9 @@ def test_kd_tree_check_gives_the_all_pairs_verdicts(seed, placed, half, gap, goa
     rng = np.random.default_rng(seed)
     foot, goals = _robots(rng, placed, half)
     rows, g_xy = _robots(rng, 64, half)
-    rows[:8, :2] = foot[:8, :2] + rng.normal(0.0, 0.5, (8, 2))  # some near misses and touches
-    g_xy[:8] = goals[:8] + rng.normal(0.0, goal_gap + 0.1, (8, 2))
+    near = min(8, placed)
+    rows[:near, :2] = foot[:near, :2] + rng.normal(0.0, 0.5, (near, 2))  # some near misses and touches
+    g_xy[:near] = goals[:near] + rng.normal(0.0, goal_gap + 0.1, (near, 2))
     fast = Placed(foot, goals, gap, goal_gap).clash(rows, g_xy)
     np.testing.assert_array_equal(fast, clash_all_pairs(rows, g_xy, foot, goals, gap, goal_gap))
 

@@ -18,6 +18,7 @@ import numpy as np
 
 from aac_sumo.coordination.aac.authority import SHIFT_DECAY, SHIFT_GROWTH, SLOW_SHARE, AacCoordinator
 from aac_sumo.coordination.aac.creeping import Creeping
+from aac_sumo.coordination.aac.queueing import Queueing
 from aac_sumo.coordination.aac.traffic import TrafficBraking
 from aac_sumo.coordination.base import Decision, RobotDecision
 from aac_sumo.coordination.commitments import CommitmentBook, reach_radii, stopping_commitment
@@ -34,20 +35,16 @@ from aac_sumo.world import WorldState
 #: Periods a robot whose tracking extension failed the check waits before it tries again.
 EXTENSION_RETRY = 3
 #: With ``cruise`` (a road), a robot without authority renews its continuation every
-#: RENEW_EVERY periods where the new one passes the exact check and ends at least RENEW_GAIN [m]
-#: further along its path than its commitment: a car whose queue has set off follows it at once.
+#: RENEW_EVERY periods where the new one passes the exact check and takes it further along its
+#: path than its commitment (:data:`~aac_sumo.coordination.aac.queueing.RENEW_GAIN`): a car whose queue has set off follows it at once.
 #: A car slower than its path's speed by more than RENEW_SLOW [m/s] renews every period (a queue
 #: setting off: each car renews after the one ahead of it, front first, in the same period).
 RENEW_EVERY = 5
-RENEW_GAIN = 0.5
 RENEW_SLOW = 1.0
 #: A continuation aims at the anticipation's speed cap where the car will be CONTINUATION_LAG [s]
 #: on (at least a period), and reaches it in that time within the comfort envelope and ``continuation_jerk``
 #: (0.1 s against 0.3 s: tasks up to 0.8 s shorter on S2's seeds 10-14 with the bound, as its continuations pass the check more often).
 CONTINUATION_LAG = 0.1
-#: A continuation sees every other robot at the speed its commitment has LEAD_LOOK [s] on (a
-#: queue's cars follow the one ahead as it has committed to set off, not as it stands now).
-LEAD_LOOK = 1.0
 #: A continuation stops its rear axle this much [m] behind where it must (on top of its front and
 #: ``commit_margin``) for the uncontrolled vehicles ahead (:func:`~aac_sumo.coordination.traffic_courses.standing_points`).
 TRAFFIC_SPARE = 0.5
@@ -59,7 +56,7 @@ DETOUR_CELL = 0.1
 DETOUR_CHECK = 1.0
 
 
-class CommittedAac(Creeping, TrafficBraking, AacCoordinator):
+class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
     """AAC with committed plans (see the module)."""
 
     commit = True
@@ -199,7 +196,7 @@ class CommittedAac(Creeping, TrafficBraking, AacCoordinator):
         (:mod:`~aac_sumo.coordination.anticipation`: it stays behind what is ahead on its path
         and stops before a walker who counts, as the MPC's reference does), with what moves
         along the path going on at its speed, for the other robots the speed their commitments
-        have ``LEAD_LOOK`` on, braking at most at the comfort envelope and speeding up at most
+        have ``LEAD_LOOK`` on (:meth:`~aac_sumo.coordination.aac.queueing.Queueing.lead_speeds`), braking at most at the comfort envelope and speeding up at most
         at the anticipation's ``accel``, and staying where it can stop (at ``HARD_SHARE`` of
         :meth:`held_decel`) behind where each uncontrolled vehicle ahead could stand
         (:func:`~aac_sumo.coordination.traffic_courses.standing_points`). None without ``cruise``, without anticipation, on a
@@ -305,7 +302,7 @@ class CommittedAac(Creeping, TrafficBraking, AacCoordinator):
         robot that such a vehicle (growing at the walkers' reach) may reach meanwhile is not
         extended. With ``cruise``, a robot renews its continuation every ``RENEW_EVERY``
         periods (every period while it is ``RENEW_SLOW`` below its path's speed) where the new
-        one passes and ends at least ``RENEW_GAIN`` further along its path, the robots furthest
+        one passes and takes the car further (:meth:`~aac_sumo.coordination.aac.queueing.Queueing.gains`), the robots furthest
         along their paths first. Returns how many robots extended their commitment."""
         cfg, book, extended = self.planner.config, self.book, 0
         movers = [o for o in world.obstacles if o.kind not in ("static", "cone", "pedestrian")]  # walkers: in the exact check
@@ -354,29 +351,6 @@ class CommittedAac(Creeping, TrafficBraking, AacCoordinator):
                 self.next_extension[j] = period + EXTENSION_RETRY
                 book.refuse(j, world.states[j], key, blocker, period, statics)
         return extended
-
-    def gains(self, j: int, new, old, period: int) -> bool:
-        """Whether robot ``j``'s commitment ``new`` (from ``period``) takes it at least
-        ``RENEW_GAIN`` [m] further along its path than ``old`` does by the time ``new`` ends
-        (the old one may run on longer: compared at the same moment, a queue's car sets off
-        on the continuation that speeds up sooner)."""
-        k = min(period - old.start + len(new.states) - 1, len(old.states) - 1)
-        s = self.path(j).project_many(np.array([new.states[-1, :2], old.states[k, :2]]))[0]
-        return bool(s[0] > s[1] + RENEW_GAIN)
-
-    def lead_speeds(self, world: WorldState, i: int, period: int) -> np.ndarray:
-        """The robots' speeds [m/s] (n,) as robot ``i``'s anticipation sees them: its own now,
-        the others' those their commitments have ``LEAD_LOOK`` on (its plan and its continuation
-        follow a queue as the cars ahead have committed to set off)."""
-        speeds, look = world.states[:, 3].copy(), int(round(LEAD_LOOK / self.planner.config.dt))
-        others = np.flatnonzero(np.arange(len(speeds)) != i)
-        speeds[others] = self.book.courses(period, others, look)[:, look, 3]
-        return speeds
-
-    def front_first(self, world: WorldState) -> np.ndarray:
-        """The robots' indices, furthest along their paths first (a road: a car renews its
-        continuation after the one ahead of it has, so its check sees where that one goes on)."""
-        return np.argsort([-self.path(j).project(world.states[j, :2])[0] for j in range(len(world.robots))], kind="stable")
 
     def tracking_inputs(self, world: WorldState, j: int, steps: int) -> np.ndarray:
         """Inputs (steps, 2) of robot ``j`` following the tracking law from where it is, on its
