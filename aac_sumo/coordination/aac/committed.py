@@ -252,7 +252,7 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
             obstacles = [obstacles[k] if k < len(obstacles) else next(swept) for k in ranked]
         else:
             obstacles = obstacles + self.fleet.swept_regions(others, traj, cfg.horizon, cfg.barrier, cfg.fcbf)
-        ref = self.reference(world, i, self.lead_speeds(world, i, period))
+        ref = self.reference(world, i, None if self.anticipation is None else self.lead_speeds(world, i, period))
         own = book.items[i]
         guess = (own.course(period, cfg.horizon), own.inputs_ahead(period, cfg.horizon))
         if own.stage(period) == "hold":  # standing: a standing guess keeps it standing; start from the tracking law instead
