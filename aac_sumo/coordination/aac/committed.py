@@ -36,7 +36,8 @@ from aac_sumo.world import WorldState
 EXTENSION_RETRY = 3
 #: With ``cruise`` (a road), a robot without authority renews its continuation every
 #: RENEW_EVERY periods where the new one passes the exact check and takes it further along its
-#: path than its commitment (:data:`~aac_sumo.coordination.aac.queueing.RENEW_GAIN`): a car whose queue has set off follows it at once.
+#: path than its commitment (:data:`~aac_sumo.coordination.aac.queueing.RENEW_GAIN`): a car whose
+#: queue has set off follows it at once.
 #: A car slower than its path's speed by more than RENEW_SLOW [m/s] renews every period (a queue
 #: setting off: each car renews after the one ahead of it, front first, in the same period).
 RENEW_EVERY = 5
@@ -196,11 +197,12 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
         (:mod:`~aac_sumo.coordination.anticipation`: it stays behind what is ahead on its path
         and stops before a walker who counts, as the MPC's reference does), with what moves
         along the path going on at its speed, for the other robots the speed their commitments
-        have ``LEAD_LOOK`` on (:meth:`~aac_sumo.coordination.aac.queueing.Queueing.lead_speeds`), braking at most at the comfort envelope and speeding up at most
-        at the anticipation's ``accel``, and staying where it can stop (at ``HARD_SHARE`` of
-        :meth:`held_decel`) behind where each uncontrolled vehicle ahead could stand
-        (:func:`~aac_sumo.coordination.traffic_courses.standing_points`). None without ``cruise``, without anticipation, on a
-        path that ends in a stop, or when nothing passes (a car on a road does not crawl between
+        have ``LEAD_LOOK`` on (:meth:`~aac_sumo.coordination.aac.queueing.Queueing.lead_speeds`),
+        braking at most at the comfort envelope and speeding up at most at the anticipation's
+        ``accel``, and staying where it can stop (at ``HARD_SHARE`` of :meth:`held_decel`) behind
+        where each uncontrolled vehicle ahead could stand
+        (:func:`~aac_sumo.coordination.traffic_courses.standing_points`). None without ``cruise``,
+        without anticipation, on a path that ends in a stop, or when nothing passes (a car on a road does not crawl between
         its turns: a tail right after each plan braked it at every turn it did not get)."""
         cfg, task = self.planner.config, self.path(i)
         periods = int(round(self.params.cruise / cfg.dt))
@@ -208,7 +210,8 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
             return None
         head = np.asarray(head, dtype=float).reshape(-1, 2)
         rules, robot = self.anticipation, world.robots[i]
-        stops = stop_points(world, i, task, rules, self.held[i], courses=self.courses, speeds=self.lead_speeds(world, i, period))  # [s_stop, v_lead, grow]: what it must stay behind
+        seen = self.lead_speeds(world, i, period)
+        stops = stop_points(world, i, task, rules, self.held[i], courses=self.courses, speeds=seen)  # [s_stop, v_lead, grow]: what it must stay behind
         x, y, h, v = self.fleet.rollout(np.array([i]), world.states[[i]], head[None], cfg.dt)[0, -1]
         steer, accel = (float(head[-1, 1]), float(head[-1, 0])) if len(head) else (float(self.last_inputs[i, 1]), float(self.last_inputs[i, 0]))
         calm = cfg.comfort_accel if cfg.comfort_accel > 0.0 else float(self.fleet.comfort[i])  # brakes within the comfort envelope
@@ -302,8 +305,8 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
         robot that such a vehicle (growing at the walkers' reach) may reach meanwhile is not
         extended. With ``cruise``, a robot renews its continuation every ``RENEW_EVERY``
         periods (every period while it is ``RENEW_SLOW`` below its path's speed) where the new
-        one passes and takes the car further (:meth:`~aac_sumo.coordination.aac.queueing.Queueing.gains`), the robots furthest
-        along their paths first. Returns how many robots extended their commitment."""
+        one passes and takes the car further (:meth:`~aac_sumo.coordination.aac.queueing.Queueing.gains`),
+        the robots furthest along their paths first. Returns how many robots extended their commitment."""
         cfg, book, extended = self.planner.config, self.book, 0
         movers = [o for o in world.obstacles if o.kind not in ("static", "cone", "pedestrian")]  # walkers: in the exact check
         reach = reach_radii(self.fleet, world.states, cfg.horizon, cfg.dt, self.tail_decel()) if movers else None

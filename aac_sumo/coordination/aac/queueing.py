@@ -15,7 +15,8 @@ from aac_sumo.world import WorldState
 RENEW_GAIN = 0.5
 #: A car's plan and continuation see every other robot at the speed its commitment has
 #: LEAD_LOOK [s] on (a queue's cars follow the one ahead as it has committed to set off, not as
-#: it stands now; S2 seeds 10-14 at N = 10: 34.0 s, against 34.4 s with the speeds of now in the MPC's reference).
+#: it stands now; S2 seeds 10-14 at N = 10: 34.0 s, against 34.4 s with the speeds of now in
+#: the MPC's reference).
 LEAD_LOOK = 1.0
 
 

@@ -101,8 +101,8 @@ class TrafficBraking:
         its fallback (its reaction of the period before, clear of that vehicle's course then, so
         of the vehicle now, as long as it keeps to what the check assumes), else, where a vehicle
         broke that assumption, as gently as ``HARDER_STOPS`` allows where that leaves more room
-        and keeps the margin from the other commitments. Braking is never refused for a walker. Returns 1 when it
-        braked."""
+        and keeps the margin from the other commitments. Braking is never refused for a walker.
+        Returns 1 when it braked."""
         book = self.book
         gentle = self.stop_from_now(world, i, period, self.tail_decel()[i])
         rows = book.footprints(i, gentle, period)
