@@ -70,17 +70,8 @@ class TrafficBraking:
             if book.reaction is not None and book.fallbacks is not None:  # the reaction it was held to, taken up
                 braked += self.take_up_reaction(world, int(i), period, records, statics, room)
                 continue
-            best, choice = current, None
-            for decel in (self.tail_decel()[i], self.tail_decel(self.params.firm_tail > self.params.tail_brake)[i], strongest[i]):
-                candidate = self.stop_from_now(world, i, period, decel)
-                if book.clearance(i, candidate, period, statics, walkers=False, traffic=False) < book.margin:
-                    continue  # braking is never refused for a walker, but it keeps the commitments apart
-                rows = book.footprints(i, candidate, period)
-                gap = room(rows, rows)
-                if gap > best:
-                    best, choice = gap, candidate
-                if gap >= book.margin:
-                    break
+            decels = (self.tail_decel()[i], self.tail_decel(self.params.firm_tail > self.params.tail_brake)[i], strongest[i])
+            choice = self.gentlest_stop(world, int(i), period, decels, current, statics, room)
             if choice is not None:
                 book.replace(int(i), choice, period)
                 records[i].mode = "traffic_brake"
@@ -88,6 +79,23 @@ class TrafficBraking:
         if book.reaction is not None and book.fallbacks is not None:
             braked += self.brake_behind(world, period, parked, records, statics)
         return braked
+
+    def gentlest_stop(self, world: WorldState, i: int, period: int, decels, room_now: float, statics: np.ndarray, room):
+        """Robot ``i``'s stop from now at the first of ``decels`` [m/s^2] whose ``room`` to the
+        vehicles ahead (and the walkers) reaches the margin, else at the one that leaves the most
+        room above ``room_now`` [m]; each only where it keeps the margin from the other
+        commitments and standing obstacles (braking is never refused for a walker). None when no
+        stop leaves more room than ``room_now``."""
+        book, best, choice = self.book, room_now, None
+        for decel in decels:
+            candidate = self.stop_from_now(world, i, period, float(decel))
+            rows = book.footprints(i, candidate, period)
+            gap = room(rows, rows)
+            if gap > best and book.clearance(i, candidate, period, statics, walkers=False, traffic=False) >= book.margin:
+                best, choice = gap, candidate
+                if gap >= book.margin:
+                    break
+        return choice
 
     def stop_from_now(self, world: WorldState, i: int, period: int, decel: float):
         """Robot ``i``'s commitment to brake from now to a stop at ``decel`` [m/s^2] along its path."""
@@ -112,15 +120,9 @@ class TrafficBraking:
             choice = book.fallbacks[i]
             rows = book.footprints(i, choice, period)
             if room(rows, rows) < book.margin:  # a vehicle cut in or braked harder than the check assumes: a harder stop
-                best = room(rows, rows)
-                for share in HARDER_STOPS:  # the gentlest that leaves the margin, else the one that leaves the most room
-                    strong = self.stop_from_now(world, i, period, -share * self.fleet.a_min[i])
-                    firm = book.footprints(i, strong, period)
-                    gap = room(firm, firm)
-                    if gap > best and book.clearance(i, strong, period, statics, walkers=False, traffic=False) >= book.margin:
-                        best, choice = gap, strong
-                        if gap >= book.margin:
-                            break
+                decels = -np.asarray(HARDER_STOPS) * self.fleet.a_min[i]
+                harder = self.gentlest_stop(world, i, period, decels, room(rows, rows), statics, room)
+                choice = choice if harder is None else harder
         book.replace(i, choice, period)
         records[i].mode = "traffic_brake"
         return 1
