@@ -50,6 +50,8 @@ SWEEP_OUTPUTS = (("summary.md", ".md"), ("results.csv", ".csv"))
 LFC_COMMITTED = ("sweep", "lane_change", "--set", "controller.coordinator=lfc", "--set", "lfc.commit=true", "--set",
                  "lfc.safety_stop=false", "--set", "lfc.fallback=brake", "--set", "lfc.ignore_followers=false", "--grid",
                  "controller.horizon=5,10,15", "--seeds", "5")
+#: AAC on every circle swap of the full grid (robots x radius), every emergency layer off (the scenario's).
+CIRCLE_FULL = ("sweep", "circle_swap", "--grid", "circle_swap.n_robots=8,16,24", "--grid", "circle_swap.radius=4,6,8", "--seeds", "5")
 JOBS = (
     Job("swarm_table1_seeds0-4", ("table", "swarm", "--seeds", "5", "--baselines")),
     Job("swarm_table1_seeds5-9", ("table", "swarm", "--seeds", "5", "--baselines") + HELD_OUT),
@@ -60,6 +62,8 @@ JOBS = (
     Job("braking_table3_seeds0-4", ("table", "braking", "--seeds", "5", "--sensitivity"),
         (("table.md", ".md"), ("table.csv", ".csv"), ("sensitivity.md", "_sensitivity.md"), ("sensitivity.csv", "_sensitivity.csv"))),
     Job("circle_swap_seeds0-4", ("table", "circle-swap", "--seeds", "5", "--baselines")),
+    Job("circle_swap_full_seeds0-4", CIRCLE_FULL, SWEEP_OUTPUTS),
+    Job("circle_swap_full_seeds5-9", CIRCLE_FULL + HELD_OUT, SWEEP_OUTPUTS),
     Job("ablation_seeds0-4", ("table", "ablation", "--seeds", "5")),
     Job("highway_work_zone_seeds0-4", ("sweep", "highway_work_zone", "--grid", "controller.coordinator=aac", "--seeds", "5"),
         SWEEP_OUTPUTS),
