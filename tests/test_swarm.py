@@ -49,6 +49,17 @@ def test_circle_swap_of_16_completes_with_aac(seed):
     assert m["collisions"] == 0 and m["safety_stops"] == 0 and m["min_clearance_m"] > 0
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("n, seed", [(16, 2), (24, 1)])
+def test_a_dense_circle_swap_untangles_through_detours(n, seed):
+    """On r = 4 m the crowd closes into a jam round the centre; the robots that stall follow
+    detours round the standing ones and every robot arrives (both runs reached the 90 s limit
+    with ``aac.detour`` off), with no emergency layer and no collision."""
+    m = runner.run(config.load("circle_swap", [f"circle_swap.n_robots={n}", "circle_swap.radius=4.0", f"scenario.seed={seed}"])).metrics
+    assert m["completed"] is True, m.get("incomplete_reason")
+    assert m["collisions"] == 0 and m["safety_stops"] == 0 and m["min_clearance_m"] > 0
+
+
 def test_short_runs_are_reproducible():
     sets = ["scenario.duration=2.0", "scenario.seed=3"]
     a, b = (runner.run(config.load("swarm_rescue", sets)) for _ in range(2))

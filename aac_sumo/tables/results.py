@@ -52,6 +52,9 @@ LFC_COMMITTED = ("sweep", "lane_change", "--set", "controller.coordinator=lfc", 
                  "controller.horizon=5,10,15", "--seeds", "5")
 #: AAC on every circle swap of the full grid (robots x radius), every emergency layer off (the scenario's).
 CIRCLE_FULL = ("sweep", "circle_swap", "--grid", "circle_swap.n_robots=8,16,24", "--grid", "circle_swap.radius=4,6,8", "--seeds", "5")
+#: AAC on 20 robots of the random crossing over densities (robots per 100 m^2): from sparse to the densest the draw places.
+CROSSING_DENSITY = ("sweep", "random_crossing", "--grid", "random_crossing.density=8,10,12.5,16.7,20", "--set",
+                    "random_crossing.n_robots=20", "--seeds", "10")
 JOBS = (
     Job("swarm_table1_seeds0-4", ("table", "swarm", "--seeds", "5", "--baselines")),
     Job("swarm_table1_seeds5-9", ("table", "swarm", "--seeds", "5", "--baselines") + HELD_OUT),
@@ -64,6 +67,8 @@ JOBS = (
     Job("circle_swap_seeds0-4", ("table", "circle-swap", "--seeds", "5", "--baselines")),
     Job("circle_swap_full_seeds0-4", CIRCLE_FULL, SWEEP_OUTPUTS),
     Job("circle_swap_full_seeds5-9", CIRCLE_FULL + HELD_OUT, SWEEP_OUTPUTS),
+    Job("random_crossing_density_seeds0-9", CROSSING_DENSITY, SWEEP_OUTPUTS),
+    Job("random_crossing_density_seeds10-19", CROSSING_DENSITY + ("--set", "scenario.seed=10"), SWEEP_OUTPUTS),
     Job("ablation_seeds0-4", ("table", "ablation", "--seeds", "5")),
     Job("highway_work_zone_seeds0-4", ("sweep", "highway_work_zone", "--grid", "controller.coordinator=aac", "--seeds", "5"),
         SWEEP_OUTPUTS),
