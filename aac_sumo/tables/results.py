@@ -74,6 +74,8 @@ JOBS = (
         SWEEP_OUTPUTS),
     Job("bench_lane_change_n10", ("bench", "aac", "--scenarios", "lane_change", "--horizons", "10"),
         (("bench.md", ".md"), ("bench.json", ".json")), parallel=False),
+    Job("bench_random_crossing", ("bench", "aac", "--scenarios", "random_crossing", "--repeats", "1"),
+        (("bench.md", ".md"), ("bench.json", ".json")), parallel=False),
     Job("cbf_qp_seeds0-4", (), (("cbf_qp_seeds0-4.md", ".md"), ("cbf_qp_seeds0-4.csv", ".csv"),
                                 ("cbf_qp_seeds0-4_runs.csv", "_runs.csv")), module="aac_sumo.tables.cbf_qp"),
     Job("orca_circle_swap", (), tuple((f"orca_circle_swap_{v}_seeds0-4{ext}", f"_{v}_seeds0-4{ext}")
