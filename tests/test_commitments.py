@@ -111,6 +111,37 @@ def test_one_authority_in_each_cluster_per_period(commit):
     assert all(set(g) <= {0, 1, 2} or set(g) <= {3, 4, 5} for g in groups)  # no cluster spans the two far groups
 
 
+@settings(max_examples=4, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 10_000))
+def test_spread_authorities_keep_every_commitment_apart(seed):
+    """Several authorities in one cluster plan in the same period; each commits only against the
+    commitments made before it, so the invariant holds as with one."""
+    scenario = config.load("random_crossing", PLAIN + ["random_crossing.n_robots=12", f"scenario.seed={seed}", 'aac.authorities="spread"'])
+    _, overlaps = drive(scenario, 40, commitments_apart)
+    assert not overlaps
+
+
+def test_spread_gives_a_long_cluster_one_authority_per_stretch_that_cannot_meet():
+    """Nine robots in a row 1.2 m apart, each reach disc meeting its neighbours': one cluster.
+    "clusters" gives it one authority; "spread" more, every two of them with reach discs apart."""
+    starts = [[1.2 * k, 0.0, 0.0] for k in range(9)]
+    goals = [[1.2 * k + 20.0, 0.0] for k in range(9)]
+    sets = swarm(starts, goals)
+    one = experiments.build(config.load("swarm_rescue", sets))
+    many = experiments.build(config.load("swarm_rescue", sets + ['aac.authorities="spread"']))
+    world = many.sim.observe()
+    coord = many.coordinator
+    held = np.flatnonzero([r.authority for r in coord.decide(world).robots])
+    radii = reach_radii(coord.fleet, world.states, coord.planner.config.horizon, 0.1)
+    assert len(clusters(world.robot_centres(), radii, 0.05)) == 1
+    assert one.coordinator.decide(one.sim.observe()).notes["authorities"] == 1
+    assert len(held) >= 2
+    centres = world.robot_centres()
+    for a in held:
+        for b in held[held > a]:
+            assert np.hypot(*(centres[a] - centres[b])) - radii[a] - radii[b] > 0.05
+
+
 @settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 10_000), speed=st.floats(-1.5, 1.5), horizon=st.integers(1, 15))
 def test_reach_radius_contains_every_committable_course(seed, speed, horizon):

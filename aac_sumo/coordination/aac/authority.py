@@ -66,6 +66,7 @@ class AacCoordinator(Coordinator):
         self._crowded: tuple[float | None, np.ndarray] = (None, np.zeros(len(tasks), dtype=bool))  # (t, crowded_ahead)
         self.last_reason: dict[int, str] = {}  # per group (its first member), why its last authority held it
         self.detours: Detours | None = None
+        self.reach = np.zeros(len(tasks))  # each robot's reach disc radius this period [m] (groups)
 
     def warm_up(self, world: WorldState) -> None:
         """The proximity decision (with its own generator) and a detour, which the first period may
@@ -127,13 +128,22 @@ class AacCoordinator(Coordinator):
             return []
         if self.params.authorities.single:
             return [(np.arange(n), active)]
-        radii = reach_radii(self.fleet, world.states, cfg.horizon, cfg.dt)  # within the horizon
+        radii = self.reach = reach_radii(self.fleet, world.states, cfg.horizon, cfg.dt)  # within the horizon
         out = [(g, g[~parked[g]]) for g in clusters(world.robot_centres(), radii, self.params.commit_margin)]
         out = [(g, c) for g, c in out if c.size]
         if not self.params.authorities.per_cluster:
             out = sorted(out, key=lambda gc: (self.last_turn[gc[1]].min(), gc[0][0]))[: self.params.authorities.count]
             out.sort(key=lambda gc: gc[0][0])
         return out
+
+    def out_of_reach(self, world: WorldState, i: int, candidates: np.ndarray) -> np.ndarray:
+        """Those of ``candidates`` whose reach discs of this period (:meth:`groups`) keep more
+        than ``commit_margin`` from robot ``i``'s: with ``authorities = "spread"``, they may hold
+        authority in the same period as ``i`` (each plans round the others' commitments, and
+        each new commitment passes the exact check against those committed before it)."""
+        centres = world.robot_centres()
+        gap = np.hypot(*(centres[candidates] - centres[i]).T) - self.reach[candidates] - self.reach[i]
+        return candidates[gap > self.params.commit_margin]
 
     def choose_in_group(self, world: WorldState, members: np.ndarray, candidates: np.ndarray, records: list[RobotDecision],
                          period: int) -> tuple[int, str]:

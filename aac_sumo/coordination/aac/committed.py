@@ -121,15 +121,17 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
                                         np.maximum(self.extra_shift - SHIFT_DECAY * cfg.dt, 0.0))
         holders, reasons, cuts, kept = [], [], 0, 0
         for members, candidates in self.groups(world, parked):
-            i, reason = self.choose_in_group(world, members, candidates, records, period)
-            others = members[members != i]
-            decided, cut, keep = self.plan_committed(world, i, others, reason, period, statics)
-            decided.score, decided.progress = records[i].score, records[i].progress
-            records[i] = decided
-            holders.append(world.robots[i].name)
-            reasons.append(reason)
-            cuts += cut
-            kept += keep
+            while candidates.size:
+                i, reason = self.choose_in_group(world, members, candidates, records, period)
+                others = members[members != i]
+                decided, cut, keep = self.plan_committed(world, i, others, reason, period, statics)
+                decided.score, decided.progress = records[i].score, records[i].progress
+                records[i] = decided
+                holders.append(world.robots[i].name)
+                reasons.append(reason)
+                cuts += cut
+                kept += keep
+                candidates = self.out_of_reach(world, i, candidates) if self.params.authorities.spread else candidates[:0]
         extended = self.extend_by_tracking(world, period, parked, holders, records, statics)
         braked = (self.brake_for_traffic(world, period, parked, records, statics)
                   if self.book.traffic or self.params.walker_brake or self.book.reaction is not None else 0)

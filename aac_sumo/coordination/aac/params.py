@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from aac_sumo.config.keys import NN, P
-from aac_sumo.config.schema import param, section
+from aac_sumo.config.schema import ParamError, param, section
 from aac_sumo.coordination.base import FALLBACKS, check_safety_options
 from aac_sumo.coordination.proximity import ProximityParams
 
@@ -13,12 +13,14 @@ from aac_sumo.coordination.proximity import ProximityParams
 @dataclass(frozen=True)
 class Authorities:
     """How many robots hold authority per period: one in every cluster of robots that can meet
-    within the horizon (``per_cluster``), else at most ``count`` (1: the paper), each in its own
-    group. The scenario key ``aac.authorities`` is an integer or ``"clusters"``
-    (:meth:`parse`)."""
+    within the horizon (``per_cluster``), and with ``spread`` (committed plans) more in a cluster,
+    each one whose reach disc cannot meet those of the cluster's authorities before it; else at
+    most ``count`` (1: the paper), each in its own group. The scenario key ``aac.authorities``
+    is an integer, ``"clusters"`` or ``"spread"`` (:meth:`parse`)."""
 
     count: int = 1
     per_cluster: bool = False
+    spread: bool = False
 
     def __post_init__(self):
         if not (isinstance(self.count, int) and not isinstance(self.count, bool) and self.count >= 1):
@@ -29,8 +31,10 @@ class Authorities:
         """``"clusters"`` or a positive integer; ValueError otherwise."""
         if value == "clusters":
             return cls(per_cluster=True)
+        if value == "spread":
+            return cls(per_cluster=True, spread=True)
         if isinstance(value, bool) or not isinstance(value, int):
-            raise ValueError("authorities must be a positive integer or 'clusters'")
+            raise ValueError("authorities must be a positive integer, 'clusters' or 'spread'")
         return cls(count=value)
 
     @property
@@ -73,10 +77,11 @@ class AacParams:
                          "and a new plan replaces it only when it keeps commit_margin from every other commitment (collision-free "
                          "by construction); false: the paper's stored plan, then the tracking law")
     authorities: Authorities = param(Authorities(), "robots holding authority per period: 1 (the paper), a larger integer, or \"clusters\" "
-                                     "(one per group of robots that can interact within the horizon), with committed or stored plans",
+                                     "(one per group of robots that can interact within the horizon), with committed or stored plans, or \"spread\" "
+                                     "(committed plans: in a cluster, more wherever their reach discs cannot meet)",
                                      type=object, parse=lambda a: Authorities.parse(a), raw_default=1,
-                                     check=lambda a: a == "clusters" or (isinstance(a, int) and not isinstance(a, bool) and a >= 1),
-                                     expect="a positive integer or \"clusters\"")
+                                     check=lambda a: a in ("clusters", "spread") or (isinstance(a, int) and not isinstance(a, bool) and a >= 1),
+                                     expect="a positive integer, \"clusters\" or \"spread\"")
     tail_brake: float = param(0.5, "deceleration of a commitment's stopping tail, as a share of the strongest braking |robot.a_min|",
                               check=lambda x: 0 < x <= 1, expect="in (0, 1]")
     firm_tail: float = param(0.0, "a commitment whose stopping tail at tail_brake fails the exact check is tried again with its "
@@ -119,4 +124,6 @@ class AacParams:
     def __post_init__(self):
         check_safety_options(self.safety_stop, self.fallback, self.ignore_followers, self.commit, self.detour)
         if not isinstance(self.authorities, Authorities):
-            raise ValueError("authorities must be an Authorities (Authorities.parse(1 | k | 'clusters'))")
+            raise ValueError("authorities must be an Authorities (Authorities.parse(1 | k | 'clusters' | 'spread'))")
+        if self.authorities.spread and not self.commit:
+            raise ParamError("authorities", "\"clusters\" or an integer unless {section}.commit is true", "spread")
