@@ -187,10 +187,11 @@ class AacCoordinator(Coordinator):
     def reference(self, world: WorldState, i: int, speeds: np.ndarray | None = None) -> np.ndarray:
         """Robot ``i``'s reference (N+1, 4) (``speeds``: as in :meth:`Coordinator.reference`): a
         make-room target's or, for a robot that can reverse and has stood long
-        (:meth:`~aac_sumo.coordination.make_room.MakeRoom.backing_off`), straight back at half its cruise speed (a short horizon finds no way round an obstacle
-        it faces at close range); else its task's, shifted ``keep_right`` [m] to the right of its
-        direction while another robot's footprint centre lies ahead of it (in the half-plane in
-        front, along the reference's heading) within ``keep_right_range`` [m]: a right-hand rule
+        (:meth:`~aac_sumo.coordination.make_room.MakeRoom.backing_off`), straight back at half
+        its cruise speed (a short horizon finds no way round an obstacle it faces at close
+        range); else its task's, shifted ``keep_right`` [m] to the right of its direction while
+        another robot's footprint centre lies ahead of it (in the half-plane in front, along the
+        reference's heading) within ``keep_right_range`` [m]: a right-hand rule
         that turns head-on meetings and crowded crossings into passing on the right, a
         roundabout in effect. The shift fades out between 4 and 2.5 times ``keep_right`` from
         the goal, so that the robot arrives on its path."""

@@ -131,7 +131,9 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
                 reasons.append(reason)
                 cuts += cut
                 kept += keep
-                candidates = self.out_of_reach(world, i, candidates) if self.params.authorities.spread else candidates[:0]
+                if not self.params.authorities.spread:
+                    break
+                candidates = self.out_of_reach(world, i, candidates)
         extended = self.extend_by_tracking(world, period, parked, holders, records, statics)
         braked = (self.brake_for_traffic(world, period, parked, records, statics)
                   if self.book.traffic or self.params.walker_brake or self.book.reaction is not None else 0)
@@ -191,7 +193,8 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
                 return candidate
         return None
 
-    def continued_commitment(self, world: WorldState, i: int, period: int, head: np.ndarray, statics: np.ndarray):
+    def continued_commitment(self, world: WorldState, i: int, period: int, head: np.ndarray, statics: np.ndarray,
+                             speeds: np.ndarray | None = None):
         """Robot ``i``'s commitment to ``head`` (m, 2) continued along its path before its
         stopping tail, for ``cruise`` [s], else half or a quarter of it: the longest that passes
         the exact check. The continuation is the tracking law's steering with the speed that
@@ -199,7 +202,8 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
         (:mod:`~aac_sumo.coordination.anticipation`: it stays behind what is ahead on its path
         and stops before a walker who counts, as the MPC's reference does), with what moves
         along the path going on at its speed, for the other robots the speed their commitments
-        have ``LEAD_LOOK`` on (:meth:`~aac_sumo.coordination.aac.queueing.Queueing.lead_speeds`),
+        have ``LEAD_LOOK`` on (:meth:`~aac_sumo.coordination.aac.queueing.Queueing.lead_speeds`;
+        ``speeds``: those, already computed this period),
         braking at most at the comfort envelope and speeding up at most at the anticipation's
         ``accel``, and staying where it can stop (at ``HARD_SHARE`` of :meth:`held_decel`) behind
         where each uncontrolled vehicle ahead could stand
@@ -212,7 +216,7 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
             return None
         head = np.asarray(head, dtype=float).reshape(-1, 2)
         rules, robot = self.anticipation, world.robots[i]
-        seen = self.lead_speeds(world, i, period)
+        seen = self.lead_speeds(world, i, period) if speeds is None else speeds
         stops = stop_points(world, i, task, rules, self.held[i], courses=self.courses, speeds=seen)  # [s_stop, v_lead, grow]: what it must stay behind
         x, y, h, v = self.fleet.rollout(np.array([i]), world.states[[i]], head[None], cfg.dt)[0, -1]
         steer, accel = (float(head[-1, 1]), float(head[-1, 0])) if len(head) else (float(self.last_inputs[i, 1]), float(self.last_inputs[i, 0]))
@@ -257,7 +261,8 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
             obstacles = [obstacles[k] if k < len(obstacles) else next(swept) for k in ranked]
         else:
             obstacles = obstacles + self.fleet.swept_regions(others, traj, cfg.horizon, cfg.barrier, cfg.fcbf)
-        ref = self.reference(world, i, None if self.anticipation is None else self.lead_speeds(world, i, period))
+        seen = None if self.anticipation is None else self.lead_speeds(world, i, period)
+        ref = self.reference(world, i, seen)
         own = book.items[i]
         guess = (own.course(period, cfg.horizon), own.inputs_ahead(period, cfg.horizon))
         if own.stage(period) == "hold":  # standing: a standing guess keeps it standing; start from the tracking law instead
@@ -281,9 +286,9 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
             cuts = range(calm, -1, -1)
         passed, m = None, cfg.horizon
         if plan.status == "solved" and calm == cfg.horizon:
-            passed = self.continued_commitment(world, i, period, plan.inputs, statics)
+            passed = self.continued_commitment(world, i, period, plan.inputs, statics, seen)
         if passed is None and self.book.traffic and self.behind_traffic[i]:  # behind a SUMO car: its continuation from now
-            passed = self.continued_commitment(world, i, period, np.zeros((0, 2)), statics)
+            passed = self.continued_commitment(world, i, period, np.zeros((0, 2)), statics, seen)
         for m in cuts if passed is None else ():
             passed = self.passing(world, i, period, plan.inputs[:m], statics)
             if passed is not None:
