@@ -155,31 +155,50 @@ def test_a_car_behind_a_queue_setting_off_plans_at_the_speeds_the_queue_has_comm
     assert np.all(committed >= now - 1e-9)
 
 
-@pytest.mark.parametrize("gap", [18.0, 10.0])
-def test_a_car_held_reactively_answers_a_cut_in_with_the_gentlest_stop_that_leaves_the_margin(gap):
-    """Held reactively with a 2 m/s^2 reaction, a car at 16 m/s cruises on a free lane; then a
-    SUMO car cuts in ``gap`` [m] ahead (between bumpers) at the same speed. Its reaction no longer
-    stops it short of where that car could stop braking at 4.5 m/s^2, so it must brake harder,
-    but only as hard as leaves the margin: 3 m/s^2 for 18 m, 4 m/s^2 for 10 m (it braked at its
-    strongest, 6 m/s^2, before). The vehicle drives on, and the car keeps the margin from it."""
+def cut_in(gap: float, lead_speed: float, **params) -> tuple[list[float], list[float]]:
+    """A car held reactively (``params`` on top) cruises at 16 m/s on a free lane; then a SUMO
+    car cuts in ``gap`` [m] ahead (between bumpers) at ``lead_speed`` [m/s] and drives on. The
+    car's accelerations [m/s^2] and its bumper gaps [m] to that car, period by period."""
     car = [CARS[0]]
     tasks = [PathReference([[-50.0, 0.0], [2000.0, 0.0]], 16.0, stop_at_end=False)]
     config_ = MpcConfig(dt=DT, horizon=10, comfort_accel=2.0, comfort_lat=2.0, pedestrian_margin=1.0)
-    params = AacParams(commit=True, safety_stop=False, make_room=False, cruise=4.0, lookahead=10.0, tail_brake=0.3333, firm_tail=0.3333,
-                       traffic_reaction=True, commit_margin=1.0, fallback="brake", ignore_followers=False)
+    params = AacParams(**{**dict(commit=True, safety_stop=False, make_room=False, cruise=4.0, lookahead=10.0, tail_brake=0.3333,
+                                 firm_tail=0.3333, traffic_reaction=True, commit_margin=1.0, fallback="brake", ignore_followers=False), **params})
     aac = AacCoordinator(MpcPlanner(config_), tasks, params=params)
     aac.anticipation = Anticipation(pedestrian_margin=1.0)
     states = np.array([[0.0, 0.0, 0.0, 16.0]])
-    accels = []
+    accels, gaps = [], []
     for k in range(40):
-        cut_in = k >= 5
-        lead_x = states[0, 0] + 1.3 + 2.0 + gap + 2.25 if k == 5 else lead_x + 16.0 * DT if cut_in else None
-        obstacles = [Obstacle("bg.0", "scripted", np.array([lead_x, 0.0]), np.array([16.0, 0.0]), 0.0, 4.5, 1.8)] if cut_in else []
+        lead_x = states[0, 0] + 1.3 + 2.0 + gap + 2.25 if k == 5 else lead_x + lead_speed * DT if k > 5 else None
+        obstacles = [Obstacle("bg.0", "scripted", np.array([lead_x, 0.0]), np.array([lead_speed, 0.0]), 0.0, 4.5, 1.8)] if k >= 5 else []
         decision = aac.decide(WorldState(k * DT, states, car, obstacles))
-        accels.append(decision.inputs[0, 0])
-        if cut_in:
-            assert lead_x - 2.25 - (states[0, 0] + 1.3 + 2.0) >= 1.0 - 1e-6
+        accels.append(float(decision.inputs[0, 0]))
+        if k >= 5:
+            gaps.append(lead_x - 2.25 - (states[0, 0] + 1.3 + 2.0))
         states = aac.fleet.rollout(np.arange(1), states, decision.inputs[:, None, :], DT)[:, -1]
-    hardest = -min(accels)
-    expected = 3.0 if gap == 18.0 else 4.0
-    assert hardest == pytest.approx(expected, abs=0.05)
+    return accels, gaps
+
+
+@pytest.mark.parametrize("gap", [18.0, 10.0])
+def test_a_car_held_reactively_answers_a_cut_in_with_the_gentlest_stop_that_leaves_the_margin(gap):
+    """Held reactively with a 2 m/s^2 reaction, a car at 16 m/s meets a SUMO car cutting in
+    ``gap`` [m] ahead at its own speed. Its reaction no longer stops it short of where that car
+    could stop braking at 4.5 m/s^2, so it must brake harder, but only as hard as leaves the
+    margin: 3 m/s^2 for 18 m, 4 m/s^2 for 10 m (it braked at its strongest, 6 m/s^2, before). The
+    car keeps the margin from the vehicle."""
+    accels, gaps = cut_in(gap, 16.0)
+    assert min(gaps) >= 1.0 - 1e-6
+    assert -min(accels) == pytest.approx(3.0 if gap == 18.0 else 4.0, abs=0.05)
+
+
+def test_a_strong_reaction_lets_a_faster_car_cut_in_without_braking_beyond_comfort():
+    """A SUMO car at 20 m/s cuts in 8 m ahead of a car at 16 m/s. Held to a 2 m/s^2 reaction,
+    the car cannot stop behind where that car could stop at 4.5 m/s^2 and brakes beyond the
+    comfort bound; held to its strongest braking (``aac.reaction_brake`` = 1: it could still stop
+    at 6 m/s^2), it rides the cut-in out within comfort while the faster car pulls away, and both
+    keep the margin."""
+    gentle, gentle_gaps = cut_in(8.0, 20.0)
+    strong, strong_gaps = cut_in(8.0, 20.0, reaction_brake=1.0)
+    assert -min(gentle) > 2.0 + 1e-6
+    assert -min(strong) <= 2.0 + 1e-6
+    assert min(strong_gaps) >= 1.0 - 1e-6 and min(gentle_gaps) >= 1.0 - 1e-6

@@ -92,7 +92,7 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
         self.book.walkers = walkers
         self.book.traffic = braking_courses(world.obstacles, self.params.traffic_decel, cfg.dt)
         if self.params.traffic_reaction:
-            self.book.reaction = (self.tail_decel(self.params.firm_tail > self.params.tail_brake), cfg.dt)
+            self.book.reaction = (self.reaction_decel(), cfg.dt)
         self.book.park(~world.on_road, world.states, period)
         self.book.hold_fallbacks(period)
         for i in self.front_first(world) if first else ():  # with cruise, every car drives on from the start where the check lets it
@@ -165,13 +165,18 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
         share = self.params.firm_tail if firm else self.params.tail_brake
         return np.minimum(share * -self.fleet.a_min, self.fleet.comfort)
 
+    def reaction_decel(self) -> np.ndarray:
+        """Each robot's reaction deceleration [m/s^2] (``traffic_reaction``): ``reaction_brake``
+        of its strongest braking, else its firm tail's (``firm_tail``), else its gentle tail's."""
+        if self.params.reaction_brake > 0.0:
+            return self.params.reaction_brake * -self.fleet.a_min
+        return self.tail_decel(self.params.firm_tail > self.params.tail_brake)
+
     def held_decel(self, calm: float) -> np.ndarray:
         """Each robot's deceleration [m/s^2] the check holds it to behind an uncontrolled vehicle:
-        its reaction's (``traffic_reaction``: the firm tail's), else its gentle tail's within
-        ``calm``, the comfort envelope of its continuation."""
-        if self.params.traffic_reaction:
-            return self.tail_decel(self.params.firm_tail > self.params.tail_brake)
-        return np.minimum(self.tail_decel(), calm)
+        its reaction's (``traffic_reaction``), else its gentle tail's within ``calm``, the
+        comfort envelope of its continuation."""
+        return self.reaction_decel() if self.params.traffic_reaction else np.minimum(self.tail_decel(), calm)
 
     def commitment(self, world: WorldState, i: int, period: int, head: np.ndarray, firm: bool = False):
         """Robot ``i``'s commitment from now: the inputs ``head`` (m, 2), then its stopping tail

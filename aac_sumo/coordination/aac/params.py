@@ -103,6 +103,10 @@ class AacParams:
                                    "at the firm tail (firm_tail, else tail_brake): a car can always stop behind where a car ahead "
                                    "could, once it sees it brake (as a driver's time gap keeps), rather than on its own committed "
                                    "tail; false: the commitment's own course")
+    reaction_brake: float = param(0.0, "with traffic_reaction, the share of |robot.a_min| the reaction brakes at, beyond the "
+                                  "comfort bound (0: the firm tail's): the check then asks that a car can stop behind a car ahead "
+                                  "braking at traffic_decel at all, and a car that must brake still tries the gentle tail, the firm "
+                                  "tail and then firmer stops first", check=lambda x: 0 <= x <= 1, expect="in [0, 1]")
     walker_brake: bool = param(False, "with commit, a robot whose commitment already meets a walker's region (one SUMO sets down "
                                "beside the road, or one who leaves what the check assumed of her) renews its continuation or "
                                "brakes at once, as for SUMO's cars (mode traffic_brake)")

@@ -31,6 +31,10 @@ from aac_sumo.world import WorldState
 #: the one that leaves the most room.
 HARDER_STOPS = (0.5, 2.0 / 3.0, 5.0 / 6.0, 1.0)
 
+#: With ``reaction_brake``, a firmer stop is taken where no stop keeps the margin only if it
+#: leaves at least this much more room [m].
+ROOM_GAIN = 0.1
+
 
 class TrafficBraking:
     """The traffic-braking step of committed AAC (needs the coordinator's ``book``, ``fleet``,
@@ -105,18 +109,18 @@ class TrafficBraking:
     def take_up_reaction(self, world: WorldState, i: int, period: int, records: list[RobotDecision], statics: np.ndarray,
                          room) -> int:
         """Robot ``i``, whose reaction no longer keeps the margin from a vehicle ahead (or a
-        walker), brakes: with its gentle tail from now where that passes the whole check, else on
+        walker), brakes: with its gentle tail from now where that passes the whole check (with
+        ``reaction_brake``, then the firmer :meth:`graded_stops`), else on
         its fallback (its reaction of the period before, clear of that vehicle's course then, so
         of the vehicle now, as long as it keeps to what the check assumes), else, where a vehicle
         broke that assumption, as gently as ``HARDER_STOPS`` allows where that leaves more room
         and keeps the margin from the other commitments. Braking is never refused for a walker.
         Returns 1 when it braked."""
         book = self.book
-        gentle = self.stop_from_now(world, i, period, self.tail_decel()[i])
-        rows = book.footprints(i, gentle, period)
-        if book.clearance(i, gentle, period, statics, walkers=False) >= book.margin and room(rows, book.traffic_rows(i, gentle, period)) >= book.margin:
-            choice = gentle
-        else:
+        choice = self.graded_stop(world, i, period, statics, room)
+        if choice is None and self.params.reaction_brake > 0.0:
+            choice = self.least_harm_stop(world, i, period, statics, room)
+        if choice is None:
             choice = book.fallbacks[i]
             rows = book.footprints(i, choice, period)
             if room(rows, rows) < book.margin:  # a vehicle cut in or braked harder than the check assumes: a harder stop
@@ -126,6 +130,66 @@ class TrafficBraking:
         book.replace(i, choice, period)
         records[i].mode = "traffic_brake"
         return 1
+
+    def graded_stops(self, i: int) -> np.ndarray:
+        """Robot ``i``'s decelerations [m/s^2] to try before its reaction, gentlest first: its
+        gentle tail, and with ``reaction_brake`` its firm tail and the ``HARDER_STOPS`` below
+        its reaction's."""
+        gentle = float(self.tail_decel()[i])
+        if self.params.reaction_brake <= 0.0:
+            return np.array([gentle])
+        firmer = np.append(self.tail_decel(True)[i], -np.asarray(HARDER_STOPS) * self.fleet.a_min[i])
+        return np.append(gentle, np.unique(firmer[(firmer > gentle) & (firmer < self.reaction_decel()[i])]))
+
+    def graded_stop(self, world: WorldState, i: int, period: int, statics: np.ndarray, room=None):
+        """Robot ``i``'s stop from now at the first of :meth:`graded_stops` that passes the whole
+        check but the walkers' (and, with ``room``, keeps the margin to the vehicles ahead and the
+        walkers), else None."""
+        book = self.book
+        for decel in self.graded_stops(i):
+            candidate = self.stop_from_now(world, i, period, float(decel))
+            if not self.clears_behind(i, candidate, period, statics):
+                continue
+            if room is None or room(book.footprints(i, candidate, period), book.traffic_rows(i, candidate, period)) >= book.margin:
+                return candidate
+        return None
+
+    def least_harm_stop(self, world: WorldState, i: int, period: int, statics: np.ndarray, room):
+        """Where no stop keeps the margin to a vehicle ahead (one that cut in, or braked harder
+        than the check assumes) or a walker: of robot ``i``'s :meth:`graded_stops` that keep the
+        margin from the other robots, its fallback and its reaction from now, the gentlest whose
+        ``room`` comes within ``ROOM_GAIN`` of the most any leaves (braking harder where it gains
+        nothing is discomfort alone: a car cutting in diagonally meets every stop alike)."""
+        book = self.book
+        options = [self.stop_from_now(world, i, period, float(d)) for d in self.graded_stops(i)]
+        options = [c for c in options if self.clears_behind(i, c, period, statics, traffic=False)] + [book.fallbacks[i]]
+        strongest = self.stop_from_now(world, i, period, float(self.reaction_decel()[i]))
+        if self.clears_behind(i, strongest, period, statics, traffic=False):
+            options.append(strongest)
+        rooms = np.array([room(book.footprints(i, c, period), book.footprints(i, c, period)) for c in options])
+        return options[int(np.flatnonzero(rooms >= rooms.max() - ROOM_GAIN)[0])]
+
+    def clears_behind(self, i: int, candidate, period: int, statics: np.ndarray, traffic: bool = True) -> bool:
+        """Whether robot ``i``'s stop ``candidate`` passes the check (the walkers' aside; without
+        ``traffic``, the vehicles' too), where
+        a robot whose commitment it meets may take up its fallback instead (with
+        ``reaction_brake``; :meth:`brake_behind` then gives it that, or a gentler stop): a car
+        that brakes need not wait for the cars behind it, whose reactions keep the margin from
+        its own. The book is left as it was."""
+        book, n, swapped = self.book, len(self.book.items), []
+        try:
+            while True:
+                gap, j = book.check(i, candidate, period, statics, walkers=False, traffic=traffic)
+                if gap >= book.margin:
+                    return True
+                if (self.params.reaction_brake <= 0.0 or not 0 <= j < n or book.fallbacks[j] is book.items[j]
+                        or any(k == j for k, _ in swapped)):
+                    return False
+                swapped.append((j, book.items[j]))
+                book.replace(j, book.fallbacks[j], period)
+        finally:
+            for j, c in reversed(swapped):
+                book.replace(j, c, period)
 
     def brake_behind(self, world: WorldState, period: int, parked: np.ndarray, records: list[RobotDecision], statics: np.ndarray) -> int:
         """With ``traffic_reaction``: every robot whose commitment or reaction now comes within
@@ -145,7 +209,8 @@ class TrafficBraking:
                 gap, blocker = book.check(int(j), book.items[j], period, statics, walkers=False, traffic=False)
                 if gap >= book.margin or not 0 <= blocker < n:
                     continue
-                book.replace(int(j), book.fallbacks[j], period)
+                graded = self.graded_stop(world, int(j), period, statics) if self.params.reaction_brake > 0.0 else None
+                book.replace(int(j), book.fallbacks[j] if graded is None else graded, period)
                 records[j].mode = "traffic_brake"
                 taken[j], changed = True, True
                 count += 1
