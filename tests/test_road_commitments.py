@@ -97,7 +97,8 @@ def test_the_bundled_lane_change_completes_with_committed_plans_and_no_emergency
     assert m["safety_stops"] == 0 and m["min_pedestrian_clearance_m"] >= 1.0
 
 
-def test_a_car_held_reactively_brakes_for_a_vehicle_ahead_though_the_car_behind_committed_against_its_gentler_course():
+@pytest.mark.parametrize("reaction_brake", [0.0, 1.0])
+def test_a_car_held_reactively_brakes_for_a_vehicle_ahead_though_the_car_behind_committed_against_its_gentler_course(reaction_brake):
     """Held reactively (``aac.traffic_reaction``), a car's commitment may run into a vehicle's
     braking course as long as its reaction (one period, then 3 m/s^2) stops short of it. Here a
     car at 10 m/s has a SUMO car standing 20 m ahead (its 2 m/s^2 tail needs 25 m, its reaction
@@ -107,12 +108,14 @@ def test_a_car_held_reactively_brakes_for_a_vehicle_ahead_though_the_car_behind_
     that (seed 12 of ``highway_work_zone``, aac.50 into bg.17 at t = 216.6 s) the firmer stop was
     refused for the follower's commitment and the car drove its gentle tail into the vehicle.
     Every commitment keeps the margin from the others, the car stops at least the margin short
-    of the vehicle, and nothing touches."""
+    of the vehicle, and nothing touches; so too when the reaction is the strongest braking
+    (``aac.reaction_brake`` = 1), where the cars brake later and the follower may stop on a
+    gentler course than its reaction."""
     cars = [RobotSpec(f"car{i}", 4.0, 1.8, BicycleModel(2.6, LIMITS)) for i in range(2)]
     tasks = [PathReference([[-50.0, 0.0], [800.0, 0.0]], 16.0, stop_at_end=False) for _ in cars]
     config_ = MpcConfig(dt=DT, horizon=10, comfort_accel=2.0, comfort_lat=2.0, pedestrian_margin=1.0)
     params = AacParams(commit=True, safety_stop=False, make_room=False, cruise=4.0, lookahead=10.0, tail_brake=0.3333, firm_tail=0.5,
-                       traffic_reaction=True, commit_margin=1.0, fallback="brake", ignore_followers=False)
+                       traffic_reaction=True, commit_margin=1.0, fallback="brake", ignore_followers=False, reaction_brake=reaction_brake)
     aac = AacCoordinator(MpcPlanner(config_), tasks, params=params)
     aac.anticipation = Anticipation(pedestrian_margin=1.0)
     states = np.array([[8.0, 0.0, 0.0, 12.4], [30.0, 0.0, 0.0, 10.0]])  # the follower, the car
