@@ -57,6 +57,22 @@ def test_written_poses_read_back_one_step_later():
         sim.close()
 
 
+@pytest.mark.parametrize("declared", [0.0, 2.0])
+def test_sumo_is_told_the_deceleration_declared_for_our_cars(declared):
+    """With ``sumo.declared_decel`` SUMO's drivers take our cars to brake at that deceleration
+    (their vType's ``decel``, read back through libsumo); without it the vType's own stands."""
+    robots = cars("car0")
+    options = SumoOptions(BUNDLED_NET, declared_decel=declared)
+    sim = SumoSimulator(robots, np.array([[20.0, LANE_Y[0], 0.0, 10.0]]), 0.1, ["E0", "E1"], options)
+    try:
+        sim.step(np.zeros((1, 2)))
+        own = sim.api.vehicletype.getDecel(sim.api.vehicle.getTypeID("car0"))
+        assert own != 2.0
+        assert sim.api.vehicle.getDecel("car0") == pytest.approx(declared if declared > 0.0 else own)
+    finally:
+        sim.close()
+
+
 def test_two_vehicles_twenty_steps_move_without_collision():
     scenario = config.load("lane_change", SMALL + ["lane_change.vehicles=2", "scenario.duration=2.0"])
     result = runner.run(scenario)

@@ -176,7 +176,7 @@ def sumo_options(scenario: Scenario, net_path: Path, routes: list[Path]) -> Sumo
                             "run without --gui, or under xvfb-run", "no display")
     options = SumoOptions(net_path, routes, tuple(t.strip() for t in su.cone_types.split(",") if t.strip()),
                           su.gui, scenario["scenario.seed"], su.delay, out, outputs, config.path if config else None,
-                          tuple(shlex.split(su.extra_args)), su.lateral_resolution, simulator_drives(scenario))
+                          tuple(shlex.split(su.extra_args)), su.lateral_resolution, simulator_drives(scenario), su.declared_decel)
     if config is not None:
         overridden = config.overridden(options.our_options(scenario["scenario.dt"]))
         if overridden:

@@ -162,7 +162,8 @@ class SumoSimulator(SumoReading, Simulator):
             v.moveToXY(robot.name, "", -1, x, y, angle, keepRoute=2)
 
     def _make_ours(self, i: int) -> None:
-        """Robot ``i``'s SUMO vehicle moves as our model moves it: speed and lane-change mode 0,
+        """Robot ``i``'s SUMO vehicle moves as our model moves it: speed and lane-change mode 0
+        (and, with ``declared_decel``, that deceleration as its vType's ``decel``),
         and a speed SUMO allows it on every car lane of the network at least its top speed
         ``v_max``: its maximum speed and speed factor are raised where they fall short (the
         slowest lane's limit times the speed factor). SUMO caps the speed it derives from a
@@ -172,6 +173,8 @@ class SumoSimulator(SumoReading, Simulator):
         name, v = self.robots[i].name, self.api.vehicle
         v.setSpeedMode(name, 0)
         v.setLaneChangeMode(name, 0)
+        if self.options.declared_decel > 0.0:
+            v.setDecel(name, self.options.declared_decel)
         top = float(self.robots[i].model.limits.v_max)
         if v.getMaxSpeed(name) < top:
             v.setMaxSpeed(name, top)

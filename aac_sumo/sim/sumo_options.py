@@ -71,6 +71,9 @@ class SumoParams:
                                 "SUMO's own desired speed (the lane's limit times the vType's speed factor, 13.9 m/s on the bundled road)")
     lateral_resolution: float = param(0.0, "SUMO's sublane model: --lateral-resolution for SUMO's own traffic [m] (0: off, "
                                       "the lane-based model, unless sumo.config or sumo.extra_args set it)", **NN)
+    declared_decel: float = param(0.0, "the comfortable deceleration SUMO is told each controlled car brakes at (its vType's "
+                                  "decel, which SUMO's drivers assume of it when they change lanes in front of it, set by "
+                                  "vehicle.setDecel when the car becomes ours) [m/s^2]; 0: the vType's own", **NN)
     output_dir: str = param("", "directory of SUMO's own output files and of its message log sumo.log (aac-sumo run sets it to "
                             "--out; empty: out/<scenario name> when outputs are asked for, else no files and SUMO's warnings off)")
 
@@ -102,6 +105,7 @@ class SumoOptions:
     extra_args: tuple[str, ...] = ()  # more SUMO options, before ours
     lateral_resolution: float = 0.0  # SUMO's sublane model's lateral resolution [m]; 0: off (not set by us)
     sumo_drives: bool = False  # SUMO's own driver moves the controlled vehicles (see the module)
+    declared_decel: float = 0.0  # the decel SUMO is told our cars brake at [m/s^2]; 0: their vType's
 
     def our_options(self, dt: float) -> dict[str, str]:
         """The SUMO options the co-simulation sets itself, name -> value."""

@@ -56,11 +56,12 @@ CIRCLE_FULL = ("sweep", "circle_swap", "--grid", "circle_swap.n_robots=8,16,24",
 CROSSING_DENSITY = ("sweep", "random_crossing", "--grid", "random_crossing.density=8,10,12.5,16.7,20", "--set",
                     "random_crossing.n_robots=20", "--seeds", "10")
 #: AAC on the highway with committed plans and no emergency layer, held reactively to its strongest braking
-#: against SUMO's cars (docs/highway_work_zone.md); the scenario's default is the paper's stored plans.
+#: against SUMO's cars, and SUMO told that they brake at 2 m/s^2, their comfort bound (docs/highway_work_zone.md); the
+#: scenario's default is the paper's stored plans.
 HIGHWAY_COMMITTED = ("sweep", "highway_work_zone", *(a for key in (
     "aac.commit=true", "aac.cruise=4.0", "aac.authorities=clusters", "aac.make_room=false", "aac.commit_margin=1.0",
     "aac.safety_stop=false", "aac.fallback=brake", "aac.ignore_followers=false", "aac.tail_brake=0.3333", "aac.firm_tail=0.3333",
-    "aac.traffic_reaction=true", "aac.walker_brake=true", "aac.reaction_brake=1.0") for a in ("--set", key)),
+    "aac.traffic_reaction=true", "aac.walker_brake=true", "aac.reaction_brake=1.0", "sumo.declared_decel=2.0") for a in ("--set", key)),
     "--grid", "controller.coordinator=aac", "--seeds", "5")
 JOBS = (
     Job("swarm_table1_seeds0-4", ("table", "swarm", "--seeds", "5", "--baselines")),
