@@ -1,12 +1,14 @@
 """The one SUMO frame conversion: front bumper + navigational degrees <-> rear axle + radians CCW."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from aac_sumo.network import sumo_binary
 from aac_sumo.sim.sumo_frames import (
     body_from_sumo, collision_cover, heading_from_sumo, lane_change_sweep, state_from_sumo, sumo_from_state, velocity_from_sumo,
 )
@@ -98,10 +100,36 @@ def test_a_sumo_velocity_is_the_speed_along_the_lane_plus_the_lateral_speed_acro
 
 @pytest.mark.parametrize("lateral_speed, position, sweep", [
     (0.0, 0.4, 0.0),      # no change under way
-    (-1.75, 0.0, -3.5),   # just begun to the right: a whole lane
+    (-1.75, 0.0, 0.0),    # at the centre: the step that ends a change (a change's first step has moved already)
+    (-1.75, -0.175, -3.325),  # just begun to the right: almost a whole lane
     (-1.75, -1.2, -2.3),  # on its way, still on the old lane
     (-1.75, 1.5, -1.5),   # past halfway: SUMO has it on the new lane, 1.5 m left of its centre
     (1.75, -0.5, 0.5),    # to the left, on the new lane
 ])
 def test_a_lane_change_sweeps_the_front_to_the_centre_of_the_lane_it_moves_into(lateral_speed, position, sweep):
     assert lane_change_sweep(lateral_speed, position, 3.5) == pytest.approx(sweep)
+
+
+def test_sumo_reports_a_lane_change_at_the_lane_centre_only_at_its_last_step():
+    """Real libsumo, the bundled highway with SUMO's continuous lane changes (2 s): a car whose
+    lateral speed is set while it sits on its lane's centre has its lateral speed gone the next
+    step (the change ended there), and no change starts at the centre, so
+    :func:`lane_change_sweep` reads the centre as the end."""
+    libsumo = pytest.importorskip("libsumo")
+    config = Path(__file__).resolve().parents[1] / "sumo_networks" / "highway_work_zone" / "highway_work_zone.sumocfg"
+    libsumo.start([sumo_binary("sumo"), "-c", str(config), "--lanechange.duration", "2", "--no-warnings", "--no-step-log"])
+    try:
+        before, ends, firsts = {}, 0, []
+        while libsumo.simulation.getTime() < 60.0:
+            libsumo.simulationStep()
+            now = {vid: (libsumo.vehicle.getLateralSpeed(vid), libsumo.vehicle.getLateralLanePosition(vid))
+                   for vid in libsumo.vehicle.getIDList()}
+            for vid, (lateral, position) in before.items():
+                if lateral != 0.0 and position == 0.0 and vid in now:
+                    assert now[vid][0] == 0.0
+                    ends += 1
+            firsts += [position for vid, (lateral, position) in now.items() if lateral != 0.0 and before.get(vid, (0.0, 0.0))[0] == 0.0]
+            before = now
+    finally:
+        libsumo.close()
+    assert ends > 0 and firsts and all(p != 0.0 for p in firsts)

@@ -109,8 +109,11 @@ def lane_change_sweep(lateral_speed: float, lateral_position: float, lane_width:
     still moves across: to the centre of the lane it moves into. ``lateral_speed`` [m/s] gives
     the direction (0: no change, no sweep), ``lateral_position`` [m] is its offset from the
     centre of the lane SUMO has it on (that lane becomes the new one halfway across), and
-    ``lane_width`` [m] the lanes' width."""
-    if lateral_speed == 0.0:
+    ``lane_width`` [m] the lanes' width. At the centre the change ends: SUMO still reports the
+    lateral speed at the step that brings it there (never at a change's first step, which has
+    moved it already), and the sweep of a whole lane beyond drew a phantom car in the next lane
+    for that step."""
+    if lateral_speed == 0.0 or lateral_position == 0.0:
         return 0.0
     side = math.copysign(1.0, lateral_speed)
     return -lateral_position if lateral_position * side < 0.0 else side * lane_width - lateral_position
