@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from aac_sumo import config, experiments
@@ -53,7 +53,9 @@ def commitments_apart(coord, world, period):
     gaps = book.pairwise_clearance(period, statics)
     assert gaps.min() >= book.margin - 1e-9, f"period {period}: commitments {np.unravel_index(gaps.argmin(), gaps.shape)} at {gaps.min():.4f} m"
     expected = np.array([c.course(period, 0)[0] for c in book.items])
-    np.testing.assert_allclose(world.states, expected, atol=1e-9)
+    # the simulator's steps and the commitment's compiled course round differently (seed 4063 of the
+    # spread test: 8e-9 m/s apart after a few dozen periods)
+    np.testing.assert_allclose(world.states, expected, rtol=0.0, atol=1e-7)
 
 
 @settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -113,6 +115,7 @@ def test_one_authority_in_each_cluster_per_period(commit):
 
 @settings(max_examples=4, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 10_000))
+@example(seed=4063)
 def test_spread_authorities_keep_every_commitment_apart(seed):
     """Several authorities in one cluster plan in the same period; each commits only against the
     commitments made before it, so the invariant holds as with one."""
