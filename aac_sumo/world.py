@@ -51,7 +51,9 @@ class Obstacle:
     [m/s^2] as a coordinator estimated it from the speeds it observed (0 when not estimated).
     ``walkway`` is, for a pedestrian on a walkway of her own (a lane only pedestrians may use,
     not a crossing or a junction's walking area), how far [m] its two ends lie from her along
-    it; None elsewhere.
+    it; None elsewhere. ``signalled`` is, for a vehicle whose blinker signals a lane change it has
+    not begun (SUMO's drivers wait for a gap with it on), its footprint row ``[cx, cy, length,
+    width, heading]`` over its lane and the next lane on that side; None otherwise.
     """
 
     name: str
@@ -64,6 +66,7 @@ class Obstacle:
     predicted: np.ndarray | None = None
     accel: float = 0.0
     walkway: tuple[float, float] | None = None
+    signalled: np.ndarray | None = None
 
     def step_out_speed(self, reach: float, walkway_time: float) -> float:
         """How fast [m/s] this pedestrian may step out of her way on top of her velocity:

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from aac_sumo import config, experiments
 from aac_sumo.coordination.commitments import CommitmentBook, clusters, reach_radii, stopping_commitment
-from aac_sumo.coordination.traffic_courses import braking_courses, standing_points
+from aac_sumo.coordination.traffic_courses import braking_courses, standing_points, traffic_clearances
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.geometry import pairwise_rect_clearance
@@ -420,6 +420,24 @@ def test_a_continuation_stands_behind_where_each_vehicle_ahead_on_its_path_can_s
     got = standing_points(path, courses, np.array([50.0, 0.0]), 0.0, reach=1.9, gap=4.0)
     expected = [100.0 + 15.0**2 / 9.0 - 2.25 - 4.0, 300.0 + 9.0**2 / 9.0 - 2.25 - 4.0]
     np.testing.assert_allclose(np.sort(got), expected, atol=1e-6)
+
+
+@settings(max_examples=30, deadline=None)
+@given(gap=st.floats(0.5, 40.0), speed=st.floats(0.0, 20.0), stages=st.integers(1, 60))
+def test_traffic_clearances_are_the_bumper_gaps_to_a_standing_car_ahead_stage_by_stage(gap, speed, stages):
+    """A car at ``speed`` [m/s] drives straight along a lane towards a SUMO car standing ``gap``
+    [m] ahead (bumper to bumper); per stage its clearance is the distance between their centres
+    less their half lengths (2 and 2.25 m), and where they overlap the shallower of that overlap
+    and their width (1.8 m). A SUMO car behind it counts for nothing."""
+    course = np.array([[speed * 0.1 * k, 0.0, 4.0, 1.8, 0.0] for k in range(stages + 1)])
+    ahead = Obstacle("bg.0", "scripted", np.array([2.0 + gap + 2.25, 0.0]), np.zeros(2), 0.0, 4.5, 1.8)
+    behind = Obstacle("bg.1", "scripted", np.array([-10.0, 0.0]), np.array([30.0, 0.0]), 0.0, 4.5, 1.8)
+    got = traffic_clearances(course, braking_courses([ahead, behind], 4.5, 0.1))
+    assert len(got) == stages + 1
+    expected = np.abs(ahead.centre[0] - course[:, 0]) - 4.25
+    expected = np.where(expected < 0.0, np.maximum(expected, -1.8), expected)
+    np.testing.assert_allclose(got, expected, atol=1e-9)
+    assert np.all(np.isinf(traffic_clearances(course, braking_courses([behind], 4.5, 0.1))))
 
 
 @pytest.mark.parametrize("disabled", [False, True])

@@ -205,3 +205,17 @@ def test_a_strong_reaction_lets_a_faster_car_cut_in_without_braking_beyond_comfo
     assert -min(gentle) > 2.0 + 1e-6
     assert -min(strong) <= 2.0 + 1e-6
     assert min(strong_gaps) >= 1.0 - 1e-6 and min(gentle_gaps) >= 1.0 - 1e-6
+
+
+@pytest.mark.parametrize("gap", [15.0, 20.0])
+def test_a_slow_car_cutting_in_where_no_stop_keeps_the_margin_is_met_with_the_strongest_braking(gap):
+    """A SUMO car at 3.5 m/s cuts in ``gap`` [m] ahead of a car at 16 m/s (12.5 m/s slower:
+    SUMO's driver forcing its way out of a queue). No stop keeps the margin from where the check
+    has that car stand, so the car takes the stop that would meet it slowest: its strongest,
+    6 m/s^2, from the first period (it took its gentle 2 m/s^2 before, as every stop left the
+    same room beside it, and ran into the car at 9 m/s). It stops short of the car: 12.5 m/s
+    closing at 6 m/s^2 takes 13 m."""
+    accels, gaps = cut_in(gap, 3.5, reaction_brake=1.0)
+    assert accels[5] == pytest.approx(-6.0)
+    assert min(gaps) > 0.0
+

@@ -10,7 +10,8 @@ from hypothesis import strategies as st
 
 from aac_sumo.network import sumo_binary
 from aac_sumo.sim.sumo_frames import (
-    body_from_sumo, collision_cover, heading_from_sumo, lane_change_sweep, state_from_sumo, sumo_from_state, velocity_from_sumo,
+    body_from_sumo, collision_cover, heading_from_sumo, lane_change_sweep, signalled_sweep, state_from_sumo, sumo_from_state,
+    velocity_from_sumo,
 )
 
 coords = st.floats(-1e4, 1e4, allow_nan=False)
@@ -108,6 +109,40 @@ def test_a_sumo_velocity_is_the_speed_along_the_lane_plus_the_lateral_speed_acro
 ])
 def test_a_lane_change_sweeps_the_front_to_the_centre_of_the_lane_it_moves_into(lateral_speed, position, sweep):
     assert lane_change_sweep(lateral_speed, position, 3.5) == pytest.approx(sweep)
+
+
+@pytest.mark.parametrize("signals, position, right, left, sweep", [
+    (2, 0.0, 1, 1, 3.5),     # left blinker: to the centre of the lane on its left
+    (1, 0.0, 1, 1, -3.5),    # right blinker
+    (1, 0.3, 1, 0, -3.8),    # 0.3 m left of its lane's centre
+    (2, 0.0, 1, 0, 0.0),     # no lane on its left (the blinker of a turn ahead)
+    (3, 0.0, 1, 1, 0.0),     # hazard lights: no change
+    (8, 0.0, 1, 1, 0.0),     # brake lights alone
+])
+def test_a_blinker_sweeps_the_car_to_the_centre_of_the_next_lane_on_its_side(signals, position, right, left, sweep):
+    assert signalled_sweep(signals, position, 3.5, right, left) == pytest.approx(sweep)
+
+
+def test_sumo_drivers_change_lanes_only_to_the_side_their_blinker_showed():
+    """Real libsumo, the bundled highway with SUMO's continuous lane changes (2 s): a car that
+    had a blinker on the step before its lane change began (one that waited for a gap) moves to
+    that side, so :func:`signalled_sweep` points where such a car goes once a gap opens."""
+    libsumo = pytest.importorskip("libsumo")
+    config = Path(__file__).resolve().parents[1] / "sumo_networks" / "highway_work_zone" / "highway_work_zone.sumocfg"
+    libsumo.start([sumo_binary("sumo"), "-c", str(config), "--lanechange.duration", "2", "--no-warnings", "--no-step-log"])
+    try:
+        before, signalled = {}, []
+        while libsumo.simulation.getTime() < 120.0:
+            libsumo.simulationStep()
+            now = {vid: (libsumo.vehicle.getLateralSpeed(vid), libsumo.vehicle.getSignals(vid)) for vid in libsumo.vehicle.getIDList()}
+            for vid, (lateral, _) in now.items():
+                lateral_before, signals = before.get(vid, (1.0, 0))
+                if lateral != 0.0 and lateral_before == 0.0 and signals & 3 in (1, 2):  # one blinker (both: hazard lights)
+                    signalled.append(signalled_sweep(signals, 0.0, 3.5, 1, 1) * lateral)
+            before = now
+    finally:
+        libsumo.close()
+    assert signalled and all(product > 0.0 for product in signalled)
 
 
 def test_sumo_reports_a_lane_change_at_the_lane_centre_only_at_its_last_step():

@@ -11,8 +11,11 @@ Frames and units: world frame [m], headings [rad], speeds [m/s], periods of ``dt
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
+from aac_sumo.kernels.geometry import paired_clearance
 from aac_sumo.references import PathReference
 
 
@@ -39,6 +42,16 @@ def braking_courses(obstacles, decel: float, dt: float) -> list[np.ndarray]:
     return out
 
 
+def signalled_courses(obstacles, decel: float, dt: float) -> list[np.ndarray]:
+    """:func:`braking_courses` of the vehicles among ``obstacles`` whose blinker signals a lane
+    change they wait to make, seen over their lane and the next on that side
+    (:attr:`~aac_sumo.world.Obstacle.signalled`): a continuation keeps where it can stop behind
+    them, so that a car approaching one lets it in (the exact check does not hold them)."""
+    waiting = [o for o in obstacles if o.kind == "scripted" and o.signalled is not None]
+    return braking_courses([replace(o, centre=o.signalled[:2], length=float(o.signalled[2]), width=float(o.signalled[3]),
+                                    heading=float(o.signalled[4])) for o in waiting], decel, dt)
+
+
 def ahead_of(points: np.ndarray, here: np.ndarray, heading: float) -> np.ndarray:
     """Whether each of ``points`` (K, 2) [m] lies ahead of ``here`` (2,) [m] along ``heading``
     [rad]: the uncontrolled vehicles a robot's check counts."""
@@ -63,3 +76,19 @@ def standing_points(path: PathReference, traffic: list[np.ndarray], here: np.nda
     s, off = path.project_many(ends[:, :2])
     on = off <= 0.5 * ends[:, 3] + reach
     return np.ascontiguousarray(s[on] - 0.5 * ends[on, 2] - gap)
+
+
+
+def traffic_clearances(rows: np.ndarray, traffic: list[np.ndarray]) -> np.ndarray:
+    """Per stage, the least clearance [m] of the footprint rows ``rows`` (K, 5), a course from now
+    that stands at its last row once it has ended, to the braking courses of the vehicles of
+    ``traffic`` ahead of ``rows[0]`` (each also standing at its end), over the stages until all
+    have ended (inf where none is ahead)."""
+    here = rows[0]
+    courses = [c for c in traffic if ahead_of(c[:1, :2], here[:2], float(here[4]))[0]]
+    stages = max([len(rows)] + [len(c) for c in courses])
+    own = rows[np.minimum(np.arange(stages), len(rows) - 1)]
+    least = np.full(stages, np.inf)
+    for c in courses:
+        least = np.minimum(least, paired_clearance(own, c[np.minimum(np.arange(stages), len(c) - 1)]))
+    return least

@@ -119,6 +119,26 @@ def lane_change_sweep(lateral_speed: float, lateral_position: float, lane_width:
     return -lateral_position if lateral_position * side < 0.0 else side * lane_width - lateral_position
 
 
+#: SUMO's signal bits of a vehicle's right and left blinkers (``vehicle.getSignals``).
+BLINKER_RIGHT, BLINKER_LEFT = 1, 2
+
+
+def signalled_sweep(signals: int, lateral_position: float, lane_width: float, lanes_right: int, lanes_left: int) -> float:
+    """How far [m] (positive to the left) across a car not yet moving across would go in the
+    lane change its blinker signals: to the centre of the next lane on the blinker's side, where
+    there is one (``lanes_right``, ``lanes_left``: how many lanes of its edge lie on each side of
+    its own). SUMO's drivers set a blinker when they want a lane change that the cars beside
+    them do not let them make, and then make it as soon as a gap opens; both blinkers (hazard
+    lights) and none signal no change (0). ``lateral_position`` [m]: its offset from its lane's
+    centre."""
+    right, left = bool(signals & BLINKER_RIGHT), bool(signals & BLINKER_LEFT)
+    if right == left:
+        return 0.0
+    if left:
+        return lane_width - lateral_position if lanes_left > 0 else 0.0
+    return -lane_width - lateral_position if lanes_right > 0 else 0.0
+
+
 def crossing_from_sumo(lane_id: str, shape, width: float, lane_width: float) -> Crossing:
     """Our :class:`~aac_sumo.sim.base.Crossing` of a SUMO crossing lane ``lane_id``: its shape
     (SUMO's centre-line points, network coordinates, which are our world frame [m]), its

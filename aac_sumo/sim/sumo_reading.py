@@ -12,8 +12,8 @@ import numpy as np
 
 from aac_sumo.network import VEHICLE_CLASS
 from aac_sumo.sim.base import Crossing
-from aac_sumo.sim.sumo_frames import (angle_as_sumo_keeps, body_from_sumo, collision_cover, crossing_from_sumo, lane_change_sweep,
-                                      state_from_sumo, sumo_from_state, velocity_from_sumo)
+from aac_sumo.sim.sumo_frames import (BLINKER_LEFT, BLINKER_RIGHT, angle_as_sumo_keeps, body_from_sumo, collision_cover, crossing_from_sumo,
+                                      lane_change_sweep, signalled_sweep, state_from_sumo, sumo_from_state, velocity_from_sumo)
 from aac_sumo.world import Obstacle, parking_spot
 
 
@@ -130,7 +130,8 @@ class SumoReading:
         front positions), and as the coordinators see them: a vehicle as the rectangle along its
         lane that also covers the box SUMO's collision check gives it
         (:func:`~aac_sumo.sim.sumo_frames.collision_cover`), and during a lane change also
-        where that box goes until the change ends: a car changing lanes is seen in both lanes
+        where that box goes until the change ends (before one, where its blinker signals it would
+        go: :attr:`~aac_sumo.world.Obstacle.signalled`): a car changing lanes is seen in both lanes
         over its length for the whole change, moving along its lane. A body's velocity is its
         speed along its lane plus its lateral speed across it (SUMO's heading of a car changing
         lanes at a crawl is far from where it moves)."""
@@ -158,9 +159,23 @@ class SumoReading:
                 speed, lateral = v.getSpeed(oid), v.getLateralSpeed(oid)
                 bodies.append(Obstacle(oid, obstacle_kind, centre, velocity_from_sumo(speed, lateral, lane_angle), heading, length, width))
                 sweep = lane_change_sweep(lateral, v.getLateralLanePosition(oid), self.api.lane.getWidth(lane)) if lateral else 0.0
+                signalled = 0.0 if lateral else self._signalled(oid, lane)
+                wish = None
+                if signalled:
+                    wish_centre, wish_heading, wish_length, wish_width = collision_cover(x, y, angle, lane_angle, length, width, signalled)
+                    wish = np.array([*wish_centre, wish_length, wish_width, wish_heading])
                 centre, heading, length, width = collision_cover(x, y, angle, lane_angle, length, width, sweep)
-                seen.append(Obstacle(oid, obstacle_kind, centre, velocity_from_sumo(speed, 0.0, lane_angle), heading, length, width))
+                seen.append(Obstacle(oid, obstacle_kind, centre, velocity_from_sumo(speed, 0.0, lane_angle), heading, length, width,
+                                     signalled=wish))
         return bodies, seen
+
+    def _signalled(self, oid: str, lane: str) -> float:
+        """:func:`~aac_sumo.sim.sumo_frames.signalled_sweep` of SUMO's vehicle ``oid`` on ``lane``."""
+        v, signals = self.api.vehicle, self.api.vehicle.getSignals(oid)
+        if not signals & (BLINKER_LEFT | BLINKER_RIGHT):
+            return 0.0
+        index, count = v.getLaneIndex(oid), self.api.edge.getLaneNumber(v.getRoadID(oid))
+        return signalled_sweep(signals, v.getLateralLanePosition(oid), self.api.lane.getWidth(lane), index, count - 1 - index)
 
 
 def polylines_cross(a: np.ndarray, b: np.ndarray) -> bool:

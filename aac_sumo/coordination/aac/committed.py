@@ -22,7 +22,7 @@ from aac_sumo.coordination.aac.queueing import Queueing
 from aac_sumo.coordination.aac.traffic import TrafficBraking
 from aac_sumo.coordination.base import Decision, RobotDecision
 from aac_sumo.coordination.commitments import CommitmentBook, reach_radii, stopping_commitment
-from aac_sumo.coordination.traffic_courses import braking_courses, standing_points
+from aac_sumo.coordination.traffic_courses import braking_courses, signalled_courses, standing_points
 from aac_sumo.coordination.detour import Detours
 from aac_sumo.coordination.make_room import STILL_SPEED, MakeRoom
 from aac_sumo.coordination.anticipation import near_pedestrian, stop_points
@@ -67,6 +67,7 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
         self.book: CommitmentBook | None = None
         self.next_extension = np.zeros(len(self.tasks), dtype=int)  # first period a robot may try a tracking extension again
         self.behind_traffic = np.zeros(len(self.tasks), dtype=bool)  # whose last continuation stopped for an uncontrolled vehicle ahead
+        self.nearest = (np.inf, -1)  # (clearance [m], what gives it) of the last candidate checked in passing()
 
     def admit(self, world: WorldState, i: int) -> None:
         """Robot ``i`` has just come onto the road: its commitment becomes its stopping tail from
@@ -91,6 +92,7 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
                                        self.params.commit_margin)
         self.book.walkers = walkers
         self.book.traffic = braking_courses(world.obstacles, self.params.traffic_decel, cfg.dt)
+        self.signalled = signalled_courses(world.obstacles, self.params.traffic_decel, cfg.dt)
         if self.params.traffic_reaction:
             self.book.reaction = (self.reaction_decel(), cfg.dt)
         self.book.park(~world.on_road, world.states, period)
@@ -189,7 +191,7 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
         exact check, else, where an uncontrolled vehicle ahead refused it, with its firm tail
         (``firm_tail``) when that passes, else None."""
         candidate = self.commitment(world, i, period, head)
-        gap, blocker = self.book.check(i, candidate, period, statics)
+        gap, blocker = self.nearest = self.book.check(i, candidate, period, statics)
         if gap >= self.book.margin:
             return candidate
         if blocker == -3 and self.params.firm_tail > self.params.tail_brake:  # only a vehicle ahead asks for a firmer tail
@@ -211,12 +213,13 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
         ``speeds``: those, already computed this period),
         braking at most at the comfort envelope and speeding up at most at the anticipation's
         ``accel``, and staying where it can stop (at ``HARD_SHARE`` of :meth:`held_decel`) behind
-        where each uncontrolled vehicle ahead could stand
-        (:func:`~aac_sumo.coordination.traffic_courses.standing_points`). None without ``cruise``,
+        where each uncontrolled vehicle ahead could stand, also in the lane its blinker signals
+        (:func:`~aac_sumo.coordination.traffic_courses.standing_points`, :func:`~aac_sumo.coordination.traffic_courses.signalled_courses`).
+        None without ``cruise``,
         without anticipation, on a path that ends in a stop, or when nothing passes (a car on a road does not crawl between
         its turns: a tail right after each plan braked it at every turn it did not get)."""
         cfg, task = self.planner.config, self.path(i)
-        periods = int(round(self.params.cruise / cfg.dt))
+        periods, self.nearest = int(round(self.params.cruise / cfg.dt)), (np.inf, -1)
         if periods <= 0 or self.anticipation is None or task.stop_at_end or task.heading_free(world.states[i]):
             return None
         head = np.asarray(head, dtype=float).reshape(-1, 2)
@@ -226,7 +229,7 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
         x, y, h, v = self.fleet.rollout(np.array([i]), world.states[[i]], head[None], cfg.dt)[0, -1]
         steer, accel = (float(head[-1, 1]), float(head[-1, 0])) if len(head) else (float(self.last_inputs[i, 1]), float(self.last_inputs[i, 0]))
         calm = cfg.comfort_accel if cfg.comfort_accel > 0.0 else float(self.fleet.comfort[i])  # brakes within the comfort envelope
-        hard = standing_points(task, self.book.traffic, world.robot_centres()[i], float(world.states[i, 2]), 0.5 * robot.width + self.book.margin,
+        hard = standing_points(task, self.book.traffic + self.signalled, world.robot_centres()[i], float(world.states[i, 2]), 0.5 * robot.width + self.book.margin,
                                robot.centre_offset + 0.5 * robot.length + self.book.margin + TRAFFIC_SPARE)
         self.behind_traffic[i] = len(hard) > 0
         more = continuation_inputs(float(x), float(y), float(h), float(v), periods, len(head), cfg.dt, np.ascontiguousarray(stops, dtype=float),
@@ -339,7 +342,7 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
                    or self.behind_traffic[j])  # behind a SUMO car: every period, as the car ahead has not braked
             if renewing and not (self.params.cruise > 0.0 and due):
                 continue
-            longer = self.continued_commitment(world, j, period, np.zeros((0, 2)), statics)  # with cruise: on as anticipated
+            longer = self.nudged(world, j, period, statics, self.continued_commitment(world, j, period, np.zeros((0, 2)), statics))
             if renewing and (longer is None or not self.gains(j, longer, c, period)):
                 continue  # a renewal only where it takes the car further than its commitment does
             if longer is not None:

@@ -1,5 +1,6 @@
 """Creeping: a standing AAC authority whose MPC plan leaves it standing tries short exact-checked
-courses instead (a mixin of :class:`~aac_sumo.coordination.aac.committed.CommittedAac`).
+courses instead, and a standing car whose continuation a car standing beside it refuses
+nudges away from it (a mixin of :class:`~aac_sumo.coordination.aac.committed.CommittedAac`).
 
 Frames and units: world frame [m], speeds [m/s], periods of ``dt`` [s].
 """
@@ -8,7 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from aac_sumo.coordination.tracking import creep_inputs
+from aac_sumo.coordination.make_room import STILL_SPEED
+from aac_sumo.coordination.tracking import creep_inputs, track_course
 from aac_sumo.world import WorldState
 
 #: Creeping (:meth:`Creeping.creep`): a standing authority whose plan leaves it standing
@@ -18,11 +20,41 @@ from aac_sumo.world import WorldState
 CREEP_SPEED = 0.3
 CREEP_STEER = (-1.0, 0.0, 1.0)
 CREEP_GAIN = 0.05
+#: Nudging (:meth:`Creeping.nudged`): a standing car whose continuation leaves it standing (moves it
+#: at most NUDGE [m]) or is refused, within NUDGE_NEAR [m] above the margin of a standing robot,
+#: tries the tracking law on its path moved to where it stands and NUDGE [m] further away from it.
+NUDGE = 0.25
+NUDGE_NEAR = 0.5
 
 
 class Creeping:
     """The creeping step of committed AAC (needs the coordinator's ``book``, ``room``,
-    ``fleet``, ``planner``, ``last_inputs`` and ``commitment``)."""
+    ``fleet``, ``planner``, ``params``, ``last_inputs``, ``commitment``, ``path`` and ``nearest``)."""
+
+    def nudged(self, world: WorldState, i: int, period: int, statics: np.ndarray, continuation):
+        """Robot ``i``'s ``continuation`` (None: refused), or where it stands and that leaves it
+        standing (or none passed) beside a robot that stands too, nearer than the margin plus
+        ``NUDGE_NEAR`` (:attr:`nearest`), its nudge away from that robot where the check passes:
+        two cars stopped side by side at the margin, one angled into the other's lane where its
+        path goes, refused each other's every course, as the angled car's continuation stopped it
+        behind the other (the highway, one authority a period, seed 4: from 216 s until the run
+        deadlocked). The nudge is the tracking law's course for the horizon on the robot's path
+        moved to where it stands and ``NUDGE`` [m] further away from that robot, so that it first
+        turns away from it (the angled car along the lane it stands in), then its stopping tail."""
+        state, (gap, j) = world.states[i], self.nearest
+        if abs(state[3]) >= STILL_SPEED or not (0 <= j < len(self.book.items) and j != i) or abs(world.states[j, 3]) >= STILL_SPEED:
+            return continuation
+        if gap >= self.book.margin + NUDGE_NEAR or (continuation is not None and np.hypot(*(continuation.states[-1, :2] - state[:2])) > NUDGE):
+            return continuation
+        path, centres, cfg = self.path(i), world.robot_centres(), self.planner.config
+        x, y, heading = path.pose_at(path.project(state[:2])[0])[0]
+        right = (state[0] - x) * np.sin(heading) - (state[1] - y) * np.cos(heading)  # how far right of its path it stands [m]
+        d = centres[j] - centres[i]
+        left = np.cos(heading) * d[1] - np.sin(heading) * d[0] > 0.0  # the other robot lies to its left
+        head = track_course(world.robots[i], state, path, self.params.lookahead, self.params.speed_gain, self.last_inputs[i, 1], cfg.dt,
+                            cfg.horizon, right + (NUDGE if left else -NUDGE))
+        candidate = self.commitment(world, i, period, head)
+        return candidate if self.book.clearance(i, candidate, period, statics) >= self.book.margin else continuation
 
     def creep(self, world: WorldState, i: int, period: int, ref: np.ndarray, planned, statics: np.ndarray) -> bool:
         """Robot ``i`` stands, and its MPC's course ``planned`` (a commitment that passed the

@@ -23,6 +23,7 @@ import numpy as np
 
 from aac_sumo.coordination.base import RobotDecision
 from aac_sumo.coordination.commitments import stopping_commitment
+from aac_sumo.coordination.traffic_courses import traffic_clearances
 from aac_sumo.world import WorldState
 
 #: Where a vehicle broke what the check assumes, a car on the reactive hold stops at the first of
@@ -34,6 +35,10 @@ HARDER_STOPS = (0.5, 2.0 / 3.0, 5.0 / 6.0, 1.0)
 #: With ``reaction_brake``, a firmer stop is taken where no stop keeps the margin only if it
 #: leaves at least this much more room [m].
 ROOM_GAIN = 0.1
+
+#: ... and only among the stops that drive at most this much [m] further from their first contact
+#: with a vehicle ahead than the one that drives least.
+CONTACT_GAIN = 0.5
 
 
 class TrafficBraking:
@@ -157,17 +162,35 @@ class TrafficBraking:
     def least_harm_stop(self, world: WorldState, i: int, period: int, statics: np.ndarray, room):
         """Where no stop keeps the margin to a vehicle ahead (one that cut in, or braked harder
         than the check assumes) or a walker: of robot ``i``'s :meth:`graded_stops` that keep the
-        margin from the other robots, its fallback and its reaction from now, the gentlest whose
-        ``room`` comes within ``ROOM_GAIN`` of the most any leaves (braking harder where it gains
-        nothing is discomfort alone: a car cutting in diagonally meets every stop alike)."""
+        margin from the other robots, its fallback and its reaction from now, those that drive
+        least from their first contact with a vehicle ahead (within ``CONTACT_GAIN``,
+        :meth:`contact_travel`: a slow car cutting in ahead is met slower, or not at all, the
+        harder the car brakes), and of those the gentlest whose ``room`` comes
+        within ``ROOM_GAIN`` of the most any leaves (braking harder where it gains nothing is
+        discomfort alone: a car cutting in diagonally meets every stop alike)."""
         book = self.book
         options = [self.stop_from_now(world, i, period, float(d)) for d in self.graded_stops(i)]
         options = [c for c in options if self.clears_behind(i, c, period, statics, traffic=False)] + [book.fallbacks[i]]
         strongest = self.stop_from_now(world, i, period, float(self.reaction_decel()[i]))
         if self.clears_behind(i, strongest, period, statics, traffic=False):
             options.append(strongest)
-        rooms = np.array([room(book.footprints(i, c, period), book.footprints(i, c, period)) for c in options])
+        rows = [book.footprints(i, c, period) for c in options]
+        contact = np.array([self.contact_travel(c, r, period) for c, r in zip(options, rows)])
+        rooms = np.where(contact <= contact.min() + CONTACT_GAIN, [room(r, r) for r in rows], -np.inf)
         return options[int(np.flatnonzero(rooms >= rooms.max() - ROOM_GAIN)[0])]
+
+    def contact_travel(self, commitment, rows: np.ndarray, period: int) -> float:
+        """How far [m] the car drives along ``commitment`` (footprint ``rows`` from ``period`` on)
+        from its first overlap with the braking course of a vehicle ahead
+        (:func:`~aac_sumo.coordination.traffic_courses.traffic_clearances`) until it stands: how
+        fast it meets it and how far into it; 0 without an overlap."""
+        if not self.book.traffic:
+            return 0.0
+        overlap = np.flatnonzero(traffic_clearances(rows, self.book.traffic) < 0.0)
+        if overlap.size == 0:
+            return 0.0
+        speeds = np.abs(commitment.course(period, len(rows))[overlap[0]:, 3])
+        return float(np.sum(speeds)) * self.planner.config.dt
 
     def clears_behind(self, i: int, candidate, period: int, statics: np.ndarray, traffic: bool = True) -> bool:
         """Whether robot ``i``'s stop ``candidate`` passes the check (the walkers' aside; without
