@@ -63,6 +63,8 @@ HIGHWAY_COMMITTED = ("sweep", "highway_work_zone", *(a for key in (
     "aac.safety_stop=false", "aac.fallback=brake", "aac.ignore_followers=false", "aac.tail_brake=0.3333", "aac.firm_tail=0.3333",
     "aac.traffic_reaction=true", "aac.walker_brake=true", "aac.reaction_brake=1.0", "sumo.declared_decel=2.0") for a in ("--set", key)),
     "--grid", "controller.coordinator=aac", "--seeds", "5")
+#: The same with one authority a period among all cars (the paper's AAC) instead of one per cluster.
+HIGHWAY_ONE_AUTHORITY = tuple(a.replace("aac.authorities=clusters", "aac.authorities=1") for a in HIGHWAY_COMMITTED)
 #: The highway's default before then: the paper's stored plans with the safety stop, one authority a period.
 HIGHWAY_STORED = ("sweep", "highway_work_zone", *(a for key in (
     "aac.commit=false", "aac.authorities=1", "aac.safety_stop=true", "aac.fallback=tracking", "aac.ignore_followers=true",
@@ -85,6 +87,7 @@ JOBS = (
     Job("highway_work_zone_stored_seeds0-4", HIGHWAY_STORED, SWEEP_OUTPUTS),
     Job("highway_work_zone_committed_seeds0-4", HIGHWAY_COMMITTED, SWEEP_OUTPUTS),
     Job("highway_work_zone_committed_seeds5-9", HIGHWAY_COMMITTED + HELD_OUT, SWEEP_OUTPUTS),
+    Job("highway_work_zone_one_authority_seeds0-4", HIGHWAY_ONE_AUTHORITY, SWEEP_OUTPUTS),
     Job("bench_lane_change_n10", ("bench", "aac", "--scenarios", "lane_change", "--horizons", "10"),
         (("bench.md", ".md"), ("bench.json", ".json")), parallel=False),
     Job("bench_random_crossing", ("bench", "aac", "--scenarios", "random_crossing", "--repeats", "1"),
