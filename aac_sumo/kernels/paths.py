@@ -53,19 +53,24 @@ def closest_on_polyline(points, seg_len, t_max, px, py, chunk_centre, chunk_radi
     into ``[0, t_max[i]]``, at which the closest point lies, and the distance [m] to it.
 
     Segments come in chunks of ``chunk``, chunk ``c`` within ``chunk_radius[c]`` of
-    ``chunk_centre[c]`` (:func:`polyline_chunks`): the chunks are scanned nearest bound first,
-    and those whose bound is beyond the best distance found are skipped, with the same answer
-    as a scan of every segment. The last segment, which may carry on past the end
-    (``t_max`` above 1), is always scanned."""
+    ``chunk_centre[c]`` (:func:`polyline_chunks`): the chunk with the nearest bound is scanned
+    first, then every other whose bound is within the best distance found, with the same answer
+    as a scan of every segment (ties go to the lowest index whatever the order). The last
+    segment, which may carry on past the end (``t_max`` above 1), is always scanned. Nothing is
+    allocated: the continuations and stopping courses project once a period of their courses."""
     n = seg_len.shape[0]
     best_i, best_t, best_d = _closest_in(points, seg_len, t_max, px, py, n - 1, n, 0, 0.0, np.inf)
-    bound = np.empty(chunk_radius.shape[0])
-    for c in range(bound.shape[0]):
-        bound[c] = max(math.hypot(chunk_centre[c, 0] - px, chunk_centre[c, 1] - py) - chunk_radius[c], 0.0)
-    for c in np.argsort(bound):
-        if bound[c] > best_d:
-            break
-        best_i, best_t, best_d = _closest_in(points, seg_len, t_max, px, py, c * chunk, min((c + 1) * chunk, n), best_i, best_t, best_d)
+    nearest, nearest_bound = -1, np.inf
+    for c in range(chunk_radius.shape[0]):
+        bound = max(math.hypot(chunk_centre[c, 0] - px, chunk_centre[c, 1] - py) - chunk_radius[c], 0.0)
+        if bound < nearest_bound:
+            nearest, nearest_bound = c, bound
+    if nearest >= 0 and nearest_bound <= best_d:
+        best_i, best_t, best_d = _closest_in(points, seg_len, t_max, px, py, nearest * chunk, min((nearest + 1) * chunk, n), best_i, best_t,
+                                             best_d)
+    for c in range(chunk_radius.shape[0]):
+        if c != nearest and max(math.hypot(chunk_centre[c, 0] - px, chunk_centre[c, 1] - py) - chunk_radius[c], 0.0) <= best_d:
+            best_i, best_t, best_d = _closest_in(points, seg_len, t_max, px, py, c * chunk, min((c + 1) * chunk, n), best_i, best_t, best_d)
     return best_i, best_t, best_d
 
 
