@@ -148,54 +148,65 @@ def tracking_course(x, y, h, v, steps, dt, wheelbase, a_min, a_max, steer_max, v
     far as the rate limit lets it (a car beyond it, on a plan made within the car's full limits,
     is brought back within it at the steering rate, not in one period)."""
     out = np.empty((steps, 2))
-    n_seg = seg_len.shape[0]
-    length = cum[n_seg]
-    gx, gy = points[n_seg, 0], points[n_seg, 1]
     steer_prev = previous_steer
     for k in range(steps):
         i, t, _ = closest_on_polyline(points, seg_len, t_max, x, y, chunk_centre, chunk_radius, chunk)
-        s0 = cum[i] + t * seg_len[i]
-        sl = min(s0 + lookahead, length) if stop_at_end else s0 + lookahead
-        j = min(max(np.searchsorted(cum, sl, side="right") - 1, 0), n_seg - 1)
-        local = sl - cum[j]
-        if stop_at_end:
-            local = min(max(local, 0.0), seg_len[j])
-        px, py, ph = points[j, 0] + local * seg_dir[j, 0], points[j, 1] + local * seg_dir[j, 1], seg_heading[j]
-        tx, ty = px + offset * math.sin(ph), py - offset * math.cos(ph)
-        near_goal = stop_at_end and math.hypot(gx - x, gy - y) <= approach
-        if near_goal:
-            tx, ty = gx, gy
-        rx, ry = tx - x, ty - y
-        dist = math.hypot(rx, ry)
-        steer = 0.0 if dist < 1e-6 else math.atan2(2.0 * wheelbase * math.sin(math.atan2(ry, rx) - h), dist)
-        rest = dist if near_goal else max(length - s0, 0.0)  # to the goal of a path that stops [m]
-        if near_goal:
-            want = min(speed, math.sqrt(2.0 * decel * dist))
-        else:
-            cap = speed if limits.shape[0] == 0 else np.interp(s0, cum, limits)
-            want = min(speed, cap) if not stop_at_end else min(cap, math.sqrt(2.0 * decel * rest))
-            if not math.isnan(target_speed):
-                want = target_speed
-        accel = speed_gain * (want - v)
-        if stop_at_end and v > want and v > 0.0:  # the proportional loop lags the stopping profile: brake to stop at the goal
-            accel = min(accel, -v * v / (2.0 * max(rest, 1e-6)))
-        accel = min(max(accel, -comfort), a_max)
-        rate = steer_rate_max * dt
-        lo, hi = steer_prev - rate, steer_prev + rate
-        steer = min(max(steer, lo), hi)
-        fastest = max(abs(v), abs(v + accel * dt))
-        soft = min(math.atan2(a_lat_comfort * wheelbase, fastest * fastest), steer_max)
-        if hi < -soft or lo > soft:  # the rate window lies beyond the comfort limit: as near it as the window allows
-            steer = hi if hi < -soft else lo
-        else:
-            steer = min(max(steer, max(-soft, lo)), min(soft, hi))
-        bound = min(math.atan2(a_lat_max * wheelbase, fastest * fastest), steer_max)
-        steer = min(max(steer, -bound), bound)
+        accel, steer = _tracking_step(i, t, x, y, h, v, dt, wheelbase, a_max, steer_max, a_lat_max, a_lat_comfort, steer_rate_max, comfort,
+                                      steer_prev, points, seg_len, cum, seg_dir, seg_heading, limits, speed, decel, stop_at_end, approach,
+                                      lookahead, speed_gain, offset, target_speed)
         out[k, 0], out[k, 1] = accel, steer
         x, y, h, v = _bicycle_step(x, y, h, v, min(max(accel, a_min), a_max), min(max(steer, -steer_max), steer_max), dt, wheelbase,
                                    v_min, v_max)
         steer_prev = steer
     return out
+
+
+@numba.njit(cache=True)
+def _tracking_step(i, t, x, y, h, v, dt, wheelbase, a_max, steer_max, a_lat_max, a_lat_comfort, steer_rate_max, comfort, steer_prev, points,
+                   seg_len, cum, seg_dir, seg_heading, limits, speed, decel, stop_at_end, approach, lookahead, speed_gain, offset, target_speed):
+    """One period of :func:`tracking_course` from the rear-axle state ``(x, y, h, v)`` that
+    projects at fraction ``t`` of the path's segment ``i``: its ``(accel, steer)``, before the
+    robot's bounds clip them."""
+    n_seg = seg_len.shape[0]
+    length = cum[n_seg]
+    gx, gy = points[n_seg, 0], points[n_seg, 1]
+    s0 = cum[i] + t * seg_len[i]
+    sl = min(s0 + lookahead, length) if stop_at_end else s0 + lookahead
+    j = min(max(np.searchsorted(cum, sl, side="right") - 1, 0), n_seg - 1)
+    local = sl - cum[j]
+    if stop_at_end:
+        local = min(max(local, 0.0), seg_len[j])
+    px, py, ph = points[j, 0] + local * seg_dir[j, 0], points[j, 1] + local * seg_dir[j, 1], seg_heading[j]
+    tx, ty = px + offset * math.sin(ph), py - offset * math.cos(ph)
+    near_goal = stop_at_end and math.hypot(gx - x, gy - y) <= approach
+    if near_goal:
+        tx, ty = gx, gy
+    rx, ry = tx - x, ty - y
+    dist = math.hypot(rx, ry)
+    steer = 0.0 if dist < 1e-6 else math.atan2(2.0 * wheelbase * math.sin(math.atan2(ry, rx) - h), dist)
+    rest = dist if near_goal else max(length - s0, 0.0)  # to the goal of a path that stops [m]
+    if near_goal:
+        want = min(speed, math.sqrt(2.0 * decel * dist))
+    else:
+        cap = speed if limits.shape[0] == 0 else np.interp(s0, cum, limits)
+        want = min(speed, cap) if not stop_at_end else min(cap, math.sqrt(2.0 * decel * rest))
+        if not math.isnan(target_speed):
+            want = target_speed
+    accel = speed_gain * (want - v)
+    if stop_at_end and v > want and v > 0.0:  # the proportional loop lags the stopping profile: brake to stop at the goal
+        accel = min(accel, -v * v / (2.0 * max(rest, 1e-6)))
+    accel = min(max(accel, -comfort), a_max)
+    rate = steer_rate_max * dt
+    lo, hi = steer_prev - rate, steer_prev + rate
+    steer = min(max(steer, lo), hi)
+    fastest = max(abs(v), abs(v + accel * dt))
+    soft = min(math.atan2(a_lat_comfort * wheelbase, fastest * fastest), steer_max)
+    if hi < -soft or lo > soft:  # the rate window lies beyond the comfort limit: as near it as the window allows
+        steer = hi if hi < -soft else lo
+    else:
+        steer = min(max(steer, max(-soft, lo)), min(soft, hi))
+    bound = min(math.atan2(a_lat_max * wheelbase, fastest * fastest), steer_max)
+    return accel, min(max(steer, -bound), bound)
 
 
 @numba.njit(cache=True)
@@ -232,9 +243,9 @@ def continuation_inputs(x, y, h, v, steps, t0, dt, stops, cap_decel, accel_up, c
         cap = min(cap, hard_cap)
         path_speed = speed if limits.shape[0] == 0 else min(speed, np.interp(ahead, cum, limits))
         target = min(cap, path_speed)
-        row = tracking_course(x, y, h, v, 1, dt, wheelbase, a_min, a_max, steer_max, v_min, v_max, a_lat_max, a_lat_comfort,
-                              steer_rate_max, comfort, steer, points, seg_len, cum, seg_dir, seg_heading, t_max, chunk_centre,
-                              chunk_radius, chunk, limits, speed, decel, False, 0.0, lookahead, speed_gain, offset, target)
+        turn = _tracking_step(i, f, x, y, h, v, dt, wheelbase, a_max, steer_max, a_lat_max, a_lat_comfort, steer_rate_max, comfort, steer,
+                              points, seg_len, cum, seg_dir, seg_heading, limits, speed, decel, False, 0.0, lookahead, speed_gain, offset,
+                              target)[1]
         gap = target - v
         accel = min(max(gap / lag, -calm), accel_up)
         if jerk > 0.0 and hard_cap <= target:  # towards a standing point ahead: speeding up at jerk, braking as it must
@@ -242,7 +253,7 @@ def continuation_inputs(x, y, h, v, steps, t0, dt, stops, cap_decel, accel_up, c
         elif jerk > 0.0:  # no faster than it can ease off at jerk to reach the target with no acceleration left
             accel = math.copysign(min(abs(accel), math.sqrt(2.0 * jerk * abs(gap))), gap)
             accel = min(max(min(max(accel, before - jerk * dt), before + jerk * dt), -calm), accel_up)
-        out[k, 0], out[k, 1] = accel, row[0, 1]
-        x, y, h, v = _bicycle_step(x, y, h, v, accel, row[0, 1], dt, wheelbase, v_min, v_max)
-        steer, before = row[0, 1], accel
+        out[k, 0], out[k, 1] = accel, turn
+        x, y, h, v = _bicycle_step(x, y, h, v, accel, turn, dt, wheelbase, v_min, v_max)
+        steer, before = turn, accel
     return out
