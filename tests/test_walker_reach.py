@@ -121,3 +121,42 @@ def test_a_walker_crossing_the_road_keeps_to_her_way_and_a_standing_one_may_turn
     exact = np.hypot(3.0, 4.0 - 0.9) - radius  # her nearest point to the car is where she is now
     assert exact - 0.5 * SEGMENT_STEP - 1e-9 <= walking <= exact + 1e-9
     assert standing < walking - 1.5 * 5.0 + 1.0  # 5 s at 1.5 m/s in any direction
+
+
+def numpy_slack(reach: WalkerReach, rows: np.ndarray) -> float:
+    """The numpy form that :func:`aac_sumo.kernels.walkers.walker_slack` replaced in
+    ``WalkerReach.slack`` (operation for operation)."""
+    from aac_sumo.coordination.walker_reach import box_distance as boxes
+
+    if len(reach.centres) == 0 or len(rows) == 0:
+        return np.inf
+    t = np.arange(len(rows)) * reach.dt
+    extent = np.hypot(*reach.velocities.T)[None, :] * t[:, None] + reach.growth[None, :] * t[:, None] + reach.radius[None, :]
+    apart = np.hypot(rows[:, None, 0] - reach.centres[None, :, 0], rows[:, None, 1] - reach.centres[None, :, 1])
+    bound = (apart - 0.5 * np.hypot(rows[:, 2], rows[:, 3])[:, None] - extent).min(axis=0)
+    near = bound < FAR
+    if not near.any():
+        return float(bound.min())
+    c, v, r, g = reach.centres[near], reach.velocities[near], reach.radius[near], reach.growth[near]
+    count = int(np.ceil(float((np.hypot(*v.T) * t[-1]).max()) / SEGMENT_STEP)) + 1
+    u = np.linspace(0.0, 1.0, count)
+    points = c[None, :, None, :] + (t[:, None, None, None] * u[None, None, :, None]) * v[None, :, None, :]
+    spacing = np.hypot(*v.T)[None, :] * t[:, None] / max(count - 1, 1)
+    gap = boxes(points, rows).min(axis=2) - 0.5 * spacing - r[None, :] - g[None, :] * t[:, None]
+    return float(min(gap.min(), bound[~near].min(initial=np.inf)))
+
+
+@settings(max_examples=80, deadline=None)
+@given(seed=st.integers(0, 100_000), walkers=st.integers(1, 6), periods=st.integers(0, 60), spread=st.floats(2.0, 40.0))
+def test_the_compiled_slack_is_the_numpy_form_to_the_last_bit(seed, walkers, periods, spread):
+    """``WalkerReach.slack`` (compiled) gives exactly the numbers of its numpy form, for walkers
+    near and far, still, walking and kept to their way, along curving courses."""
+    rng = np.random.default_rng(seed)
+    people = [walker(rng.uniform(-spread, spread, 2), rng.uniform(-1.5, 1.5, 2) * rng.integers(0, 2),
+                     walkway=(float(rng.uniform(0, 50)), float(rng.uniform(0, 50))) if rng.integers(0, 2) else None)
+              for _ in range(walkers)]
+    reach = reach_of(*people)
+    heading = np.cumsum(rng.normal(0, 0.05, periods + 1)) + rng.uniform(-np.pi, np.pi)
+    xy = np.cumsum(rng.uniform(0.0, 1.6, periods + 1)[:, None] * np.column_stack([np.cos(heading), np.sin(heading)]), axis=0)
+    rows = np.column_stack([xy + rng.uniform(-10, 10, 2), np.full(periods + 1, 4.0), np.full(periods + 1, 1.8), heading])
+    assert reach.slack(rows) == numpy_slack(reach, rows)

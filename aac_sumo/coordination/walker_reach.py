@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from aac_sumo.geometry import OrientedRect, point_rect_signed_distance
+from aac_sumo.kernels.walkers import walker_slack
 from aac_sumo.world import WorldState
 
 #: Spacing [m] of the points that stand for a walker's segment; the gap is taken half a spacing
@@ -80,21 +81,9 @@ class WalkerReach:
         a footprint enters one, inf without walkers; a lower bound above ``FAR``."""
         if len(self.centres) == 0 or len(rows) == 0:
             return np.inf
-        t = np.arange(len(rows)) * self.dt  # (K,)
-        # a lower bound per walker from the centres alone; only walkers it leaves within FAR are measured
-        extent = np.hypot(*self.velocities.T)[None, :] * t[:, None] + self.growth[None, :] * t[:, None] + self.radius[None, :]
-        apart = np.hypot(rows[:, None, 0] - self.centres[None, :, 0], rows[:, None, 1] - self.centres[None, :, 1])
-        bound = (apart - 0.5 * np.hypot(rows[:, 2], rows[:, 3])[:, None] - extent).min(axis=0)  # (m,)
-        near = bound < FAR
-        if not near.any():
-            return float(bound.min())
-        c, v, r, g = self.centres[near], self.velocities[near], self.radius[near], self.growth[near]
-        count = int(np.ceil(float((np.hypot(*v.T) * t[-1]).max()) / SEGMENT_STEP)) + 1
-        u = np.linspace(0.0, 1.0, count)  # (S,) along each segment
-        points = c[None, :, None, :] + (t[:, None, None, None] * u[None, None, :, None]) * v[None, :, None, :]  # (K, m, S, 2)
-        spacing = np.hypot(*v.T)[None, :] * t[:, None] / max(count - 1, 1)  # (K, m)
-        gap = box_distance(points, rows).min(axis=2) - 0.5 * spacing - r[None, :] - g[None, :] * t[:, None]
-        return float(min(gap.min(), bound[~near].min(initial=np.inf)))
+        rows = np.ascontiguousarray(rows, dtype=float)
+        return float(walker_slack(rows, np.cos(rows[:, 4]), np.sin(rows[:, 4]), self.centres, self.velocities, self.radius, self.growth,
+                                  self.dt, FAR, SEGMENT_STEP))
 
     def stand_slack(self, row: np.ndarray) -> float:
         """Least gap [m] between the footprint ``row`` (5,) where a course stands and the

@@ -1,0 +1,72 @@
+"""Compiled loop of the walkers' part of the exact check: the loop form of
+:meth:`aac_sumo.coordination.walker_reach.WalkerReach.slack`, pinned to its numpy form (the code
+it replaced) in ``tests/test_walker_reach.py``.
+
+Units: m, s; footprint rows ``[cx, cy, length, width, heading]``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True)
+def _box_distance(px, py, cx, cy, c, s, length, width):
+    """Signed distance [m] from the point ``(px, py)`` to the footprint centred at ``(cx, cy)``
+    with heading cosine ``c`` and sine ``s``, negative inside (as
+    :func:`aac_sumo.geometry.point_rect_signed_distance`)."""
+    dx, dy = px - cx, py - cy
+    qu = abs(c * dx + s * dy) - 0.5 * length
+    qv = abs(-s * dx + c * dy) - 0.5 * width
+    return math.hypot(max(qu, 0.0), max(qv, 0.0)) + min(max(qu, qv), 0.0)
+
+
+@numba.njit(cache=True)
+def walker_slack(rows, cos_h, sin_h, centres, velocities, radius, growth, dt, far, step):
+    """Least gap [m] between the course's footprints ``rows`` (K, 5) (heading cosines and sines
+    ``cos_h``, ``sin_h`` (K,)) and the walkers' regions (centres (m, 2), velocities (m, 2),
+    radius (m,), growth (m,)) at the same moments, row k at ``k * dt``: per walker a lower bound
+    from the centres; the walkers it leaves below ``far`` are measured on their segments,
+    sampled every at most ``step`` [m] and taken half a spacing nearer."""
+    k_count, m = rows.shape[0], centres.shape[0]
+    speed = np.empty(m)
+    for j in range(m):
+        speed[j] = math.hypot(velocities[j, 0], velocities[j, 1])
+    best_far, longest, any_near = np.inf, 0.0, False
+    near = np.zeros(m, dtype=np.bool_)
+    t_last = (k_count - 1) * dt
+    for j in range(m):
+        bound = np.inf
+        for k in range(k_count):
+            t = k * dt
+            extent = speed[j] * t + growth[j] * t + radius[j]
+            apart = math.hypot(rows[k, 0] - centres[j, 0], rows[k, 1] - centres[j, 1])
+            bound = min(bound, apart - 0.5 * math.hypot(rows[k, 2], rows[k, 3]) - extent)
+        if bound < far:
+            near[j], any_near = True, True
+            longest = max(longest, speed[j] * t_last)
+        else:
+            best_far = min(best_far, bound)
+    if not any_near:
+        return best_far
+    count = int(math.ceil(longest / step)) + 1
+    du = 1.0 / (count - 1) if count > 1 else 0.0
+    best = np.inf
+    for j in range(m):
+        if not near[j]:
+            continue
+        for k in range(k_count):
+            t = k * dt
+            closest = np.inf
+            for q in range(count):
+                u = 1.0 if q == count - 1 and count > 1 else q * du  # numpy.linspace(0, 1, count)
+                tu = t * u
+                d = _box_distance(centres[j, 0] + tu * velocities[j, 0], centres[j, 1] + tu * velocities[j, 1], rows[k, 0], rows[k, 1],
+                                  cos_h[k], sin_h[k], rows[k, 2], rows[k, 3])
+                closest = min(closest, d)
+            spacing = speed[j] * t / max(count - 1, 1)
+            best = min(best, closest - 0.5 * spacing - radius[j] - growth[j] * t)
+    return min(best, best_far)
