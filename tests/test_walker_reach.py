@@ -160,3 +160,30 @@ def test_the_compiled_slack_is_the_numpy_form_to_the_last_bit(seed, walkers, per
     xy = np.cumsum(rng.uniform(0.0, 1.6, periods + 1)[:, None] * np.column_stack([np.cos(heading), np.sin(heading)]), axis=0)
     rows = np.column_stack([xy + rng.uniform(-10, 10, 2), np.full(periods + 1, 4.0), np.full(periods + 1, 1.8), heading])
     assert reach.slack(rows) == numpy_slack(reach, rows)
+
+
+def numpy_stand_slack(reach: WalkerReach, row: np.ndarray) -> float:
+    """The numpy form that :func:`aac_sumo.kernels.walkers.strip_slack` replaced in
+    ``WalkerReach.stand_slack``."""
+    from aac_sumo.coordination.walker_reach import box_distance as boxes
+
+    length = np.hypot(*(reach.strips[:, 1] - reach.strips[:, 0]).T)
+    count = int(np.ceil(float(length.max()) / SEGMENT_STEP)) + 1
+    u = np.linspace(0.0, 1.0, count)[None, :, None]
+    points = reach.strips[:, :1] + u * (reach.strips[:, 1:] - reach.strips[:, :1])
+    gap = boxes(points[None], row[None]).min(axis=2)[0] - 0.5 * length / max(count - 1, 1) - reach.strip_radius
+    return float(gap.min())
+
+
+@settings(max_examples=80, deadline=None)
+@given(seed=st.integers(0, 100_000), strips=st.integers(1, 5))
+def test_the_compiled_stand_slack_is_the_numpy_form_to_the_last_bit(seed, strips):
+    """``WalkerReach.stand_slack`` (compiled, the strips' points made once) gives exactly the
+    numbers of its numpy form, for footprints on, beside and far from crossings of any length."""
+    rng = np.random.default_rng(seed)
+    starts = rng.uniform(-20, 20, (strips, 2))
+    segments = np.stack([starts, starts + rng.uniform(-12, 12, (strips, 2))], axis=1)
+    reach = WalkerReach(np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0), np.zeros(0), DT, segments, rng.uniform(1.0, 4.0, strips))
+    for _ in range(5):
+        row = np.array([*rng.uniform(-25, 25, 2), 4.0, 1.8, rng.uniform(-np.pi, np.pi)])
+        assert reach.stand_slack(row) == numpy_stand_slack(reach, row)

@@ -22,11 +22,12 @@ Frames and units: world frame [m], periods of ``dt`` [s].
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
 from aac_sumo.geometry import OrientedRect, point_rect_signed_distance
-from aac_sumo.kernels.walkers import walker_slack
+from aac_sumo.kernels.walkers import strip_slack, walker_slack
 from aac_sumo.world import WorldState
 
 #: Spacing [m] of the points that stand for a walker's segment; the gap is taken half a spacing
@@ -90,13 +91,20 @@ class WalkerReach:
         crossings' strips grown by the margin; inf without crossings."""
         if len(self.strips) == 0:
             return np.inf
+        points, half_spacing = self._strip_points
+        heading = np.asarray(row[4:5], dtype=float)
+        return float(strip_slack(np.ascontiguousarray(row, dtype=float), float(np.cos(heading)[0]), float(np.sin(heading)[0]), points,
+                                 half_spacing, self.strip_radius))
+
+    @cached_property
+    def _strip_points(self) -> tuple[np.ndarray, np.ndarray]:
+        """Points (c, S, 2) [m] every at most ``SEGMENT_STEP`` along each crossing's strip, and half
+        their spacing (c,) [m] (the distance to a strip is taken that much nearer)."""
         length = np.hypot(*(self.strips[:, 1] - self.strips[:, 0]).T)  # (c,)
         count = int(np.ceil(float(length.max()) / SEGMENT_STEP)) + 1
         u = np.linspace(0.0, 1.0, count)[None, :, None]
         points = self.strips[:, :1] + u * (self.strips[:, 1:] - self.strips[:, :1])  # (c, S, 2)
-        gap = box_distance(points[None], row[None]).min(axis=2)[0] - 0.5 * length / max(count - 1, 1) - self.strip_radius
-        return float(gap.min())
-
+        return np.ascontiguousarray(points), 0.5 * length / max(count - 1, 1)
 
 
 def box_distance(points: np.ndarray, rows: np.ndarray) -> np.ndarray:

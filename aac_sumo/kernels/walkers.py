@@ -70,3 +70,17 @@ def walker_slack(rows, cos_h, sin_h, centres, velocities, radius, growth, dt, fa
             spacing = speed[j] * t / max(count - 1, 1)
             best = min(best, closest - 0.5 * spacing - radius[j] - growth[j] * t)
     return min(best, best_far)
+
+
+@numba.njit(cache=True)
+def strip_slack(row, cos_h, sin_h, points, half_spacing, strip_radius):
+    """Least gap [m] between the footprint ``row`` (5,) (heading cosine ``cos_h``, sine
+    ``sin_h``) and the crossings' strips: per strip c, the least distance to its sample points
+    ``points[c]`` (S, 2), less ``half_spacing[c]`` and ``strip_radius[c]`` [m]."""
+    best = np.inf
+    for c in range(points.shape[0]):
+        closest = np.inf
+        for q in range(points.shape[1]):
+            closest = min(closest, _box_distance(points[c, q, 0], points[c, q, 1], row[0], row[1], cos_h, sin_h, row[2], row[3]))
+        best = min(best, closest - half_spacing[c] - strip_radius[c])
+    return best
