@@ -224,7 +224,7 @@ DENSE = (12.5, 20.0)
 #: 85) and with all 100, then the scenario's own AAC (the paper's one authority per period) with all 100.
 CLUSTERS = ['aac.authorities="clusters"']
 HIGHWAY = (("highway_15", ["sumo.controlled_types=", "sumo.controlled_ids=aac.?,aac.1[0-4]", *CLUSTERS]),
-           ("highway_100", CLUSTERS), ("highway_100_one_authority", []))
+           ("highway_100", CLUSTERS), ("highway_100_one_authority", ["aac.authorities=1"]))
 
 
 def bench_aac(horizons=HORIZONS, scenarios=AAC_SCENARIOS, repeats=3, progress=None) -> BenchReport:

@@ -92,6 +92,8 @@ JOBS = (
         (("bench.md", ".md"), ("bench.json", ".json")), parallel=False),
     Job("bench_random_crossing", ("bench", "aac", "--scenarios", "random_crossing", "--repeats", "1"),
         (("bench.md", ".md"), ("bench.json", ".json")), parallel=False),
+    Job("bench_highway", ("bench", "aac", "--scenarios", "highway_work_zone", "--repeats", "1"),
+        (("bench.md", ".md"), ("bench.json", ".json")), parallel=False),
     Job("cbf_qp_seeds0-4", (), (("cbf_qp_seeds0-4.md", ".md"), ("cbf_qp_seeds0-4.csv", ".csv"),
                                 ("cbf_qp_seeds0-4_runs.csv", "_runs.csv")), module="aac_sumo.tables.cbf_qp"),
     Job("orca_circle_swap", (), tuple((f"orca_circle_swap_{v}_seeds0-4{ext}", f"_{v}_seeds0-4{ext}")
