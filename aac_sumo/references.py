@@ -10,8 +10,16 @@ import numpy as np
 from aac_sumo.geometry import polyline_offset, wrap_angle
 from aac_sumo.kernels.paths import closest_on_polyline, path_headings, path_poses, polyline_chunks, project_points
 
-#: Segments per bounding circle of a path's projection (:func:`~aac_sumo.kernels.paths.closest_on_polyline`).
+#: Segments per bounding circle of a path's projection (:func:`~aac_sumo.kernels.paths.closest_on_polyline`):
+#: at least PROJECTION_CHUNK, and the square root of the segment count on longer paths, so that a
+#: projection scans about as many bounds as segments (a 2 km lane sampled every metre: 45 chunks of
+#: 45, 1.1 us a query against 1.65 us with 126 chunks of 16; the same answer either way).
 PROJECTION_CHUNK = 16
+
+
+def projection_chunk(segments: int) -> int:
+    """Segments per bounding circle of a path of ``segments`` segments (``PROJECTION_CHUNK``)."""
+    return max(PROJECTION_CHUNK, int(np.sqrt(segments)))
 
 
 #: A robot backing off from a goal inside its turning circle goes on until the goal lies this
@@ -95,14 +103,15 @@ class PathReference:
         # upper bound of the fraction of each segment a projection may reach: past the end of a path that does not stop
         self._t_max = np.ones(len(self.seg_len))
         self._t_max[-1] = 1.0 if stop_at_end else np.inf
-        self._chunks = polyline_chunks(self.points, PROJECTION_CHUNK)
+        self._chunk = projection_chunk(len(self.seg_len))
+        self._chunks = polyline_chunks(self.points, self._chunk)
 
     def arrays(self) -> tuple:
         """The path as the compiled kernels take it: points (M, 2), segment lengths, cumulative
         arc lengths (M,), segment directions (M-1, 2) and headings, the projection's ``t`` bounds,
         the chunk bounds with the chunk size, and the speed limits (M,; empty without)."""
         limits = np.empty(0) if self.limits is None else self.limits
-        return (self.points, self.seg_len, self.s, self._seg_dir, self.seg_heading, self._t_max, *self._chunks, PROJECTION_CHUNK,
+        return (self.points, self.seg_len, self.s, self._seg_dir, self.seg_heading, self._t_max, *self._chunks, self._chunk,
                 limits)
 
     def project(self, point) -> tuple[float, float]:
@@ -115,10 +124,10 @@ class PathReference:
     def project_many(self, points) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`project` of each of ``points`` (K, 2): arc lengths (K,) and distances (K,) [m]."""
         queries = np.ascontiguousarray(np.asarray(points, dtype=float).reshape(-1, 2))
-        return project_points(self.points, self.seg_len, self.s, self._t_max, queries, *self._chunks, PROJECTION_CHUNK)
+        return project_points(self.points, self.seg_len, self.s, self._t_max, queries, *self._chunks, self._chunk)
 
     def _closest(self, point) -> tuple[int, float, float]:
-        return closest_on_polyline(self.points, self.seg_len, self._t_max, float(point[0]), float(point[1]), *self._chunks, PROJECTION_CHUNK)
+        return closest_on_polyline(self.points, self.seg_len, self._t_max, float(point[0]), float(point[1]), *self._chunks, self._chunk)
 
     def distance(self, points) -> np.ndarray:
         """Distance [m] from each of ``points`` (K, 2) to the path."""

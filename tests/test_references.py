@@ -70,9 +70,10 @@ def test_heading_at_is_the_heading_of_the_pose_where_the_point_projects(seed, st
 
 
 @settings(max_examples=60, deadline=None)
-@given(seed=st.integers(0, 10_000), stop=st.booleans(), points=st.integers(2, 400))
+@given(seed=st.integers(0, 10_000), stop=st.booleans(), points=st.integers(2, 3000))
 def test_projection_finds_the_closest_point_of_every_segment(seed, stop, points):
-    """The projection's pruned search (bounding circles of segment chunks) gives the answer of a
+    """The projection's pruned search (bounding circles of segment chunks, 16 segments each or
+    the square root of their count) gives the answer of a
     plain scan of every segment, on wiggly paths that come back near themselves, for points
     near, far, before and beyond them (past the end of a path that does not stop)."""
     rng = np.random.default_rng(seed)
