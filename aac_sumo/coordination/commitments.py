@@ -62,7 +62,7 @@ class Commitment:
     planned: int
     rows: np.ndarray | None = field(default=None, repr=False, compare=False)  # footprint rows (T+1, 5) of ``states``, once asked for
     reacted: bool = False  # a reaction's stop taken up as the commitment (CommitmentBook.fallbacks): its own reaction from then on
-    react: tuple | None = field(default=None, repr=False, compare=False)  # (period, footprint rows of its reaction then), once asked for
+    react: tuple | None = field(default=None, repr=False, compare=False)  # (period, its reaction then, that reaction's footprint rows), once asked for
 
     def input_at(self, period: int) -> np.ndarray:
         """The input [accel, steer] of ``period``: zero once the commitment has ended."""
@@ -239,8 +239,8 @@ class CommitmentBook:
             return self.footprints(i, commitment, period)
         if commitment.react is None or commitment.react[0] != period:
             react = self.reaction_course(i, commitment, period)
-            commitment.react = (period, footprint_rows(react.states[None], self.fleet.offset[[i]], self.fleet.length[[i]], self.fleet.width[[i]])[0])
-        return commitment.react[1]
+            commitment.react = (period, react, footprint_rows(react.states[None], self.fleet.offset[[i]], self.fleet.length[[i]], self.fleet.width[[i]])[0])
+        return commitment.react[2]
 
     def reaction_course(self, i: int, commitment: Commitment, period: int) -> Commitment:
         """Robot ``i``'s reaction along ``commitment`` from ``period`` (:attr:`reaction` set):
@@ -266,7 +266,8 @@ class CommitmentBook:
         if self.reaction is None:
             self.fallbacks = None
             return
-        self.fallbacks = [c if c.start >= period else self.reaction_course(j, c, period - 1) for j, c in enumerate(self.items)]
+        self.fallbacks = [c if c.start >= period else c.react[1] if c.react is not None and c.react[0] == period - 1
+                          else self.reaction_course(j, c, period - 1) for j, c in enumerate(self.items)]  # the reaction held then
 
     def reaction_gap(self, i: int, candidate: Commitment, period: int) -> tuple[float, int]:
         """Least clearance [m] of robot ``i``'s reaction along ``candidate`` to every other
