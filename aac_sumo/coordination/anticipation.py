@@ -261,12 +261,12 @@ def crossing_rows(world: WorldState, i: int, task: PathReference, stops: np.ndar
     footprint on the crossing or within ``margin`` [m] of it. It then waits with its front
     ``margin`` before the crossing. A crossing whose strip the robot's front has reached
     gives no row: it drives on through."""
-    if not world.crossings:
+    slow = stops[stops[:, 1] <= CLEAR_SPEED, 0] if len(stops) else np.zeros(0)
+    if not world.crossings or slow.size == 0:  # nothing that stands could stop it on a crossing
         return np.zeros((0, 3))
     robot, state = world.robots[i], world.states[i]
     front, rear = robot.centre_offset + 0.5 * robot.length, 0.5 * robot.length - robot.centre_offset
     s0 = task.project(state[:2])[0]
-    slow = stops[stops[:, 1] <= CLEAR_SPEED, 0] if len(stops) else np.zeros(0)
     rows = []
     for crossing in world.crossings:
         s_x = crossing_point(task, crossing)
