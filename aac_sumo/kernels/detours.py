@@ -10,6 +10,8 @@ import math
 import numba
 import numpy as np
 
+from aac_sumo.kernels.geometry import point_rect_distance
+
 
 @numba.njit(cache=True)
 def grid_path(cost, start, goal):
@@ -70,10 +72,7 @@ def grid_path(cost, start, goal):
 def _rect_distance(px, py, rect, c, s):
     """Distance [m] from the point (``px``, ``py``) to the rectangle ``rect`` ``[cx, cy, length,
     width, heading]`` whose heading has cosine ``c`` and sine ``s`` (0 inside)."""
-    dx, dy = px - rect[0], py - rect[1]
-    qx = abs(c * dx + s * dy) - 0.5 * rect[2]
-    qy = abs(-s * dx + c * dy) - 0.5 * rect[3]
-    return math.hypot(max(qx, 0.0), max(qy, 0.0))
+    return max(point_rect_distance(px, py, rect[0], rect[1], c, s, rect[2], rect[3]), 0.0)
 
 
 @numba.njit(cache=True)

@@ -45,6 +45,17 @@ def rect_clearance(a, b):
 
 
 @numba.njit(cache=True)
+def point_rect_distance(px, py, cx, cy, c, s, length, width):
+    """Signed distance [m] from the point ``(px, py)`` to the rectangle centred at ``(cx, cy)``
+    with heading cosine ``c`` and sine ``s`` and sides ``length`` x ``width``, negative inside
+    (the loop form of :func:`aac_sumo.geometry.point_rect_signed_distance`)."""
+    dx, dy = px - cx, py - cy
+    qu = abs(c * dx + s * dy) - 0.5 * length
+    qv = abs(-s * dx + c * dy) - 0.5 * width
+    return math.hypot(max(qu, 0.0), max(qv, 0.0)) + min(max(qu, qv), 0.0)
+
+
+@numba.njit(cache=True)
 def pairwise_clearance(a, b):
     """Clearance matrix (n, m) [m] of :func:`rect_clearance` between rectangle rows ``a`` (n, 5)
     and ``b`` (m, 5)."""

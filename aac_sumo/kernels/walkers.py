@@ -12,16 +12,7 @@ import math
 import numba
 import numpy as np
 
-
-@numba.njit(cache=True)
-def _box_distance(px, py, cx, cy, c, s, length, width):
-    """Signed distance [m] from the point ``(px, py)`` to the footprint centred at ``(cx, cy)``
-    with heading cosine ``c`` and sine ``s``, negative inside (as
-    :func:`aac_sumo.geometry.point_rect_signed_distance`)."""
-    dx, dy = px - cx, py - cy
-    qu = abs(c * dx + s * dy) - 0.5 * length
-    qv = abs(-s * dx + c * dy) - 0.5 * width
-    return math.hypot(max(qu, 0.0), max(qv, 0.0)) + min(max(qu, qv), 0.0)
+from aac_sumo.kernels.geometry import point_rect_distance
 
 
 @numba.njit(cache=True)
@@ -64,7 +55,7 @@ def walker_slack(rows, cos_h, sin_h, centres, velocities, radius, growth, dt, fa
             for q in range(count):
                 u = 1.0 if q == count - 1 and count > 1 else q * du  # numpy.linspace(0, 1, count)
                 tu = t * u
-                d = _box_distance(centres[j, 0] + tu * velocities[j, 0], centres[j, 1] + tu * velocities[j, 1], rows[k, 0], rows[k, 1],
+                d = point_rect_distance(centres[j, 0] + tu * velocities[j, 0], centres[j, 1] + tu * velocities[j, 1], rows[k, 0], rows[k, 1],
                                   cos_h[k], sin_h[k], rows[k, 2], rows[k, 3])
                 closest = min(closest, d)
             spacing = speed[j] * t / max(count - 1, 1)
@@ -81,6 +72,6 @@ def strip_slack(row, cos_h, sin_h, points, half_spacing, strip_radius):
     for c in range(points.shape[0]):
         closest = np.inf
         for q in range(points.shape[1]):
-            closest = min(closest, _box_distance(points[c, q, 0], points[c, q, 1], row[0], row[1], cos_h, sin_h, row[2], row[3]))
+            closest = min(closest, point_rect_distance(points[c, q, 0], points[c, q, 1], row[0], row[1], cos_h, sin_h, row[2], row[3]))
         best = min(best, closest - half_spacing[c] - strip_radius[c])
     return best
