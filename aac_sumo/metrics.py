@@ -54,7 +54,7 @@ def time_to_collision(world: WorldState) -> np.ndarray:
     the footprints already touch.
     """
     heading, speed = world.states[:, 2], world.states[:, 3]
-    obstacles = world.obstacles
+    obstacles = [o for o in world.obstacles if o.kind != "signal"]  # a stop line is no agent to collide with
     rows = np.vstack([world.robot_footprints()] + [o.footprint()[None, :] for o in obstacles])
     velocity = np.vstack([speed[:, None] * np.column_stack([np.cos(heading), np.sin(heading)])]
                          + [np.asarray(o.velocity, dtype=float)[None, :] for o in obstacles])

@@ -13,7 +13,9 @@ import numpy as np
 
 from aac_sumo.dynamics import BicycleModel
 
-OBSTACLE_KINDS = ("robot", "scripted", "pedestrian", "cone", "static")
+#: ``signal``: a red or yellow traffic light's stop line, a standing box that an experiment shows the coordinators
+#: (:mod:`aac_sumo.experiments.signals`); no simulator holds one, so nothing collides with it.
+OBSTACLE_KINDS = ("robot", "scripted", "pedestrian", "cone", "static", "signal")
 #: Where robots that are not on the road stand [m]: far from any network, 1 km apart.
 PARKING = np.array([-1.0e6, -1.0e6])
 PARKING_STEP = 1.0e3

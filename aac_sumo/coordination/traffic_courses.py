@@ -21,13 +21,14 @@ from aac_sumo.references import PathReference
 
 def braking_courses(obstacles, decel: float, dt: float) -> list[np.ndarray]:
     """Footprint rows ``[cx, cy, length, width, heading]`` (K+1, 5) of each vehicle among
-    ``obstacles`` that no coordinator drives (kind ``scripted``: SUMO's own cars) from now until
+    ``obstacles`` that no coordinator drives (kind ``scripted``: SUMO's own cars; and ``signal``, a red
+    light's stop line, which stands) from now until
     it stands, braking from its speed along its velocity at ``decel`` [m/s^2], or harder when
     its estimated :attr:`~aac_sumo.world.Obstacle.accel` already is, with the heading it has;
     K periods of ``dt`` [s] until it stands (0 for a standing vehicle)."""
     out = []
     for o in obstacles:
-        if o.kind != "scripted":
+        if o.kind not in ("scripted", "signal"):
             continue
         speed = float(np.hypot(*o.velocity))
         brake = max(float(decel), -float(o.accel))

@@ -93,6 +93,23 @@ def routed_vehicles(scenario: Scenario, routes: list) -> list[RoutedVehicle]:
     return chosen
 
 
+def route_edges(scenario: Scenario, net, v: RoutedVehicle) -> tuple[str, ...]:
+    """Vehicle ``v``'s edges (a trip routed on the network's shortest path through its ``via``);
+    exit-2 errors naming ``sumo.controlled_types`` for an edge or a trip the network lacks."""
+    if not v.trip:
+        return v.edges
+    edges: list = []
+    for a, b in zip(v.edges, v.edges[1:]):
+        try:
+            path, _ = net.getShortestPath(net.getEdge(a), net.getEdge(b))
+        except KeyError as exc:
+            raise ScenarioError(scenario.source, KEYS, f"routes over edges of the network ({v.id})", str(exc)) from None
+        if path is None:
+            raise ScenarioError(scenario.source, KEYS, f"a trip the network connects ({v.id}: no way from {a} to {b})")
+        edges += [e for e in path if not edges or e is not edges[-1]]
+    return tuple(e.getID() for e in edges)
+
+
 class RoutedCars:
     """The roads, lane plans, references and bands of the controlled cars from SUMO's routes,
     made as they depart and remade as their lane changes wait for gaps (see the module);
@@ -103,7 +120,7 @@ class RoutedCars:
         lc = lane_change_params(scenario)
         self.lc = lc
         self.roads: dict[tuple[str, ...], tuple[network.Road, list[PathReference]]] = {}
-        self.edges = [self.route(v) for v in vehicles]
+        self.edges = [route_edges(scenario, net, v) for v in vehicles]
         rng = np.random.default_rng(scenario["scenario.seed"])
         exits = lc.exit_lanes
         self.exit = [int(rng.choice(exits)) if exits else None for _ in vehicles]
@@ -132,21 +149,6 @@ class RoutedCars:
         self.preview = lc.speed * scenario["controller.horizon"] * scenario["scenario.dt"] + self.lookahead
         self.counts = dict(lane_changes=0, lane_change_waits=0, lane_change_aborts=0, exits_missed=0)
         self._s: dict[int, float] = {}  # arc lengths of this period's cars along their start lanes
-
-    def route(self, v: RoutedVehicle) -> tuple[str, ...]:
-        """Vehicle ``v``'s edges (a trip routed on the network's shortest path through its ``via``)."""
-        if not v.trip:
-            return v.edges
-        edges: list = []
-        for a, b in zip(v.edges, v.edges[1:]):
-            try:
-                path, _ = self.net.getShortestPath(self.net.getEdge(a), self.net.getEdge(b))
-            except KeyError as exc:
-                raise ScenarioError(self.scenario.source, KEYS, f"routes over edges of the network ({v.id})", str(exc)) from None
-            if path is None:
-                raise ScenarioError(self.scenario.source, KEYS, f"a trip the network connects ({v.id}: no way from {a} to {b})")
-            edges += [e for e in path if not edges or e is not edges[-1]]
-        return tuple(e.getID() for e in edges)
 
     def road(self, edges: tuple[str, ...], v: RoutedVehicle) -> network.Road:
         """The (smoothed) road of route ``edges``; its lanes' centre lines as paths in :meth:`lines`."""

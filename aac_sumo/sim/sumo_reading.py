@@ -177,6 +177,12 @@ class SumoReading:
         index, count = v.getLaneIndex(oid), self.api.edge.getLaneNumber(v.getRoadID(oid))
         return signalled_sweep(signals, v.getLateralLanePosition(oid), self.api.lane.getWidth(lane), index, count - 1 - index)
 
+    def signal_states(self, ids: tuple[str, ...]) -> dict[str, str]:
+        """Each traffic light of ``ids``: its link states now, SUMO's string (one character per
+        link index: ``G``/``g`` green, ``y`` yellow, ``r`` red, ...)."""
+        with self._sumo_errors("reading the traffic lights"):
+            return {tls: self.api.trafficlight.getRedYellowGreenState(tls) for tls in ids}
+
 
 def polylines_cross(a: np.ndarray, b: np.ndarray) -> bool:
     """Whether polylines ``a`` (m, 2) and ``b`` (k, 2) [m] intersect (a segment of each meets

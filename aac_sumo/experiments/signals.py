@@ -1,0 +1,96 @@
+"""Traffic lights for controlled cars: a red or yellow signal ahead is a stop line the car must not cross.
+
+SUMO's drivers treat a signal so: at green they go; when it turns yellow, a driver who can still
+stop before the line at a comfortable deceleration stops, one who cannot drives on; at red
+everyone stops. Here each stop line (one incoming lane's link of a traffic light, the lane's end
+in SUMO's network frame [m]) is shown to the coordinators, while it holds traffic, as a standing
+vehicle-sized box of kind ``signal`` just beyond the line: the committed plans, the anticipation
+and the MPC then stop a car behind it as behind a standing car, and nothing crosses it.
+
+When a line's signal leaves green, the cars that cannot stop before it at their comfort
+deceleration are let through; the box appears once the last of them has passed it. A car whose
+front crosses a line while its signal shows red counts as a red-light violation.
+
+Arc lengths [m] are along each car's own path (its rear axle's projection plus its front
+overhang gives its front); a car's stop lines are those on its path ahead of it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from aac_sumo.world import Obstacle
+
+#: SUMO's link states that let a car go (green with and without priority, off: no signal).
+GO = frozenset("GgOo")
+#: Those that stop it: red, red-yellow; yellow stops those that can stop comfortably.
+RED = frozenset("rRu")
+#: Length [m] of the box that stands for a stop line along the lane, and its width [m]: a car's,
+#: so that a car passing in the next lane keeps its clearance from it.
+BOX_LENGTH = 1.0
+BOX_WIDTH = 1.8
+
+
+@dataclass(frozen=True)
+class Line:
+    """One stop line: traffic light ``tls``, its link index ``link``, the incoming ``lane`` id,
+    the line's centre ``point`` (2,) [m] and the lane's ``heading`` [rad] there."""
+
+    tls: str
+    link: int
+    lane: str
+    point: np.ndarray
+    heading: float
+
+    @property
+    def key(self) -> tuple[str, int, str]:
+        return self.tls, self.link, self.lane
+
+    def box(self) -> Obstacle:
+        """The standing box just beyond the line (its back edge on it)."""
+        direction = np.array([np.cos(self.heading), np.sin(self.heading)])
+        return Obstacle(f"signal {self.tls} {self.link} {self.lane}", "signal", self.point + 0.5 * BOX_LENGTH * direction, np.zeros(2),
+                        self.heading, BOX_LENGTH, BOX_WIDTH)
+
+
+class Signals:
+    """The stop lines of the controlled cars and what each shows; ``violations`` counts red-light
+    violations (see the module)."""
+
+    def __init__(self):
+        self.lines: dict[tuple[str, int, str], Line] = {}
+        self.through: dict[tuple[str, int, str], set[int]] = {}  # per line that left green: the cars let through
+        self.before: dict[tuple[int, tuple[str, int, str]], tuple[float, str]] = {}  # (car, line) -> (its front's distance to it [m], state) last period
+        self.violations = 0
+
+    def boxes(self, states: dict[str, str], approach: dict[int, list[tuple[Line, float]]], speeds: np.ndarray,
+              comfort: np.ndarray, lengths: np.ndarray) -> list[Obstacle]:
+        """The boxes of this period's stop lines that hold traffic. ``states``: each traffic
+        light's link states (SUMO's string); ``approach``: per car on the road, its stop lines
+        with the distance [m] from its front to each (negative: beyond it); ``speeds`` [m/s],
+        ``comfort`` decelerations [m/s^2] and ``lengths`` [m] per car. Counts the violations
+        since the last period."""
+        seen: dict[tuple[str, int, str], list[tuple[int, float]]] = {}
+        for k, lines in approach.items():
+            for line, d in lines:
+                self.lines.setdefault(line.key, line)
+                seen.setdefault(line.key, []).append((k, d))
+                last = self.before.get((k, line.key))
+                if last is not None and last[0] >= 0.0 > d and last[1] in RED:
+                    self.violations += 1
+                self.before[(k, line.key)] = (d, states[line.tls][line.link])
+        out = []
+        for key, cars in seen.items():
+            state = states[key[0]][key[1]]
+            if state in GO:
+                self.through.pop(key, None)
+                continue
+            if key not in self.through:  # it has just left green: who can no longer stop comfortably goes on
+                self.through[key] = {k for k, d in cars if d >= 0.0 and speeds[k] ** 2 > 2.0 * comfort[k] * d}
+            on_line = any(-(lengths[k] + BOX_LENGTH) < d < 0.0 for k, d in cars)  # a box there would overlap it
+            waiting = any(k in self.through[key] and d > -(lengths[k] + BOX_LENGTH) for k, d in cars)
+            if not on_line and not waiting:
+                out.append(self.lines[key].box())
+        return out

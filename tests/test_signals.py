@@ -1,0 +1,71 @@
+"""Traffic lights as stop lines (aac_sumo.experiments.signals): when a line holds traffic, who is let
+through at yellow, and what counts as running a red light."""
+
+import numpy as np
+import pytest
+from hypothesis import given, strategies as st
+
+from aac_sumo.experiments.signals import BOX_LENGTH, BOX_WIDTH, Line, Signals
+from aac_sumo.geometry import OrientedRect, point_rect_signed_distance
+
+LINE = Line("J1", 2, "e_in_0", np.array([100.0, 0.0]), 0.0)
+COMFORT = np.array([3.0, 3.0])
+LENGTHS = np.array([4.0, 4.0])
+
+
+def boxes(signals, state, distances, speeds):
+    """One period: the light J1 shows ``state`` on link 2; car k's front is ``distances[k]`` [m] before the line."""
+    approach = {k: [(LINE, d)] for k, d in enumerate(distances)}
+    return signals.boxes({"J1": "rr" + state + "r"}, approach, np.asarray(speeds, dtype=float), COMFORT, LENGTHS)
+
+
+def test_a_green_line_holds_nothing_and_a_red_one_stands_just_beyond_the_line():
+    s = Signals()
+    assert boxes(s, "G", [50.0], [10.0]) == []
+    (box,) = boxes(s, "r", [50.0], [10.0])
+    assert box.kind == "signal" and np.all(box.velocity == 0.0)
+    assert (box.length, box.width) == (BOX_LENGTH, BOX_WIDTH)
+    assert box.centre == pytest.approx([100.0 + 0.5 * BOX_LENGTH, 0.0])  # its back edge on the line
+    rect = OrientedRect(*box.footprint())
+    assert point_rect_signed_distance(np.array([[99.99, 0.0]]), rect)[0] > 0.0  # nothing of it before the line
+
+
+def test_at_yellow_a_car_that_can_stop_comfortably_is_held_and_one_that_cannot_goes_on():
+    s = Signals()
+    boxes(s, "G", [40.0, 60.0], [14.0, 14.0])
+    # 14 m/s stops in 14^2 / (2 * 3) = 32.7 m: car 0 at 30 m cannot, car 1 at 50 m can
+    assert boxes(s, "y", [30.0, 50.0], [14.0, 14.0]) == []  # car 0 is let through: no box in its way
+    assert boxes(s, "y", [10.0, 36.0], [14.0, 14.0]) == []
+    # car 0's front has passed the line, but its body is still over the box's place
+    assert boxes(s, "y", [-2.0, 24.0], [14.0, 12.0]) == []
+    (box,) = boxes(s, "y", [-(LENGTHS[0] + BOX_LENGTH) - 0.1, 20.0], [14.0, 9.0])  # it has cleared it: the box holds car 1
+    assert box.name == "signal J1 2 e_in_0"
+    assert s.violations == 0
+
+
+def test_crossing_at_red_is_a_violation_and_at_yellow_is_not():
+    s = Signals()
+    boxes(s, "y", [5.0], [14.0])
+    boxes(s, "y", [-1.0], [14.0])  # crossed at yellow
+    assert s.violations == 0
+    s = Signals()
+    boxes(s, "r", [5.0], [14.0])
+    boxes(s, "r", [-1.0], [14.0])  # crossed at red
+    assert s.violations == 1
+    boxes(s, "r", [-3.0], [14.0])  # counted once
+    assert s.violations == 1
+
+
+def test_the_cars_let_through_are_chosen_afresh_each_time_the_line_leaves_green():
+    s = Signals()
+    boxes(s, "y", [10.0], [14.0])  # let through
+    assert boxes(s, "r", [5.0], [14.0]) == []
+    boxes(s, "G", [200.0], [14.0])  # green again, the car comes round again from far
+    assert len(boxes(s, "y", [150.0], [14.0])) == 1  # it can stop now: held
+
+
+@given(d=st.floats(0.0, 200.0), v=st.floats(0.0, 20.0), comfort=st.floats(0.5, 6.0))
+def test_a_car_is_held_at_yellow_exactly_when_it_can_stop_before_the_line_at_its_comfort_deceleration(d, v, comfort):
+    s = Signals()
+    held = s.boxes({"J1": "rry"}, {0: [(LINE, d)]}, np.array([v]), np.array([comfort]), np.array([4.0]))
+    assert bool(held) == (v * v <= 2.0 * comfort * d)
