@@ -23,8 +23,8 @@ def test_scenarios_lists_every_bundled_one_with_its_purpose(capsys):
     assert main(["scenarios"]) == 0
     lines = capsys.readouterr().out.splitlines()
     names = [line.split()[0] for line in lines]
-    assert names == ["braking", "circle_swap", "highway_work_zone", "lane_change", "random_crossing", "swarm_rescue"]
-    assert "S2: lane change in SUMO co-simulation (paper Table II)." in lines[3]
+    assert names == ["braking", "circle_swap", "city", "highway_work_zone", "lane_change", "random_crossing", "swarm_rescue"]
+    assert "S2: lane change in SUMO co-simulation (paper Table II)." in lines[4]
 
 
 def test_keys_of_a_scenario_give_its_values_units_and_meanings(capsys):

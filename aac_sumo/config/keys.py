@@ -122,14 +122,15 @@ COMMON["cbf_qp"] = {}
 PROVIDERS = ("aac_sumo.metrics", "aac_sumo.mpc.settings", "aac_sumo.coordination.anticipation", "aac_sumo.coordination.aac",
              "aac_sumo.coordination.lfc", "aac_sumo.coordination.independent", "aac_sumo.coordination.sumo_driver",
              "aac_sumo.coordination.orca", "aac_sumo.coordination.cbf_qp", "aac_sumo.experiments.braking",
-             "aac_sumo.experiments.swarm", "aac_sumo.experiments.lane_change", "aac_sumo.experiments.random_crossing")
+             "aac_sumo.experiments.swarm", "aac_sumo.experiments.lane_change", "aac_sumo.experiments.random_crossing",
+             "aac_sumo.experiments.city")
 PLUGINS = ("aac_sumo.coordination", "aac_sumo.experiments")
 
 #: Each kind's own section, declared by the parameter dataclass its module registers
 #: (:func:`aac_sumo.registry.register_experiment` ``params``); named here in the order of the
 #: listings (``aac-sumo keys``), whatever the import order.
 KIND_SECTIONS: dict[str, dict[str, Key]] = {kind: {} for kind in ("braking", "swarm_rescue", "circle_swap", "random_crossing",
-                                                                    "lane_change")}
+                                                                    "lane_change", "city")}
 #: Sections beyond COMMON and the kind's own that a kind uses, ``{kind: {section: keys}}``: each
 #: declared by the dataclass the kind registers (``register_experiment(sections=...)``; lane_change's
 #: ``[sumo]`` by :class:`aac_sumo.sim.sumo_options.SumoParams`).

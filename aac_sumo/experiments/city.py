@@ -1,0 +1,190 @@
+"""City networks (scenario kind ``city``): controlled cars on their SUMO routes through junctions,
+turns and traffic lights.
+
+The controlled cars are the vehicles of SUMO's route files whose vType is in
+``sumo.controlled_types`` (or whose id matches ``sumo.controlled_ids``); SUMO inserts each at its
+departure (its departLane, speed and gaps) and drives everything else, walkers included, which
+reach the coordinators as obstacles. From its departure on a car is ours:
+
+- its way is its route's lanes through the network's connections and the junctions' internal
+  lanes (:mod:`aac_sumo.experiments.junction_routes`), with the fewest lane changes, each on the edge
+  before the turn that needs it (beginning ``city.change_start`` into the edge, over
+  ``city.change_length`` per lane);
+- its reference drives that way at ``city.speed``, at most each lane's speed limit, slower in
+  curves (``city.curve_lat_accel``); its lateral band is the lane it is in (both lanes during a
+  change);
+- a red or yellow signal ahead is a stop line it does not cross (:mod:`aac_sumo.experiments.signals`);
+  ``red_light_violations`` counts the cars that crossed one at red.
+
+It has finished when its rear axle is within ``city.finish_margin`` of its route's end; SUMO then
+takes it as arrived and it leaves the network.
+
+Not yet: right of way at junctions without signals, and gap acceptance for the lane changes
+(the committed plans' exact check keeps a change that would meet a car from being driven, so the
+car waits in its lane). Positions in SUMO's network frame [m].
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from aac_sumo import network
+from aac_sumo.config import Scenario, ScenarioError
+from aac_sumo.config.keys import NN, P
+from aac_sumo.config.schema import from_section, param
+from aac_sumo.experiments.common import Setup, coordinator, robot_spec, simulator_drives
+from aac_sumo.experiments.lane_change import network_files, sumo_options, with_resolved_paths
+from aac_sumo.experiments.lane_geometry import ROAD_MARGIN
+from aac_sumo.experiments.routed_cars import KEYS, routed_vehicles, route_edges
+from aac_sumo.experiments.signals import BOX_LENGTH, Line, Signals
+from aac_sumo.experiments.junction_routes import RoutePath, route_legs, route_path
+from aac_sumo.references import LateralBand, PathReference
+from aac_sumo.registry import register_experiment
+from aac_sumo.sim.sumo import sumo_simulator
+from aac_sumo.sim.sumo_options import SumoParams, sumo_params
+from aac_sumo.world import WorldState, parking_spot
+
+SECTION = "city"
+#: A car's stop lines are shown to it from this far [m] before its front reaches them (beyond
+#: what it needs to stop from the fastest city speed) until its rear has left them.
+SIGNAL_RANGE = 150.0
+
+
+@dataclass(frozen=True)
+class CityParams:
+    """The city's references, lane changes and finish rule (each field's doc: meaning and unit)."""
+
+    speed: float = param(13.89, "cruise speed of the references, at most each lane's speed limit [m/s]", **P)
+    curve_lat_accel: float = param(2.0, "the references slow down in turns and curves to keep their lateral acceleration within this "
+                                   "(and within robot.a_lat_max) [m/s^2]", **P)
+    change_start: float = param(10.0, "a lane change for the next turn begins this far into its edge [m]", **NN)
+    change_length: float = param(30.0, "arc length a lane change takes per lane crossed [m]", **P)
+    finish_margin: float = param(5.0, "a car has finished when its rear axle is within this of its route's end [m]", **NN)
+
+
+class CityCars:
+    """The controlled cars' ways, references and bands, made as SUMO departs them; their stop
+    lines; ``prepare`` is the run's :attr:`Setup.prepare`."""
+
+    def __init__(self, scenario: Scenario, net, vehicles, robots):
+        self.scenario, self.net, self.robots = scenario, net, robots
+        self.p = from_section(CityParams, scenario, SECTION)
+        self.edges = [route_edges(scenario, net, v) for v in vehicles]
+        n = len(vehicles)
+        self.tasks = [PathReference([parking_spot(k)[:2], parking_spot(k)[:2] + [1.0, 0.0]], self.p.speed, stop_at_end=False)
+                      for k in range(n)]
+        self.bands: list = [None] * n
+        self.paths: list[RoutePath | None] = [None] * n
+        self.lines: list[list[tuple[Line, float]]] = [[] for _ in range(n)]  # per car: its stop lines and their arc lengths [m]
+        self.free_flow = np.full(n, np.nan)
+        self.done = np.zeros(n, dtype=bool)
+        self.admitted = np.zeros(n, dtype=bool)
+        self.signals = Signals()
+        self.sim = None
+        self.coordinator = None
+        self.sumo_drives = False  # SUMO's own driver moves the cars (the baseline): it keeps to its signals and leaves at its route's end
+
+    def prepare(self, world: WorldState) -> WorldState:
+        """Admit the cars SUMO departed since the last period, take the finished ones off the
+        road, and show the coordinators the stop lines that hold traffic."""
+        for k in np.flatnonzero(world.on_road & ~self.admitted):
+            self.admit(world, int(k))
+        if self.sumo_drives:
+            return world
+        leaving = np.flatnonzero(self.done & world.on_road)
+        for k in leaving:
+            self.sim.retire(int(k), arrived=True)
+        if leaving.size:
+            world = self.sim.observe()
+        boxes = self.stop_boxes(world)
+        return dataclasses.replace(world, obstacles=world.obstacles + boxes) if boxes else world
+
+    def admit(self, world: WorldState, k: int) -> None:
+        """Car ``k``'s way from the lane SUMO put it on, its reference and band."""
+        state, robot = world.states[k], self.robots[k]
+        first = self.net.getEdge(self.edges[k][0])
+        lanes = network.car_lanes(first)
+        shapes = [PathReference(np.asarray(lane.getShape(), dtype=float), 1.0, stop_at_end=False) for lane in lanes]
+        start = int(np.argmin([shape.project(state[:2])[1] for shape in shapes]))
+        s0 = shapes[start].project(state[:2])[0]
+        try:
+            legs = route_legs(self.net, list(self.edges[k]), start)
+            path = route_path(self.net, legs, s0, min(self.p.curve_lat_accel, self.scenario["robot.a_lat_max"]), self.p.change_start,
+                              self.p.change_length)
+        except ValueError as exc:
+            raise ScenarioError(self.scenario.source, KEYS, f"routes a controlled car can drive ({robot.name}: {exc})") from None
+        self.paths[k] = path
+        self.tasks[k] = PathReference(path.points, self.p.speed, stop_at_end=False, limits=path.limits)
+        self.bands[k] = LateralBand(path.band_right, path.band_left, 0.5 * robot.width + ROAD_MARGIN)
+        self.lines[k] = [(Line(stop.tls, stop.link, stop.lane, stop.point, stop.heading), stop.s) for stop in path.stops]
+        self.free_flow[k] = world.t + self.tasks[k].length / self.p.speed
+        self.admitted[k] = True
+        self.coordinator.admit(world, k)
+
+    def stop_boxes(self, world: WorldState) -> list:
+        """The boxes of the stop lines that hold traffic now (:class:`~aac_sumo.experiments.signals.Signals`)."""
+        approach = {}
+        for k in np.flatnonzero(self.admitted & world.on_road & ~self.done):
+            robot = self.robots[k]
+            front = self.tasks[k].project(world.states[k, :2])[0] + robot.centre_offset + 0.5 * robot.length
+            near = [(line, s - front) for line, s in self.lines[k] if -(robot.length + BOX_LENGTH) < s - front < SIGNAL_RANGE]
+            if near:
+                approach[int(k)] = near
+        if not approach:
+            return []
+        ids = tuple(sorted({line.tls for lines in approach.values() for line, _ in lines}))
+        states = self.sim.signal_states(ids)
+        speeds = np.maximum(world.states[:, 3], 0.0)
+        comfort = np.array([r.model.limits.comfort_decel for r in self.robots])
+        lengths = np.array([r.length for r in self.robots])
+        return self.signals.boxes(states, approach, speeds, comfort, lengths)
+
+    def finished(self, world: WorldState) -> np.ndarray:
+        """Cars within ``finish_margin`` of their route's end, or that SUMO took off."""
+        for k in np.flatnonzero(~self.done & world.on_road & self.admitted):
+            self.done[k] = self.tasks[k].project(world.states[k, :2])[0] >= self.tasks[k].length - self.p.finish_margin
+        for k in np.flatnonzero(~self.done & ~world.on_road):
+            self.done[k] = self.robots[k].name in self.sim.removed
+        return self.done.copy()
+
+
+@register_experiment("city", params=CityParams, sections={"sumo": SumoParams})
+def build_city(scenario: Scenario) -> Setup:
+    """The city's Setup: the controlled cars of SUMO's routes (see the module)."""
+    net_path, routes = network_files(scenario)
+    scenario = with_resolved_paths(scenario)
+    su = sumo_params(scenario)
+    if not (su.controlled_types or su.controlled_ids):
+        raise ScenarioError(scenario.source, KEYS, "the vTypes of the controlled cars (a city's cars come from SUMO's routes)", "")
+    vehicles = routed_vehicles(scenario, routes)
+    net = network.read(net_path, "sumo.net", scenario.source, withInternal=True)
+    robots = []
+    for v in vehicles:
+        try:
+            robots.append(robot_spec(scenario, v.id, v.length, v.width))
+        except ScenarioError:
+            raise ScenarioError(scenario.source, KEYS, f"vTypes at least robot.wheelbase long ({v.vtype} is {v.length:g} m)") from None
+    speed = from_section(CityParams, scenario, SECTION).speed
+    if speed > robots[0].model.limits.v_max:
+        raise ScenarioError(scenario.source, "city.speed", f"at most robot.v_max ({robots[0].model.limits.v_max})", speed)
+    cars = CityCars(scenario, net, vehicles, robots)
+    cars.sumo_drives = simulator_drives(scenario)
+    states = np.array([parking_spot(k) for k in range(len(robots))])
+    sim = sumo_simulator(robots, states, scenario["scenario.dt"], [], sumo_options(scenario, net_path, routes), su.isolate,
+                         frozenset(v.id for v in vehicles))
+    try:
+        cars.sim = sim
+
+        def finished(world: WorldState) -> np.ndarray:  # a function: a coordinator's copy (warm-up) shares it
+            return cars.finished(world)
+
+        coord = coordinator(scenario, cars.tasks, cars.bands, finished, band=True)
+        cars.coordinator = coord
+        return Setup(scenario, sim, coord, cars.tasks, finished, cars.free_flow, prepare=cars.prepare,
+                     figures=lambda: dict(red_light_violations=cars.signals.violations))
+    except BaseException:
+        sim.close()
+        raise
