@@ -289,7 +289,8 @@ def crossing_ahead(crossings, centre: np.ndarray, front: np.ndarray, heading: fl
 
 
 def pedestrian_waits(steps: pd.DataFrame, walkers: pd.DataFrame, crossings, *, centre_offset: dict, length: dict, dt: float,
-                     stop_speed: float, margin: float, reach: float = CROSSING_REACH) -> pd.Series:
+                     stop_speed: float, margin: float, reach: float = CROSSING_REACH,
+                     held: set[tuple[float, str]] = frozenset()) -> pd.Series:
     """Per controlled robot, the seconds it stood (``v`` below ``stop_speed`` [m/s]) with the
     nearest crossing on its way (:func:`crossing_ahead`, its front at most ``reach`` [m] before
     it) clear: no walker's footprint within ``margin`` [m] of that crossing's part in the car's
@@ -299,9 +300,12 @@ def pedestrian_waits(steps: pd.DataFrame, walkers: pd.DataFrame, crossings, *, c
     pedestrians' ``t, x, y, length, width, heading`` (footprint centres, as in
     ``trajectories.csv``); ``centre_offset`` and ``length`` by robot name the distance [m] from
     the rear axle to the footprint centre and the footprint length [m]. Every robot of ``steps``
-    has an entry (0 when it never waited)."""
+    has an entry (0 when it never waited). The rows whose ``(t, robot)`` (``t`` rounded to 9
+    digits) is in ``held`` do not count: the robot waited for a traffic signal."""
     waits = pd.Series(0.0, index=pd.unique(steps["robot"]), dtype=float)
     standing = steps[steps["v"].abs() < stop_speed]
+    if held:
+        standing = standing[[(t, name) not in held for t, name in zip(standing["t"].round(9), standing["robot"])]]
     if len(standing) and crossings:  # only rows near a crossing can count: a cheap test first
         axle = standing[["x", "y"]].to_numpy(dtype=float)
         near = np.zeros(len(standing), dtype=bool)

@@ -404,6 +404,28 @@ def test_a_car_behind_an_uncontrolled_car_may_commit_only_to_stop_behind_where_t
     assert course_clearance(padded[0], padded[1][None], np.inf) < 0.0  # the course behind it would
 
 
+def test_with_traffic_beside_a_course_swinging_into_the_next_lane_meets_the_car_coming_up_there():
+    """A SUMO car at 12 m/s comes up in the next lane (3.2 m across), its centre 2 m behind the
+    robot's rear axle. A robot that keeps its lane keeps the margin from it either way; one whose
+    course swings into that lane as it stops is refused only with ``beside``; a car straight
+    behind the robot in its own lane is never held (it keeps its distance itself)."""
+    limits = VehicleLimits(-6.0, 3.0, 0.5, 0.0, 20.0)
+    fleet, dt = Fleet([RobotSpec("car", 4.0, 1.8, BicycleModel(2.6, limits))]), 0.1
+    state = np.array([0.0, 0.0, 0.0, 6.0])
+    lane = stopping_commitment(fleet, 0, 0, state, np.zeros((0, 2)), 0.0, 2.0, 0.0, dt)
+    swing = stopping_commitment(fleet, 0, 0, np.array([0.0, 0.8, 0.4, 6.0]), np.zeros((0, 2)), 0.0, 2.0, 0.0, dt)
+    book = CommitmentBook(fleet, [lane], 1.0)
+    beside = Obstacle("bg.0", "scripted", np.array([-2.0, 3.2]), np.array([12.0, 0.0]), 0.0, 4.5, 1.8)
+    behind = Obstacle("bg.1", "scripted", np.array([-9.0, 0.0]), np.array([8.0, 0.0]), 0.0, 4.5, 1.8)
+    for flag in (False, True):
+        book.beside = flag
+        book.traffic = braking_courses([beside], 4.5, dt)
+        assert book.traffic_gap(book.footprints(0, lane, 0), 0) >= book.margin
+        assert (book.traffic_gap(book.footprints(0, swing, 0), 0) < book.margin) == flag
+        book.traffic = braking_courses([behind], 4.5, dt)
+        assert book.traffic_gap(book.footprints(0, lane, 0), 0) == np.inf
+
+
 def test_a_continuation_stands_behind_where_each_vehicle_ahead_on_its_path_can_stop():
     """On a straight lane, the standing point of a SUMO car ahead in the lane is where its
     braking course stands, less half its length and the gap; a car behind the robot, one in the

@@ -81,6 +81,12 @@ def test_a_walker_on_another_lane_does_not_block():
     assert waits(standing(232.0, -4.8), walker(lambda t: -7.0))["car"] == pytest.approx(0.0)  # 0.35 m from it: within the margin
 
 
+def test_standing_held_by_a_traffic_signal_is_no_wait_for_walkers():
+    """The same 10 s before a clear crossing, the first 7 s of them held by a red light."""
+    held = {(round(k * DT, 9), "car") for k in range(70)}
+    assert waits(standing(232.0, -4.8), walker(lambda t: -20.0), held=held)["car"] == pytest.approx(3.0)
+
+
 def test_only_cars_standing_up_to_30_m_before_the_crossing_count():
     nobody = walker(lambda t: -20.0)
     assert waits(standing(232.0, -4.8, v=1.0), nobody)["car"] == 0.0  # moving

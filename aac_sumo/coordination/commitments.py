@@ -134,6 +134,7 @@ class CommitmentBook:
         self.traffic: list[np.ndarray] = []  # footprint rows of the uncontrolled vehicles' braking courses this period (see check)
         self._traffic: tuple | None = None  # (period, the list above, its flat rows, starts, lengths, boxes)
         self.reaction: tuple[np.ndarray, float] | None = None  # (per robot deceleration [m/s^2], dt [s]): see traffic_rows
+        self.beside = False  # whether traffic_gap also holds the vehicles beside and behind in another lane
         self.fallbacks: list[Commitment] | None = None  # with reaction: each robot's reaction of the period before (see hold_fallbacks)
         self._reactions: tuple | None = None  # (period, flat reaction rows, starts, lengths, boxes): see reaction_gap
         # every commitment's states, each padded with its last state to one length (n, L, 4), for courses
@@ -282,11 +283,17 @@ class CommitmentBook:
     def traffic_gap(self, rows: np.ndarray, period: int) -> float:
         """Least clearance [m] of the footprint rows ``rows`` (a course from ``period`` on) to
         the braking courses of the uncontrolled vehicles whose centres are ahead of ``rows[0]``
-        along its heading (inf without any)."""
+        along its heading, and with ``beside`` also of those that are not straight behind it
+        (their centre further across its heading than half the two widths: in another lane);
+        inf without any."""
         if self._traffic is None or self._traffic[0] != period or self._traffic[1] is not self.traffic:
             self._traffic = (period, self.traffic, *_ragged(self.traffic))
         _, _, flat, starts, lengths, boxes = self._traffic
-        ahead = np.flatnonzero(ahead_of(flat[starts, :2], rows[0, :2], float(rows[0, 4])))
+        counted = ahead_of(flat[starts, :2], rows[0, :2], float(rows[0, 4]))
+        if self.beside:
+            normal = np.array([-np.sin(rows[0, 4]), np.cos(rows[0, 4])])
+            counted |= np.abs((flat[starts, :2] - rows[0, :2]) @ normal) > 0.5 * (rows[0, 3] + flat[starts, 3])
+        ahead = np.flatnonzero(counted)
         if ahead.size == 0:
             return np.inf
         return float(ragged_nearest(rows, flat, starts[ahead], lengths[ahead], boxes[ahead], -1, self.margin)[0])

@@ -29,5 +29,5 @@ class SumoDriver(Coordinator):
         return Decision(np.zeros((n, 2)), [RobotDecision(False, reason="sumo", mode="sumo") for _ in range(n)])
 
 
-register_coordinator("sumo", SumoDriver, kinds=("lane_change",), simulator_drives=True, baseline=True, label="SUMO's own driver",
-                     doc="SUMO's own driver moves the cars, kind lane_change: docs/baselines_sumo.md")
+register_coordinator("sumo", SumoDriver, kinds=("lane_change", "city"), simulator_drives=True, baseline=True, label="SUMO's own driver",
+                     doc="SUMO's own driver moves the cars, kinds lane_change and city: docs/baselines_sumo.md")

@@ -39,7 +39,7 @@ from aac_sumo.experiments.common import Setup, coordinator, robot_spec, simulato
 from aac_sumo.experiments.lane_change import network_files, sumo_options, with_resolved_paths
 from aac_sumo.experiments.lane_geometry import ROAD_MARGIN
 from aac_sumo.experiments.routed_cars import KEYS, routed_vehicles, route_edges
-from aac_sumo.experiments.signals import BOX_LENGTH, Line, Signals
+from aac_sumo.experiments.signals import BOX_LENGTH, GO, Line, Signals
 from aac_sumo.experiments.junction_routes import RoutePath, route_legs, route_path
 from aac_sumo.references import LateralBand, PathReference
 from aac_sumo.registry import register_experiment
@@ -83,16 +83,19 @@ class CityCars:
         self.done = np.zeros(n, dtype=bool)
         self.admitted = np.zeros(n, dtype=bool)
         self.signals = Signals()
+        self.held: set[tuple[float, str]] = set()  # (t, car) of the periods whose next stop line showed red or yellow
         self.sim = None
         self.coordinator = None
         self.sumo_drives = False  # SUMO's own driver moves the cars (the baseline): it keeps to its signals and leaves at its route's end
 
     def prepare(self, world: WorldState) -> WorldState:
         """Admit the cars SUMO departed since the last period, take the finished ones off the
-        road, and show the coordinators the stop lines that hold traffic."""
+        road, and show the coordinators the stop lines that hold traffic (SUMO's driver keeps to
+        its signals itself: its cars' red-light violations and waits are counted all the same)."""
         for k in np.flatnonzero(world.on_road & ~self.admitted):
             self.admit(world, int(k))
         if self.sumo_drives:
+            self.stop_boxes(world)
             return world
         leaving = np.flatnonzero(self.done & world.on_road)
         for k in leaving:
@@ -137,6 +140,12 @@ class CityCars:
             return []
         ids = tuple(sorted({line.tls for lines in approach.values() for line, _ in lines}))
         states = self.sim.signal_states(ids)
+        for k, near in approach.items():
+            ahead = [(d, line) for line, d in near if d >= 0.0]
+            if ahead:
+                _, line = min(ahead, key=lambda a: a[0])
+                if states[line.tls][line.link] not in GO:
+                    self.held.add((round(world.t, 9), self.robots[k].name))
         speeds = np.maximum(world.states[:, 3], 0.0)
         comfort = np.array([r.model.limits.comfort_decel for r in self.robots])
         lengths = np.array([r.length for r in self.robots])
@@ -184,7 +193,7 @@ def build_city(scenario: Scenario) -> Setup:
         coord = coordinator(scenario, cars.tasks, cars.bands, finished, band=True)
         cars.coordinator = coord
         return Setup(scenario, sim, coord, cars.tasks, finished, cars.free_flow, prepare=cars.prepare,
-                     figures=lambda: dict(red_light_violations=cars.signals.violations))
+                     figures=lambda: dict(red_light_violations=cars.signals.violations), held=lambda: cars.held)
     except BaseException:
         sim.close()
         raise

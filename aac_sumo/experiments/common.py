@@ -41,7 +41,9 @@ class Setup:
     speed), for the delay metrics. ``prepare(world)``, when given, runs on every observed world
     before anything else and returns the world to use: an experiment whose robots enter and
     leave during the run (:attr:`WorldState.present`) gives the newcomers their tasks there.
-    ``figures()``, when given, returns the experiment's own metrics at the end of the run."""
+    ``figures()``, when given, returns the experiment's own metrics at the end of the run;
+    ``held()`` the ``(t, robot name)`` of the periods in which a robot was held by a traffic
+    signal, which ``pedestrian_wait_s`` does not count as waiting at a crossing."""
 
     scenario: Scenario
     sim: Simulator
@@ -51,6 +53,7 @@ class Setup:
     free_flow_s: np.ndarray | None = None
     prepare: Callable[[WorldState], WorldState] | None = None
     figures: Callable[[], dict] | None = None
+    held: Callable[[], set[tuple[float, str]]] | None = None
 
 
 @section("robot")

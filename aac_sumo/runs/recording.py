@@ -38,7 +38,8 @@ class Recording:
     """Everything the closed loop recorded: per-robot ``steps`` rows, per-period ``periods``
     rows, every agent's ``traj`` rows, and how the loop ended. ``arrival`` is each task's
     arrival time [s] (NaN if it never arrived); ``crossings`` the map's pedestrian crossings
-    (None without a map)."""
+    (None without a map); ``held`` the ``(t, robot name)`` of the periods in which a robot was
+    held by a traffic signal (:attr:`~aac_sumo.experiments.common.Setup.held`)."""
 
     steps: list = field(default_factory=list)
     periods: list = field(default_factory=list)
@@ -51,6 +52,7 @@ class Recording:
     error: str | None = None
     arrival: np.ndarray = field(default_factory=lambda: np.zeros(0))
     crossings: list[Crossing] | None = None
+    held: set[tuple[float, str]] = field(default_factory=set)
 
 
 def assemble_metrics(scenario: Scenario, rec: Recording, steps: pd.DataFrame, periods: pd.DataFrame, *,
@@ -77,7 +79,7 @@ def assemble_metrics(scenario: Scenario, rec: Recording, steps: pd.DataFrame, pe
         delay = rec.arrival - free_flow_s
         info.update(delay_jain=jain(np.maximum(delay, 0.0)), delay_max_s=float(delay.max()))
     info.update(deadlock=rec.deadlock, safety_stops=int(periods["safety_stops"].sum()) if "safety_stops" in periods else 0)
-    waits = wait_by_robot(scenario, rec.crossings, steps, trajectories, robots)
+    waits = wait_by_robot(scenario, rec.crossings, steps, trajectories, robots, rec.held)
     info.update(pedestrian_wait_s=None if waits is None else float(waits.sum()))
     metrics = compute_metrics(steps, periods, info)
     reasons = []
@@ -98,11 +100,11 @@ def assemble_metrics(scenario: Scenario, rec: Recording, steps: pd.DataFrame, pe
 
 
 def wait_by_robot(scenario: Scenario, crossings: list[Crossing] | None, steps: pd.DataFrame, trajectories: pd.DataFrame | None,
-                  robots: list) -> pd.Series | None:
+                  robots: list, held: set[tuple[float, str]] = frozenset()) -> pd.Series | None:
     """Per robot, the seconds it stood before a crossing clear of walkers
     (:func:`~aac_sumo.metrics.pedestrian_waits` with ``metrics.stop_speed`` and
-    ``controller.pedestrian_margin``; the walkers from ``trajectories``' ``pedestrian`` rows);
-    None without crossings."""
+    ``controller.pedestrian_margin``; the walkers from ``trajectories``' ``pedestrian`` rows),
+    but while ``held`` by a traffic signal; None without crossings."""
     if not crossings:
         return None
     traj = trajectories if trajectories is not None and len(trajectories) else pd.DataFrame(columns=["t", "kind"])
@@ -111,4 +113,4 @@ def wait_by_robot(scenario: Scenario, crossings: list[Crossing] | None, steps: p
         return pd.Series(dtype=float)
     return pedestrian_waits(steps, walkers, crossings, centre_offset={r.name: r.centre_offset for r in robots},
                             length={r.name: r.length for r in robots}, dt=scenario["scenario.dt"],
-                            stop_speed=scenario["metrics.stop_speed"], margin=scenario["controller.pedestrian_margin"])
+                            stop_speed=scenario["metrics.stop_speed"], margin=scenario["controller.pedestrian_margin"], held=held)

@@ -45,6 +45,8 @@ def run(scenario: Scenario) -> RunResult:
         rec.error, interrupted = f"interrupted at t={len(rec.periods) * scenario['scenario.dt']:.2f} s", True
     finally:
         setup.sim.close()
+    if setup.held is not None:
+        rec.held = setup.held()
     steps = with_vehicle_columns(pd.DataFrame(rec.steps, columns=STEP_COLUMNS[:-2]), {r.name: r.model.wheelbase for r in first.robots},
                                  scenario["scenario.dt"])
     periods = pd.DataFrame(rec.periods) if rec.periods else pd.DataFrame(columns=["t", "compute_ms"])

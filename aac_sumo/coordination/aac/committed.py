@@ -95,6 +95,7 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
         self.signalled = signalled_courses(world.obstacles, self.params.traffic_decel, cfg.dt)
         if self.params.traffic_reaction:
             self.book.reaction = (self.reaction_decel(), cfg.dt)
+        self.book.beside = self.params.traffic_beside
         self.book.park(~world.on_road, world.states, period)
         self.book.hold_fallbacks(period)
         for i in self.front_first(world) if first else ():  # with cruise, every car drives on from the start where the check lets it

@@ -110,6 +110,10 @@ class AacParams:
     walker_brake: bool = param(False, "with commit, a robot whose commitment already meets a walker's region (one SUMO sets down "
                                "beside the road, or one who leaves what the check assumed of her) renews its continuation or "
                                "brakes at once, as for SUMO's cars (mode traffic_brake)")
+    traffic_beside: bool = param(False, "with commit, the exact check holds a commitment against the braking courses of the "
+                                 "uncontrolled vehicles beside and behind the robot in another lane too, not only those ahead "
+                                 "(a car whose nose swings into the next lane at a junction meets the cars coming up there); "
+                                 "the ones straight behind it keep their distance themselves")
     keep_right: float = param(0.0, "right-hand rule: the authority's reference shifts this far to the right while another "
                               "robot is ahead within keep_right_range (0: off, the paper) [m]", **NN)
     keep_right_range: float = param(4.0, "distance within which a robot ahead triggers keep_right [m]", **P)
