@@ -62,7 +62,7 @@ class CityParams:
                                    "(and within robot.a_lat_max) [m/s^2]", **P)
     change_start: float = param(10.0, "a lane change for the next turn begins this far into its edge [m]", **NN)
     change_length: float = param(30.0, "arc length a lane change takes per lane crossed [m]", **P)
-    finish_margin: float = param(5.0, "a car has finished when its rear axle is within this of its route's end [m]", **NN)
+    finish_margin: float = param(15.0, "a car has finished when its rear axle is within this of its route's end [m]", **NN)
 
 
 class CityCars:
