@@ -35,10 +35,10 @@ from aac_sumo import network
 from aac_sumo.config import Scenario, ScenarioError
 from aac_sumo.config.keys import NN, P
 from aac_sumo.config.schema import from_section, param
-from aac_sumo.experiments.common import Setup, coordinator, robot_spec, simulator_drives
+from aac_sumo.experiments.common import Setup, coordinator, simulator_drives
 from aac_sumo.experiments.lane_change import network_files, sumo_options, with_resolved_paths
 from aac_sumo.experiments.lane_geometry import ROAD_MARGIN
-from aac_sumo.experiments.routed_cars import KEYS, routed_vehicles, route_edges
+from aac_sumo.experiments.routed_cars import KEYS, route_edges, routed_robots, routed_vehicles
 from aac_sumo.experiments.signals import BOX_LENGTH, GO, Line, Signals
 from aac_sumo.experiments.junction_routes import RoutePath, route_legs, route_path
 from aac_sumo.references import LateralBand, PathReference
@@ -170,15 +170,7 @@ def build_city(scenario: Scenario) -> Setup:
         raise ScenarioError(scenario.source, KEYS, "the vTypes of the controlled cars (a city's cars come from SUMO's routes)", "")
     vehicles = routed_vehicles(scenario, routes)
     net = network.read(net_path, "sumo.net", scenario.source, withInternal=True)
-    robots = []
-    for v in vehicles:
-        try:
-            robots.append(robot_spec(scenario, v.id, v.length, v.width))
-        except ScenarioError:
-            raise ScenarioError(scenario.source, KEYS, f"vTypes at least robot.wheelbase long ({v.vtype} is {v.length:g} m)") from None
-    speed = from_section(CityParams, scenario, SECTION).speed
-    if speed > robots[0].model.limits.v_max:
-        raise ScenarioError(scenario.source, "city.speed", f"at most robot.v_max ({robots[0].model.limits.v_max})", speed)
+    robots = routed_robots(scenario, vehicles, from_section(CityParams, scenario, SECTION).speed, "city.speed")
     cars = CityCars(scenario, net, vehicles, robots)
     cars.sumo_drives = simulator_drives(scenario)
     states = np.array([parking_spot(k) for k in range(len(robots))])

@@ -364,10 +364,10 @@ class RoutedCars:
         return self.done.copy()
 
 
-def build_routed(scenario: Scenario, net_path: Path, routes: list[Path], options: SumoOptions) -> Setup:
-    """The lane change's Setup with the controlled cars of SUMO's routes (see the module)."""
-    vehicles = routed_vehicles(scenario, routes)
-    net = network.read(net_path, "sumo.net", scenario.source)
+def routed_robots(scenario: Scenario, vehicles: list[RoutedVehicle], speed: float, speed_key: str) -> list:
+    """The controlled robots of ``vehicles``, each its vType's footprint with ``[robot]``'s limits;
+    exit-2 errors for a vType shorter than the wheelbase, and for a cruise ``speed`` [m/s] (key
+    ``speed_key``) above ``robot.v_max``."""
     robots = []
     for v in vehicles:
         try:
@@ -375,9 +375,16 @@ def build_routed(scenario: Scenario, net_path: Path, routes: list[Path], options
         except ScenarioError:
             raise ScenarioError(scenario.source, KEYS, f"vTypes at least robot.wheelbase long ({v.vtype} is {v.length:g} m)") from None
     v_max = robots[0].model.limits.v_max
-    speed = lane_change_params(scenario).speed
     if speed > v_max:
-        raise ScenarioError(scenario.source, "lane_change.speed", f"at most robot.v_max ({v_max})", speed)
+        raise ScenarioError(scenario.source, speed_key, f"at most robot.v_max ({v_max})", speed)
+    return robots
+
+
+def build_routed(scenario: Scenario, net_path: Path, routes: list[Path], options: SumoOptions) -> Setup:
+    """The lane change's Setup with the controlled cars of SUMO's routes (see the module)."""
+    vehicles = routed_vehicles(scenario, routes)
+    net = network.read(net_path, "sumo.net", scenario.source)
+    robots = routed_robots(scenario, vehicles, lane_change_params(scenario).speed, "lane_change.speed")
     states = np.array([parking_spot(k) for k in range(len(robots))])
     cars = RoutedCars(scenario, net, vehicles, robots, None)
     cars.sumo_drives = simulator_drives(scenario)
