@@ -38,7 +38,7 @@ from aac_sumo.config.schema import from_section, param
 from aac_sumo.experiments.common import Setup, coordinator, simulator_drives
 from aac_sumo.experiments.lane_change import network_files, sumo_options, with_resolved_paths
 from aac_sumo.experiments.lane_geometry import ROAD_MARGIN
-from aac_sumo.experiments.routed_cars import KEYS, route_edges, routed_robots, routed_vehicles
+from aac_sumo.experiments.routed_vehicles import KEYS, route_edges, routed_robots, routed_vehicles
 from aac_sumo.experiments.signals import BOX_LENGTH, GO, Line, Signals
 from aac_sumo.experiments.junction_routes import RoutePath, route_legs, route_path
 from aac_sumo.references import LateralBand, PathReference

@@ -57,57 +57,23 @@ import numpy as np
 
 from aac_sumo import network
 from aac_sumo.config import Scenario, ScenarioError
-from aac_sumo.experiments.common import Setup, coordinator, robot_spec, simulator_drives
+from aac_sumo.experiments.common import Setup, coordinator, simulator_drives
 from aac_sumo.experiments.sumo_driver import lane_indices
 from aac_sumo.experiments.lane_change_params import lane_change_params
 from aac_sumo.experiments.lane_gaps import GapRule, GapVerdict, judge_gap
 from aac_sumo.experiments.lane_plans import END_MARGIN, Change, LanePlan, closures, crossed_lanes, lane_plan, planned_band, planned_path
 from aac_sumo.experiments.lane_geometry import CURVE_DECEL, MIN_LANES, ROAD_MARGIN, lane_reference, smooth_road
 from aac_sumo.references import PathReference
-from aac_sumo.sim.sumo_options import LaneOrder, SumoOptions, sumo_params
+from aac_sumo.sim.sumo_options import LaneOrder, SumoOptions
 from aac_sumo.sim.sumo import sumo_simulator
 from aac_sumo.sim.base import Simulator
-from aac_sumo.sim.sumo_routes import RoutedVehicle, RoutesError, controlled, read_routes
+from aac_sumo.sim.sumo_routes import RoutedVehicle
+from aac_sumo.experiments.routed_vehicles import KEYS, route_edges, routed_robots, routed_vehicles
 from aac_sumo.world import WorldState, parking_spot
 
 POSTPONE_STEP = 10.0  # a change without a safe gap moves this far beyond the preview [m]
 MERGE_MOVE = 10.0  # a car letting another one in follows where that one's gap begins once it has moved this far [m]
 STANDING = 1.0  # a car slower than this waits as standing: only a car that can still stop before its gap lets it in [m/s]
-KEYS = "sumo.controlled_types"
-
-
-def routed_vehicles(scenario: Scenario, routes: list) -> list[RoutedVehicle]:
-    """The controlled vehicles of the route files ``routes`` departing within the run; exit-2
-    errors naming the key when none is, or a file cannot be read."""
-    su = sumo_params(scenario)
-    try:
-        everyone = read_routes(routes, scenario["scenario.duration"])
-    except RoutesError as exc:
-        raise ScenarioError(scenario.source, KEYS, "route files whose controlled vehicles can be known before the run", str(exc)) from None
-    chosen = controlled(everyone, su.controlled_types, su.controlled_ids)
-    if not chosen:
-        types = sorted({v.vtype for v in everyone})
-        raise ScenarioError(scenario.source, KEYS, "vTypes (or ids in sumo.controlled_ids) of vehicles in the route files that depart "
-                            f"within scenario.duration (vTypes there: {', '.join(types) or 'none'})",
-                            ", ".join(su.controlled_types + su.controlled_ids))
-    return chosen
-
-
-def route_edges(scenario: Scenario, net, v: RoutedVehicle) -> tuple[str, ...]:
-    """Vehicle ``v``'s edges (a trip routed on the network's shortest path through its ``via``);
-    exit-2 errors naming ``sumo.controlled_types`` for an edge or a trip the network lacks."""
-    if not v.trip:
-        return v.edges
-    edges: list = []
-    for a, b in zip(v.edges, v.edges[1:]):
-        try:
-            path, _ = net.getShortestPath(net.getEdge(a), net.getEdge(b))
-        except KeyError as exc:
-            raise ScenarioError(scenario.source, KEYS, f"routes over edges of the network ({v.id})", str(exc)) from None
-        if path is None:
-            raise ScenarioError(scenario.source, KEYS, f"a trip the network connects ({v.id}: no way from {a} to {b})")
-        edges += [e for e in path if not edges or e is not edges[-1]]
-    return tuple(e.getID() for e in edges)
 
 
 class RoutedCars:
@@ -362,22 +328,6 @@ class RoutedCars:
         for k in np.flatnonzero(~self.done & ~world.on_road):
             self.done[k] = self.robots[k].name in self.sim.removed
         return self.done.copy()
-
-
-def routed_robots(scenario: Scenario, vehicles: list[RoutedVehicle], speed: float, speed_key: str) -> list:
-    """The controlled robots of ``vehicles``, each its vType's footprint with ``[robot]``'s limits;
-    exit-2 errors for a vType shorter than the wheelbase, and for a cruise ``speed`` [m/s] (key
-    ``speed_key``) above ``robot.v_max``."""
-    robots = []
-    for v in vehicles:
-        try:
-            robots.append(robot_spec(scenario, v.id, v.length, v.width))
-        except ScenarioError:
-            raise ScenarioError(scenario.source, KEYS, f"vTypes at least robot.wheelbase long ({v.vtype} is {v.length:g} m)") from None
-    v_max = robots[0].model.limits.v_max
-    if speed > v_max:
-        raise ScenarioError(scenario.source, speed_key, f"at most robot.v_max ({v_max})", speed)
-    return robots
 
 
 def build_routed(scenario: Scenario, net_path: Path, routes: list[Path], options: SumoOptions) -> Setup:
