@@ -220,7 +220,7 @@ def test_an_interrupted_run_keeps_what_it_recorded_and_exits_non_zero(tmp_path, 
     """SIGINT or SIGTERM in the middle of ``aac-sumo run``: the outputs up to that moment are
     written, metrics.json says the run was interrupted, and the command exits with 130."""
     out = tmp_path / "out"
-    cmd = [str(Path(sys.executable).parent / "aac-sumo"), "run", "random_crossing", "--set", "random_crossing.n_robots=100",
+    cmd = [str(Path(sys.executable).parent / "aac-sumo"), "run", "random_crossing", "--set", "random_crossing.n_robots=300",
            "--out", str(out)]
     # a short run first fills numba's on-disk cache, which the child then loads instead of compiling: on a fresh clone
     # compiling took longer than the 10 s below, and the signal came during start-up
@@ -230,7 +230,8 @@ def test_an_interrupted_run_keeps_what_it_recorded_and_exits_non_zero(tmp_path, 
     slowness = time.perf_counter() - start  # grows with the machine's load, as the child's start-up does
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     # past start-up and warm-up (10 s idle; longer on a loaded machine, which once sent the signal during start-up),
-    # long before the 100-robot crossing ends (120 s simulated, about a minute idle, longer loaded)
+    # long before the 300-robot crossing ends (about 200 s simulated at 1.7 times real time idle; the 100-robot one,
+    # used before, had become fast enough to complete before a loaded machine's signal)
     time.sleep(min(10.0 + 3.0 * slowness, 40.0))
     proc.send_signal(sig)
     _, err = proc.communicate(timeout=120)
