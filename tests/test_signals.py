@@ -43,7 +43,7 @@ def test_at_yellow_a_car_that_can_stop_comfortably_is_held_and_one_that_cannot_g
     assert s.violations == 0
 
 
-def test_crossing_at_red_is_a_violation_and_at_yellow_is_not():
+def test_crossing_at_red_is_a_violation_and_at_yellow_only_for_a_car_the_line_held():
     s = Signals()
     boxes(s, "y", [5.0], [14.0])
     boxes(s, "y", [-1.0], [14.0])  # crossed at yellow
@@ -53,6 +53,11 @@ def test_crossing_at_red_is_a_violation_and_at_yellow_is_not():
     boxes(s, "r", [-1.0], [14.0])  # crossed at red
     assert s.violations == 1
     boxes(s, "r", [-3.0], [14.0])  # counted once
+    assert s.violations == 1
+    s = Signals()
+    boxes(s, "y", [40.0], [14.0])  # it can stop: the line holds it
+    boxes(s, "y", [1.0], [14.0])
+    boxes(s, "y", [-1.0], [14.0])  # crossed at yellow all the same
     assert s.violations == 1
 
 

@@ -9,7 +9,8 @@ and the MPC then stop a car behind it as behind a standing car, and nothing cros
 
 When a line's signal leaves green, the cars that cannot stop before it at their comfort
 deceleration are let through; the box appears once the last of them has passed it. A car whose
-front crosses a line while its signal shows red counts as a red-light violation.
+front crosses a line while its signal shows red, or yellow when it was not let through (the line
+held it), counts as a red-light violation.
 
 Arc lengths [m] are along each car's own path (its rear axle's projection plus its front
 overhang gives its front); a car's stop lines are those on its path ahead of it.
@@ -78,7 +79,7 @@ class Signals:
                 self.lines.setdefault(line.key, line)
                 seen.setdefault(line.key, []).append((k, d))
                 last = self.before.get((k, line.key))
-                if last is not None and last[0] >= 0.0 > d and last[1] in RED:
+                if last is not None and last[0] >= 0.0 > d and (last[1] in RED or (last[1] not in GO and k not in self.through.get(line.key, ()))):
                     self.violations += 1
                 self.before[(k, line.key)] = (d, states[line.tls][line.link])
         out = []
