@@ -35,15 +35,14 @@ from aac_sumo import network
 from aac_sumo.config import Scenario, ScenarioError
 from aac_sumo.config.keys import NN, P
 from aac_sumo.config.schema import from_section, param
-from aac_sumo.experiments.common import Setup, coordinator, simulator_drives
+from aac_sumo.experiments.common import Setup, simulator_drives
 from aac_sumo.experiments.lane_change import network_files, sumo_options, with_resolved_paths
 from aac_sumo.experiments.lane_geometry import ROAD_MARGIN
-from aac_sumo.experiments.routed_vehicles import KEYS, route_edges, routed_robots, routed_vehicles
+from aac_sumo.experiments.routed_vehicles import KEYS, route_edges, routed_robots, routed_setup, routed_vehicles
 from aac_sumo.experiments.signals import BOX_LENGTH, GO, Line, Signals
 from aac_sumo.experiments.junction_routes import RoutePath, route_legs, route_path
 from aac_sumo.references import LateralBand, PathReference
 from aac_sumo.registry import register_experiment
-from aac_sumo.sim.sumo import sumo_simulator
 from aac_sumo.sim.sumo_options import SumoParams, sumo_params
 from aac_sumo.world import WorldState, parking_spot
 
@@ -173,19 +172,5 @@ def build_city(scenario: Scenario) -> Setup:
     robots = routed_robots(scenario, vehicles, from_section(CityParams, scenario, SECTION).speed, "city.speed")
     cars = CityCars(scenario, net, vehicles, robots)
     cars.sumo_drives = simulator_drives(scenario)
-    states = np.array([parking_spot(k) for k in range(len(robots))])
-    sim = sumo_simulator(robots, states, scenario["scenario.dt"], [], sumo_options(scenario, net_path, routes), su.isolate,
-                         frozenset(v.id for v in vehicles))
-    try:
-        cars.sim = sim
-
-        def finished(world: WorldState) -> np.ndarray:  # a function: a coordinator's copy (warm-up) shares it
-            return cars.finished(world)
-
-        coord = coordinator(scenario, cars.tasks, cars.bands, finished, band=True)
-        cars.coordinator = coord
-        return Setup(scenario, sim, coord, cars.tasks, finished, cars.free_flow, prepare=cars.prepare,
-                     figures=lambda: dict(red_light_violations=cars.signals.violations), held=lambda: cars.held)
-    except BaseException:
-        sim.close()
-        raise
+    return routed_setup(scenario, cars, robots, vehicles, sumo_options(scenario, net_path, routes),
+                        figures=lambda: dict(red_light_violations=cars.signals.violations), held=lambda: cars.held)

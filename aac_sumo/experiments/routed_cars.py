@@ -57,7 +57,7 @@ import numpy as np
 
 from aac_sumo import network
 from aac_sumo.config import Scenario, ScenarioError
-from aac_sumo.experiments.common import Setup, coordinator, simulator_drives
+from aac_sumo.experiments.common import Setup, simulator_drives
 from aac_sumo.experiments.sumo_driver import lane_indices
 from aac_sumo.experiments.lane_change_params import lane_change_params
 from aac_sumo.experiments.lane_gaps import GapRule, GapVerdict, judge_gap
@@ -65,10 +65,9 @@ from aac_sumo.experiments.lane_plans import END_MARGIN, Change, LanePlan, closur
 from aac_sumo.experiments.lane_geometry import CURVE_DECEL, MIN_LANES, ROAD_MARGIN, lane_reference, smooth_road
 from aac_sumo.references import PathReference
 from aac_sumo.sim.sumo_options import LaneOrder, SumoOptions
-from aac_sumo.sim.sumo import sumo_simulator
 from aac_sumo.sim.base import Simulator
 from aac_sumo.sim.sumo_routes import RoutedVehicle
-from aac_sumo.experiments.routed_vehicles import KEYS, route_edges, routed_robots, routed_vehicles
+from aac_sumo.experiments.routed_vehicles import KEYS, route_edges, routed_robots, routed_setup, routed_vehicles
 from aac_sumo.world import WorldState, parking_spot
 
 POSTPONE_STEP = 10.0  # a change without a safe gap moves this far beyond the preview [m]
@@ -335,19 +334,7 @@ def build_routed(scenario: Scenario, net_path: Path, routes: list[Path], options
     vehicles = routed_vehicles(scenario, routes)
     net = network.read(net_path, "sumo.net", scenario.source)
     robots = routed_robots(scenario, vehicles, lane_change_params(scenario).speed, "lane_change.speed")
-    states = np.array([parking_spot(k) for k in range(len(robots))])
     cars = RoutedCars(scenario, net, vehicles, robots, None)
     cars.sumo_drives = simulator_drives(scenario)
-    sim = sumo_simulator(robots, states, scenario["scenario.dt"], [], options, scenario["sumo.isolate"], frozenset(v.id for v in vehicles))
-    try:
-        cars.sim = sim
-        def finished(world: WorldState) -> np.ndarray:  # a function: a coordinator's copy (warm-up) shares it
-            return cars.finished(world)
-
-        coord = coordinator(scenario, cars.tasks, cars.bands, finished, band=True)
-        cars.coordinator = coord
-        return Setup(scenario, sim, coord, cars.tasks, finished, cars.free_flow, prepare=cars.prepare,
-                     figures=None if cars.sumo_drives else lambda: dict(cars.counts))  # SUMO's driver: our gap rule counted nothing
-    except BaseException:
-        sim.close()
-        raise
+    # SUMO's driver: our gap rule counted nothing
+    return routed_setup(scenario, cars, robots, vehicles, options, figures=None if cars.sumo_drives else lambda: dict(cars.counts))

@@ -5,10 +5,14 @@ change's cars of SUMO's routes (:mod:`~aac_sumo.experiments.routed_cars`) and th
 
 from __future__ import annotations
 
+import numpy as np
+
 from aac_sumo.config import Scenario, ScenarioError
-from aac_sumo.experiments.common import robot_spec
-from aac_sumo.sim.sumo_options import sumo_params
+from aac_sumo.experiments.common import Setup, coordinator, robot_spec
+from aac_sumo.sim.sumo import sumo_simulator
+from aac_sumo.sim.sumo_options import SumoOptions, sumo_params
 from aac_sumo.sim.sumo_routes import RoutedVehicle, RoutesError, controlled, read_routes
+from aac_sumo.world import WorldState, parking_spot
 
 #: The key the errors about the controlled vehicles name.
 KEYS = "sumo.controlled_types"
@@ -62,3 +66,25 @@ def routed_robots(scenario: Scenario, vehicles: list[RoutedVehicle], speed: floa
     if speed > v_max:
         raise ScenarioError(scenario.source, speed_key, f"at most robot.v_max ({v_max})", speed)
     return robots
+
+
+def routed_setup(scenario: Scenario, cars, robots: list, vehicles: list[RoutedVehicle], options: SumoOptions, **extra) -> Setup:
+    """The Setup of the routed ``cars`` (an experiment's cars of SUMO's routes: their ``tasks``,
+    ``bands``, ``free_flow``, ``prepare`` and ``finished``; its ``sim`` and ``coordinator`` are set
+    here): SUMO started with ``vehicles`` routed and ``robots`` parked until it departs them, the
+    scenario's coordinator on lateral bands; ``extra`` goes to the Setup. SUMO is closed again when
+    anything fails."""
+    states = np.array([parking_spot(k) for k in range(len(robots))])
+    sim = sumo_simulator(robots, states, scenario["scenario.dt"], [], options, scenario["sumo.isolate"], frozenset(v.id for v in vehicles))
+    try:
+        cars.sim = sim
+
+        def finished(world: WorldState) -> np.ndarray:  # a function: a coordinator's copy (warm-up) shares it
+            return cars.finished(world)
+
+        cars.coordinator = coordinator(scenario, cars.tasks, cars.bands, finished, band=True)
+        return Setup(scenario, sim, cars.coordinator, cars.tasks, finished, cars.free_flow, prepare=cars.prepare,
+                     **extra)
+    except BaseException:
+        sim.close()
+        raise
