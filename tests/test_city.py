@@ -39,3 +39,19 @@ def test_a_city_run_without_controlled_cars_named_is_one_line_exit_2(tmp_path, c
     code = cli.main(["run", "city", "--set", "sumo.controlled_types=[]", "--out", str(tmp_path / "out")])
     err = capsys.readouterr().err.strip()
     assert code == 2 and len(err.splitlines()) == 1 and "sumo.controlled_types" in err and "Traceback" not in err
+
+
+@pytest.mark.slow
+def test_a_car_held_at_a_red_light_sets_off_at_green_across_both_crossings_of_its_right_turn(tmp_path, capsys):
+    """aac.11 follows a walker on the sidewalk towards C3, stops at the red and turns right at green:
+    a commitment that would stand on a crossing is refused, so it goes on across both."""
+    out = tmp_path / "out"
+    code = cli.main(["run", "city", "--set", "sumo.controlled_types=[]", "--set", 'sumo.controlled_ids=["aac.11"]',
+                     "--set", "scenario.duration=160", "--out", str(out)])
+    assert code == 0, capsys.readouterr().err
+    metrics = pd.read_json(out / "metrics.json", typ="series")
+    assert metrics["completed"] and not metrics["deadlock"]
+    assert metrics["collisions"] == 0 and metrics["sim_collisions"] == 0 and metrics["red_light_violations"] == 0
+    steps = pd.read_csv(out / "steps.csv")
+    assert turn(steps, "aac.11") == pytest.approx(-np.pi / 2, abs=0.1)
+    assert (steps["v"] < 0.05).any()  # it stood at the red

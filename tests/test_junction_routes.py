@@ -5,9 +5,11 @@ with 2 lanes each way, the others with 1), and a 2x1 grid of priority junctions.
 from __future__ import annotations
 
 from itertools import pairwise
+from pathlib import Path
 
 import numpy as np
 import pytest
+import sumo
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -290,3 +292,17 @@ def test_the_path_starts_at_s0_on_the_start_lane(plus, data, s0):
     lane = data.draw(st.integers(0, len(network.car_lanes(plus.getEdge(edges[0]))) - 1))
     p = route_path(plus, route_legs(plus, edges, lane), s0, A_LAT, CHANGE_START, CHANGE_LENGTH)
     assert np.hypot(*(p.points[0] - along(shape(lane_of(plus, edges[0], lane)), s0)[0][0])) < 0.1
+
+
+def test_a_junction_whose_internal_lane_has_no_length_is_passed_as_the_lanes_meet():
+    """The wheel's grid6 network (built by an old netconvert) joins 1/0tobottom1 and gneE29 at node
+    bottom1 through an internal lane of zero length: the path runs on from one lane onto the next."""
+    net = read(Path(sumo.__file__).parent / "tools" / "game" / "grid6" / "grid6.net.xml")
+    (conn,) = net.getEdge("1/0tobottom1").getConnections(net.getEdge("gneE29"))
+    assert np.ptp(shape(net.getLane(conn.getViaLaneID())), axis=0).max() == 0.0
+    route = path(net, ["1/0tobottom1", "gneE29"])
+    followed_lanes = [shape(lane_of(net, "1/0tobottom1", 0)), shape(lane_of(net, "gneE29", 0))]
+    assert distance(route.points, followed_lanes).max() < 0.5
+    assert_smooth(route.points)
+    (span,) = [j for j in route.junctions if j.junction == "bottom1"]
+    assert span.s_out - span.s_in < 1.0

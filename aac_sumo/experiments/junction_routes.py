@@ -178,6 +178,12 @@ def _edges(points: np.ndarray, width: float) -> tuple[np.ndarray, np.ndarray]:
     return offset_polyline(points, -0.5 * width), offset_polyline(points, 0.5 * width)
 
 
+def _drawn(net, leg: Leg) -> list:
+    """The internal lanes of ``leg``'s connection that have a length (an old network may hold
+    zero-length ones, where the shapes meet anyway)."""
+    return [lane for lane in map(net.getLane, leg.via) if _arc(_shape(lane))[-1] > 1e-6]
+
+
 def _lane_piece(lane, s_from: float = 0.0) -> _Piece:
     line = _shape(lane)
     points = along(line, _stations(line, s_from))[0]
@@ -259,7 +265,7 @@ def route_path(net, legs: list[Leg], s0: float, a_lat: float, change_start: floa
                                         change_start, change_length))
         if i + 1 < len(legs):
             marks.append(len(pieces) - 1)
-            pieces += [_lane_piece(net.getLane(lane_id)) for lane_id in leg.via]
+            pieces += [_lane_piece(lane) for lane in _drawn(net, leg)]
     raw = np.vstack([p.points for p in pieces])
     raw_arc = _arc(raw)
     ends = np.cumsum([len(p.points) for p in pieces]) - 1  # index in raw of each piece's last point
@@ -284,7 +290,7 @@ def route_path(net, legs: list[Leg], s0: float, a_lat: float, change_start: floa
     stops, junctions = [], []
     for leg, k in zip(legs, marks):
         s_in = s_of(ends[k])  # the incoming lane's end
-        junctions.append(JunctionSpan(leg.junction, s_in, s_of(ends[k + len(leg.via)] + 1)))  # the next edge's lane's start
+        junctions.append(JunctionSpan(leg.junction, s_in, s_of(ends[k + len(_drawn(net, leg))] + 1)))  # the next edge's lane's start
         if leg.tls:
             lane = car_lanes(net.getEdge(leg.edge))[leg.leave]
             (x0, y0), (x1, y1) = _shape(lane)[-2:]

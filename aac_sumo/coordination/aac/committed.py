@@ -203,22 +203,19 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
 
     def continued_commitment(self, world: WorldState, i: int, period: int, head: np.ndarray, statics: np.ndarray,
                              speeds: np.ndarray | None = None):
-        """Robot ``i``'s commitment to ``head`` (m, 2) continued along its path before its
-        stopping tail, for ``cruise`` [s], else half or a quarter of it: the longest that passes
-        the exact check. The continuation is the tracking law's steering with the speed that
-        reaches, in ``CONTINUATION_LAG`` and within ``continuation_jerk``, the anticipation's speed cap where the car will be then
-        (:mod:`~aac_sumo.coordination.anticipation`: it stays behind what is ahead on its path
-        and stops before a walker who counts, as the MPC's reference does), with what moves
-        along the path going on at its speed, for the other robots the speed their commitments
-        have ``LEAD_LOOK`` on (:meth:`~aac_sumo.coordination.aac.queueing.Queueing.lead_speeds`;
-        ``speeds``: those, already computed this period),
-        braking at most at the comfort envelope and speeding up at most at the anticipation's
-        ``accel``, and staying where it can stop (at ``HARD_SHARE`` of :meth:`held_decel`) behind
-        where each uncontrolled vehicle ahead could stand, also in the lane its blinker signals
+        """Robot ``i``'s commitment to ``head`` (m, 2) continued along its path before its stopping tail, for
+        ``cruise`` [s], else half or a quarter of it: the longest that passes the exact check; where a walker refused
+        ``cruise`` (most often: it stood on a crossing) and nothing shorter passes, twice or three times it (across).
+        The continuation is the tracking law's steering with the speed that reaches, in ``CONTINUATION_LAG`` and within
+        ``continuation_jerk``, the anticipation's speed cap where the car will be then (:mod:`~aac_sumo.coordination.anticipation`,
+        as the MPC's reference), with what moves along the path going on at its speed, for the other robots the speed
+        their commitments have ``LEAD_LOOK`` on (:meth:`~aac_sumo.coordination.aac.queueing.Queueing.lead_speeds`;
+        ``speeds``: those, already computed this period), braking at most at the comfort envelope and speeding up at
+        most at the anticipation's ``accel``, and staying where it can stop (at ``HARD_SHARE`` of :meth:`held_decel`)
+        behind where each uncontrolled vehicle ahead could stand, also in the lane its blinker signals
         (:func:`~aac_sumo.coordination.traffic_courses.standing_points`, :func:`~aac_sumo.coordination.traffic_courses.signalled_courses`).
-        None without ``cruise``,
-        without anticipation, on a path that ends in a stop, or when nothing passes (a car on a road does not crawl between
-        its turns: a tail right after each plan braked it at every turn it did not get)."""
+        None without ``cruise``, without anticipation, on a path that ends in a stop, or when nothing passes (a car on a
+        road does not crawl between its turns: a tail right after each plan braked it at every turn it did not get)."""
         cfg, task = self.planner.config, self.path(i)
         periods, self.nearest = int(round(self.params.cruise / cfg.dt)), (np.inf, -1)
         if periods <= 0 or self.anticipation is None or task.stop_at_end or task.heading_free(world.states[i]):
@@ -233,18 +230,21 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
         hard = standing_points(task, self.book.traffic + self.signalled, world.robot_centres()[i], float(world.states[i, 2]), 0.5 * robot.width + self.book.margin,
                                robot.centre_offset + 0.5 * robot.length + self.book.margin + TRAFFIC_SPARE)
         self.behind_traffic[i] = len(hard) > 0
-        more = continuation_inputs(float(x), float(y), float(h), float(v), periods, len(head), cfg.dt, np.ascontiguousarray(stops, dtype=float),
+        longer = (2 * periods, 3 * periods) if self.book.walkers is not None and len(self.book.walkers.strips) else ()
+        more = continuation_inputs(float(x), float(y), float(h), float(v), max((periods, *longer)), len(head), cfg.dt, np.ascontiguousarray(stops, dtype=float),
                                    float(rules.decel), float(rules.accel), float(calm), max(CONTINUATION_LAG, cfg.dt),
                                    *tracking_bounds(robot, self.tracking_lat()), steer,
                                    *task.arrays(), float(task.speed), float(task.decel), float(self.params.lookahead),
                                    float(self.params.speed_gain), float(self.keep_right_shift(world, i)), hard,
                                    float(HARD_SHARE * self.held_decel(calm)[i]), accel, float(self.params.continuation_jerk))
-        for k in (periods, periods // 2, periods // 4):
-            if k <= 0:
+        first = None  # what refused the whole cruise: a walker (-2), most often its standing on a crossing, asks for longer
+        for k in (periods, periods // 2, periods // 4, *longer):
+            if k <= 0 or (k > periods and first[1] != -2):
                 continue
             candidate = self.passing(world, i, period, np.vstack([head, more[:k]]), statics)
             if candidate is not None:
                 return candidate
+            first = self.nearest if first is None else first
         return None
 
     def plan_committed(self, world: WorldState, i: int, others: np.ndarray, reason: str, period: int,
