@@ -39,6 +39,7 @@ from aac_sumo.experiments.common import Setup, simulator_drives
 from aac_sumo.experiments.lane_change import network_files, sumo_options, with_resolved_paths
 from aac_sumo.experiments.lane_geometry import ROAD_MARGIN
 from aac_sumo.experiments.routed_vehicles import KEYS, route_edges, routed_robots, routed_setup, routed_vehicles
+from aac_sumo.experiments.right_of_way import RightOfWay, YieldLine, yield_lines
 from aac_sumo.experiments.signals import BOX_LENGTH, GO, Line, Signals
 from aac_sumo.experiments.junction_routes import RoutePath, route_legs, route_path
 from aac_sumo.references import LateralBand, PathReference
@@ -62,6 +63,8 @@ class CityParams:
     change_start: float = param(10.0, "a lane change for the next turn begins this far into its edge [m]", **NN)
     change_length: float = param(30.0, "arc length a lane change takes per lane crossed [m]", **P)
     finish_margin: float = param(15.0, "a car has finished when its rear axle is within this of its route's end [m]", **NN)
+    yield_gap: float = param(1.0, "a car whose link must yield enters the junction only if it leaves it this long before any "
+                             "foe with priority could reach the junction (SUMO's jmTimegapMinor) [s]", **NN)
 
 
 class CityCars:
@@ -82,6 +85,9 @@ class CityCars:
         self.done = np.zeros(n, dtype=bool)
         self.admitted = np.zeros(n, dtype=bool)
         self.signals = Signals()
+        self.right_of_way = RightOfWay(net, self.p.yield_gap, scenario["controller.anticipate_accel"])
+        self.yields: list[list[tuple[YieldLine, float]]] = [[] for _ in range(n)]  # per car: the links that may have to yield
+        self.names = [r.name for r in robots]
         self.held: set[tuple[float, str]] = set()  # (t, car) of the periods whose next stop line showed red or yellow
         self.sim = None
         self.coordinator = None
@@ -121,33 +127,46 @@ class CityCars:
         self.paths[k] = path
         self.tasks[k] = PathReference(path.points, self.p.speed, stop_at_end=False, limits=path.limits)
         self.bands[k] = LateralBand(path.band_right, path.band_left, 0.5 * robot.width + ROAD_MARGIN)
+        self.yields[k] = yield_lines(self.net, path)
         self.lines[k] = [(Line(stop.tls, stop.link, stop.lane, stop.point, stop.heading), stop.s) for stop in path.stops]
         self.free_flow[k] = world.t + self.tasks[k].length / self.p.speed
         self.admitted[k] = True
         self.coordinator.admit(world, k)
 
     def stop_boxes(self, world: WorldState) -> list:
-        """The boxes of the stop lines that hold traffic now (:class:`~aac_sumo.experiments.signals.Signals`)."""
-        approach = {}
+        """The boxes of the stop lines that hold traffic now: the signals' (:class:`~aac_sumo.experiments.signals.Signals`)
+        and those of the links that must yield (:class:`~aac_sumo.experiments.right_of_way.RightOfWay`)."""
+        approach, yields = {}, {}
         for k in np.flatnonzero(self.admitted & world.on_road & ~self.done):
             robot = self.robots[k]
             front = self.tasks[k].project(world.states[k, :2])[0] + robot.centre_offset + 0.5 * robot.length
             near = [(line, s - front) for line, s in self.lines[k] if -(robot.length + BOX_LENGTH) < s - front < SIGNAL_RANGE]
             if near:
                 approach[int(k)] = near
-        if not approach:
+            near = [(y, s - front) for y, s in self.yields[k] if -(y.s_out - y.s_in + robot.length + 1.0) < s - front < SIGNAL_RANGE]
+            if near:
+                yields[int(k)] = near
+        if not approach and not yields:
             return []
-        ids = tuple(sorted({line.tls for lines in approach.values() for line, _ in lines}))
-        states = self.sim.signal_states(ids)
+        ids = {line.tls for lines in approach.values() for line, _ in lines}
+        ids |= {tls for lines in yields.values() for y, _ in lines for tls in (y.tls, *(foe.tls for foe in y.foes)) if tls}
+        states = self.sim.signal_states(tuple(sorted(ids)))
+        speeds = np.maximum(world.states[:, 3], 0.0)
+        comfort = np.array([r.model.limits.comfort_decel for r in self.robots])
+        lengths = np.array([r.length for r in self.robots])
+        boxes = self.right_of_way.boxes(world.t, yields, states, self.sim.lane_vehicles(RightOfWay.lanes(yields)), self.names, speeds,
+                                        comfort, lengths) if yields else []
+        return boxes + self.signal_boxes(world, approach, states, speeds, comfort, lengths)
+
+    def signal_boxes(self, world: WorldState, approach: dict, states: dict[str, str], speeds: np.ndarray, comfort: np.ndarray,
+                     lengths: np.ndarray) -> list:
+        """The signals' boxes, and the periods in which a car's next signal holds it (``held``)."""
         for k, near in approach.items():
             ahead = [(d, line) for line, d in near if d >= 0.0]
             if ahead:
                 _, line = min(ahead, key=lambda a: a[0])
                 if states[line.tls][line.link] not in GO:
                     self.held.add((round(world.t, 9), self.robots[k].name))
-        speeds = np.maximum(world.states[:, 3], 0.0)
-        comfort = np.array([r.model.limits.comfort_decel for r in self.robots])
-        lengths = np.array([r.length for r in self.robots])
         return self.signals.boxes(states, approach, speeds, comfort, lengths)
 
     def finished(self, world: WorldState) -> np.ndarray:
@@ -173,4 +192,5 @@ def build_city(scenario: Scenario) -> Setup:
     cars = CityCars(scenario, net, vehicles, robots)
     cars.sumo_drives = simulator_drives(scenario)
     return routed_setup(scenario, cars, robots, vehicles, sumo_options(scenario, net_path, routes),
-                        figures=lambda: dict(red_light_violations=cars.signals.violations), held=lambda: cars.held)
+                        figures=lambda: dict(red_light_violations=cars.signals.violations,
+                                                     right_of_way_violations=cars.right_of_way.violations), held=lambda: cars.held)

@@ -56,15 +56,46 @@ class Line:
                         self.heading, BOX_LENGTH, BOX_WIDTH)
 
 
+class Holds:
+    """Boxes for stop lines that hold traffic, with the yellow rule: when a line starts to hold, the
+    cars that can no longer stop before it at their comfort deceleration go on (``through``), and
+    its box appears once the last of them has passed it."""
+
+    def __init__(self):
+        self.lines: dict[tuple[str, int, str], Line] = {}
+        self.through: dict[tuple[str, int, str], set[int]] = {}  # per line that holds: the cars let through
+
+    def boxes(self, holding: dict[tuple[str, int, str], bool], seen: dict[tuple[str, int, str], list[tuple[int, float]]],
+              speeds: np.ndarray, comfort: np.ndarray, lengths: np.ndarray) -> list[Obstacle]:
+        """The boxes of the lines (keys of :attr:`lines`) that are ``holding``; ``seen``: per line,
+        the cars near it and their fronts' distances to it [m] (negative: beyond it); ``speeds``
+        [m/s], ``comfort`` decelerations [m/s^2] and ``lengths`` [m] per car."""
+        out = []
+        for key, cars in seen.items():
+            if not holding[key]:
+                self.through.pop(key, None)
+                continue
+            if key not in self.through:  # it has just started to hold: who can no longer stop comfortably goes on
+                self.through[key] = {k for k, d in cars if d >= 0.0 and speeds[k] ** 2 > 2.0 * comfort[k] * d}
+            on_line = any(-(lengths[k] + BOX_LENGTH) < d < 0.0 for k, d in cars)  # a box there would overlap it
+            waiting = any(k in self.through[key] and d > -(lengths[k] + BOX_LENGTH) for k, d in cars)
+            if not on_line and not waiting:
+                out.append(self.lines[key].box())
+        return out
+
+
 class Signals:
     """The stop lines of the controlled cars and what each shows; ``violations`` counts red-light
     violations (see the module)."""
 
     def __init__(self):
-        self.lines: dict[tuple[str, int, str], Line] = {}
-        self.through: dict[tuple[str, int, str], set[int]] = {}  # per line that left green: the cars let through
+        self.holds = Holds()
         self.before: dict[tuple[int, tuple[str, int, str]], tuple[float, str]] = {}  # (car, line) -> (its front's distance to it [m], state) last period
         self.violations = 0
+
+    @property
+    def through(self) -> dict[tuple[str, int, str], set[int]]:
+        return self.holds.through
 
     def boxes(self, states: dict[str, str], approach: dict[int, list[tuple[Line, float]]], speeds: np.ndarray,
               comfort: np.ndarray, lengths: np.ndarray) -> list[Obstacle]:
@@ -76,22 +107,11 @@ class Signals:
         seen: dict[tuple[str, int, str], list[tuple[int, float]]] = {}
         for k, lines in approach.items():
             for line, d in lines:
-                self.lines.setdefault(line.key, line)
+                self.holds.lines.setdefault(line.key, line)
                 seen.setdefault(line.key, []).append((k, d))
                 last = self.before.get((k, line.key))
                 if last is not None and last[0] >= 0.0 > d and (last[1] in RED or (last[1] not in GO and k not in self.through.get(line.key, ()))):
                     self.violations += 1
                 self.before[(k, line.key)] = (d, states[line.tls][line.link])
-        out = []
-        for key, cars in seen.items():
-            state = states[key[0]][key[1]]
-            if state in GO:
-                self.through.pop(key, None)
-                continue
-            if key not in self.through:  # it has just left green: who can no longer stop comfortably goes on
-                self.through[key] = {k for k, d in cars if d >= 0.0 and speeds[k] ** 2 > 2.0 * comfort[k] * d}
-            on_line = any(-(lengths[k] + BOX_LENGTH) < d < 0.0 for k, d in cars)  # a box there would overlap it
-            waiting = any(k in self.through[key] and d > -(lengths[k] + BOX_LENGTH) for k, d in cars)
-            if not on_line and not waiting:
-                out.append(self.lines[key].box())
-        return out
+        holding = {key: states[key[0]][key[1]] not in GO for key in seen}
+        return self.holds.boxes(holding, seen, speeds, comfort, lengths)

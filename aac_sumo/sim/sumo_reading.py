@@ -183,6 +183,13 @@ class SumoReading:
         with self._sumo_errors("reading the traffic lights"):
             return {tls: self.api.trafficlight.getRedYellowGreenState(tls) for tls in ids}
 
+    def lane_vehicles(self, lanes: tuple[str, ...]) -> dict[str, list[tuple[str, float, float]]]:
+        """Each lane of ``lanes``: its vehicles now, ``(id, lane position of the front [m], speed [m/s])``."""
+        with self._sumo_errors("reading the vehicles at the junctions"):
+            v = self.api.vehicle
+            return {lane: [(vid, v.getLanePosition(vid), v.getSpeed(vid)) for vid in self.api.lane.getLastStepVehicleIDs(lane)]
+                    for lane in lanes}
+
 
 def polylines_cross(a: np.ndarray, b: np.ndarray) -> bool:
     """Whether polylines ``a`` (m, 2) and ``b`` (k, 2) [m] intersect (a segment of each meets
