@@ -36,6 +36,7 @@ METRIC_KEYS = (
     "aggressive_driving_rate", "tracking_error_m", "authority_jain", "delay_jain", "delay_max_s",
     "realtime_factor", "safety_stops", "deadlock", "min_pedestrian_clearance_m", "setup_s", "capped_solves",
     "emergency_brakes", "aggressive_by_mode", "accel_p95", "lat_accel_p95", "jerk_p95", "pedestrian_wait_s",
+    "red_light_violations", "right_of_way_violations",
 )
 #: Where an applied input comes from (``steps.csv``'s ``mode``), in the order ``aggressive_by_mode`` reports them.
 MODES = ("mpc", "creep", "plan", "tracking", "safety_stop", "fallback", "hold")
@@ -171,6 +172,8 @@ def compute_metrics(steps: pd.DataFrame, periods: pd.DataFrame, info: dict) -> d
         emergency_brakes=_emergency_brakes(steps, info) if len(steps) and "comfort_decel" in info else None,
         aggressive_by_mode=_aggressive_by_mode(steps, info) if len(steps) else None,
         pedestrian_wait_s=_finite(info.get("pedestrian_wait_s")),
+        red_light_violations=None,  # the city's (Setup.figures): junctions with signals and right of way
+        right_of_way_violations=None,
         **smoothness(steps),
     )
     return {k: m[k] for k in METRIC_KEYS} | {k: v for k, v in m.items() if k not in METRIC_KEYS}

@@ -138,3 +138,12 @@ def test_entering_before_a_foe_with_priority_that_arrives_while_the_car_is_insid
     assert run_through(priority, y, length - 10.0 * (entry + 6.0), 10.0) == 0  # 6 s after: the car is long gone
     assert run_through(priority, y, length - 1.0, 0.0) == 0  # a foe standing at its line does not arrive
     assert math.isfinite(FOE_ACCEL)
+
+
+def test_at_an_unregulated_junction_the_line_holds_for_a_crossing_foe(unregulated):
+    ((y, _),), _ = lines(unregulated, ["SC", "CN"])
+    foe = next(f for f in y.foes if f.approach == "WC_0")
+    vehicles = {foe.approach: [("bg.0", foe.length - 20.0, 13.9)]}
+    boxes = RightOfWay(unregulated, 1.0, 1.5).boxes(0.0, approach(y, 2.0), {}, vehicles, ["aac.0"], np.array([0.0]), np.array([2.0]),
+                                                   np.array([4.0]))
+    assert len(boxes) == 1

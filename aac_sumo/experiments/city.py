@@ -63,6 +63,8 @@ class CityParams:
     change_start: float = param(10.0, "a lane change for the next turn begins this far into its edge [m]", **NN)
     change_length: float = param(30.0, "arc length a lane change takes per lane crossed [m]", **P)
     finish_margin: float = param(15.0, "a car has finished when its rear axle is within this of its route's end [m]", **NN)
+    sidewalk_keep: float = param(0.4, "on a lane with a sidewalk to its right a car keeps this far left of the lane's centre, as far "
+                                 "as the lane leaves room: SUMO's walkers walk up to 0.3 m from the sidewalk's edge [m]", **NN)
     yield_gap: float = param(1.0, "a car whose link must yield enters the junction only if it leaves it this long before any "
                              "foe with priority could reach the junction (SUMO's jmTimegapMinor) [s]", **NN)
 
@@ -121,7 +123,7 @@ class CityCars:
         try:
             legs = route_legs(self.net, list(self.edges[k]), start)
             path = route_path(self.net, legs, s0, min(self.p.curve_lat_accel, self.scenario["robot.a_lat_max"]), self.p.change_start,
-                              self.p.change_length)
+                              self.p.change_length, self.p.sidewalk_keep, 0.5 * robot.width)
         except ValueError as exc:
             raise ScenarioError(self.scenario.source, KEYS, f"routes a controlled car can drive ({robot.name}: {exc})") from None
         self.paths[k] = path

@@ -218,8 +218,9 @@ class RightOfWay:
 
     @staticmethod
     def minor(y: YieldLine, states: dict[str, str]) -> bool:
-        """Whether ``y``'s link must yield now (its signal's state, or its static one)."""
-        return (states[y.tls][y.tl_link] if y.tls else y.state) in MINOR
+        """Whether ``y``'s link must yield now: its signal's state, or its static one; always at an
+        unregulated junction (``counts`` false)."""
+        return not y.counts or (states[y.tls][y.tl_link] if y.tls else y.state) in MINOR
 
     def arrivals(self, y: YieldLine, states: dict[str, str], vehicles: dict[str, list[tuple[str, float, float]]], me: str,
                  keep_speed: bool) -> float:

@@ -38,7 +38,8 @@ from aac_sumo.runs.provenance import PROVENANCE_KEYS
 SUMMARY_METRICS = (
     "completed", "task_duration_s", "compute_ms_mean", "infeasibility_rate", "min_distance_m",
     "min_clearance_m", "collisions", "sim_collisions", "safety_stops", "ttc_mean_s", "tracking_error_m",
-    "aggressive_driving_rate", "accel_p95", "jerk_p95",
+    "aggressive_driving_rate", "accel_p95", "jerk_p95", "min_pedestrian_clearance_m", "pedestrian_wait_s", "red_light_violations",
+    "right_of_way_violations",
 )
 @dataclass(frozen=True)
 class Task:
