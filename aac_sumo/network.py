@@ -7,7 +7,9 @@ every edge (lane 0 = rightmost lane open to cars), junction gaps bridged by stra
 
 from __future__ import annotations
 
+import os
 import subprocess
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -239,3 +241,43 @@ def chain_road(chain: Chain) -> Road:
     parts = [chain.lanes(j) for j in range(chain.n_lanes)]
     return Road(chain.ids, [np.vstack([np.asarray(lane.getShape(), dtype=float) for lane in part]) for part in parts],
                 [min(lane.getWidth() for lane in part) for part in parts])
+
+
+#: The controlled cars' vType that ``random_trips`` writes: the city scenario's car (4 m x 1.8 m).
+TRIPS_VTYPE = '<vType id="{vtype}" length="4.0" width="1.8" accel="3.0" decel="6.0" maxSpeed="20"/>'
+
+
+def random_trips(net: Path, out: Path, controlled: int, background: int, end: float, seed: int, vtype: str = "aac") -> list[Path]:
+    """Routes on ``net`` made by the wheel's ``randomTrips.py`` (routed by its duarouter, fringe
+    to fringe, at least 300 m): ``controlled`` cars of vType ``vtype`` (ids ``aac.K``) and
+    ``background`` cars of SUMO's default vType (ids ``bg.K``), each set departing evenly over
+    ``end`` [s], with randomTrips' ``seed`` (``seed + 1`` for the background). Writes
+    ``out/controlled.rou.xml`` and ``out/background.rou.xml``; a failure is a ``ScenarioError``
+    with randomTrips' first error line. Fewer routes may result where trips cannot be routed."""
+    import sumo
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    if not Path(net).is_file():
+        raise ScenarioError(net, "net trips", f"an existing SUMO .net.xml file{build_hint(Path(net))}")
+    (out / "vtypes.add.xml").write_text(f"<additional>{TRIPS_VTYPE.format(vtype=vtype)}</additional>\n")
+    tool = Path(sumo.SUMO_HOME) / "tools" / "randomTrips.py"
+    env = dict(os.environ, SUMO_HOME=str(sumo.SUMO_HOME), PATH=f"{Path(sumo.SUMO_HOME) / 'bin'}{os.pathsep}{os.environ.get('PATH', '')}")
+    made = []
+    for name, count, prefix, extra, offset in (("controlled", controlled, f"{vtype}.", f'type="{vtype}" ', 0),
+                                              ("background", background, "bg.", "", 1)):
+        if count <= 0:
+            continue
+        routes = out / f"{name}.rou.xml"
+        args = [sys.executable, str(tool), "-n", str(Path(net).resolve()), "-r", routes.name, "-o", f"{name}.trips.xml", "--seed", str(seed + offset),
+                "-b", "0", "-e", f"{end:g}", "-p", f"{end / count:g}", "--prefix", prefix, "--fringe-factor", "10",
+                "--min-distance", "300", "--validate", "--trip-attributes", f'{extra}departLane="best" departSpeed="max"']
+        if extra:
+            args += ["--additional-file", "vtypes.add.xml"]
+        done = subprocess.run(args, cwd=out, capture_output=True, text=True, env=env)
+        if done.returncode != 0 or not routes.is_file():
+            lines = [ln for ln in (done.stderr + done.stdout).splitlines() if ln.strip()]
+            first = next((ln for ln in lines if "rror" in ln), lines[-1] if lines else "no output")
+            raise ScenarioError(net, "net trips", f"routes randomTrips.py can make ({first.strip()})")
+        made.append(routes)
+    return made

@@ -3,9 +3,13 @@ signalised junctions, among SUMO's own cars and walkers."""
 
 from __future__ import annotations
 
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 import pytest
+import sumo
 
 from aac_sumo import cli
 
@@ -55,3 +59,40 @@ def test_a_car_held_at_a_red_light_sets_off_at_green_across_both_crossings_of_it
     steps = pd.read_csv(out / "steps.csv")
     assert turn(steps, "aac.11") == pytest.approx(-np.pi / 2, abs=0.1)
     assert (steps["v"] < 0.05).any()  # it stood at the red
+
+
+GRID6 = Path(sumo.__file__).parent / "tools" / "game" / "grid6" / "grid6.net.xml"
+
+
+def test_net_trips_makes_controlled_and_background_routes_with_the_wheels_randomtrips(tmp_path, capsys):
+    code = cli.main(["net", "trips", str(GRID6), "--controlled", "6", "--background", "10", "--end", "60", "--out", str(tmp_path)])
+    assert code == 0, capsys.readouterr().err
+    controlled, background = (ET.parse(tmp_path / f"{name}.rou.xml").getroot() for name in ("controlled", "background"))
+    assert [v.get("type") for v in controlled.iter("vehicle")] == ["aac"] * 6
+    assert {t.get("id") for t in controlled.iter("vType")} == {"aac"}
+    assert all(v.get("id").startswith("aac.") for v in controlled.iter("vehicle"))
+    assert len(list(background.iter("vehicle"))) == 10 and all(v.get("type") is None for v in background.iter("vehicle"))
+    assert all(float(v.get("depart")) <= 60.0 for v in (*controlled.iter("vehicle"), *background.iter("vehicle")))
+
+
+def test_net_trips_on_a_missing_network_is_one_line_exit_2(tmp_path, capsys):
+    code = cli.main(["net", "trips", str(tmp_path / "none.net.xml"), "--out", str(tmp_path / "routes")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and "none.net.xml" in err
+
+
+@pytest.mark.slow
+def test_cars_of_random_trips_drive_the_wheels_grid6_through_its_signals(tmp_path, capsys):
+    """grid6: six signalised junctions 80 m apart, one-lane streets, its fringe joined by unregulated
+    and priority junctions; 4 controlled cars and 12 of SUMO's on routes randomTrips.py makes."""
+    assert cli.main(["net", "trips", str(GRID6), "--controlled", "4", "--background", "12", "--end", "40", "--seed", "3",
+                     "--out", str(tmp_path / "routes")]) == 0
+    out = tmp_path / "out"
+    routes = ",".join(str(tmp_path / "routes" / f"{name}.rou.xml") for name in ("controlled", "background"))
+    code = cli.main(["run", "city", "--set", 'sumo.config=""', "--set", f"sumo.net={GRID6}", "--set", f"sumo.routes={routes}",
+                     "--set", "scenario.duration=200", "--out", str(out)])
+    assert code == 0, capsys.readouterr().err
+    metrics = pd.read_json(out / "metrics.json", typ="series")
+    assert metrics["n_robots"] == 4 and metrics["completed"]
+    assert metrics["collisions"] == 0 and metrics["sim_collisions"] == 0
+    assert metrics["red_light_violations"] == 0 and metrics["right_of_way_violations"] == 0

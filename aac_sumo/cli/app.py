@@ -132,6 +132,10 @@ def cmd_net(args) -> int:
     if args.action == "info":
         print(net_info.describe(args.net, args.routes), end="")
         return 0
+    if args.action == "trips":
+        for path in network.random_trips(args.net, args.out, args.controlled, args.background, args.end, args.seed, args.vtype):
+            print(f"wrote {path} ({path.read_text().count('<vehicle ')} vehicles)")
+        return 0
     for path in network.build(args.directory):
         print(f"built {path}")
     return 0

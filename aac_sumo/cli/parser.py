@@ -133,11 +133,20 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("net", help="SUMO networks: net build DIR runs netconvert on DIR's plain-XML sources; "
                        "net info NET [ROUTES...] lists the roads a scenario can drive on")
-    net = p.add_subparsers(dest="action", required=True, metavar="{build,info}")
+    net = p.add_subparsers(dest="action", required=True, metavar="{build,info,trips}")
     q = net.add_parser("build", help="run netconvert on DIR's plain-XML sources")
     q.add_argument("directory", type=Path, metavar="DIR", help="folder with *.netccfg, or *.nod.xml/*.edg.xml/*.con.xml sources")
     q = net.add_parser("info", help="candidate roads (edges, lanes, length, allowed classes), sidewalks and crossings, "
                        "and the vTypes and persons of route files")
     q.add_argument("net", type=Path, metavar="NET", help="a SUMO .net.xml file")
     q.add_argument("routes", type=Path, nargs="*", default=[], metavar="ROUTES", help="SUMO route files (cones, pedestrians, traffic)")
+    q = net.add_parser("trips", help="random routes on NET by the wheel's randomTrips.py: controlled cars of a vType of their own "
+                       "and SUMO's background cars, for a city run (docs/sumo.md)")
+    q.add_argument("net", type=Path, metavar="NET", help="a SUMO .net.xml file")
+    q.add_argument("--controlled", type=int, default=30, help="controlled cars, vType --vtype, ids VTYPE.K (default 30)")
+    q.add_argument("--background", type=int, default=100, help="SUMO's own cars, ids bg.K (default 100)")
+    q.add_argument("--end", type=float, default=300.0, help="the departures spread over [0, END] s (default 300)")
+    q.add_argument("--seed", type=int, default=0, help="randomTrips' seed (the background's is SEED + 1)")
+    q.add_argument("--vtype", default="aac", help="the controlled cars' vType id (default aac)")
+    q.add_argument("--out", type=Path, required=True, help="folder for controlled.rou.xml and background.rou.xml")
     return parser

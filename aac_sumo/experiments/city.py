@@ -14,14 +14,16 @@ reach the coordinators as obstacles. From its departure on a car is ours:
   curves (``city.curve_lat_accel``); its lateral band is the lane it is in (both lanes during a
   change);
 - a red or yellow signal ahead is a stop line it does not cross (:mod:`aac_sumo.experiments.signals`);
-  ``red_light_violations`` counts the cars that crossed one at red.
+  ``red_light_violations`` counts the cars that crossed one at red;
+- where its link must yield, its line holds it while a foe with priority could reach the
+  junction before it has left it (:mod:`aac_sumo.experiments.right_of_way`);
+  ``right_of_way_violations`` counts the entries against one;
+- where a sidewalk runs to its right it keeps ``city.sidewalk_keep`` left of its lane's centre.
 
 It has finished when its rear axle is within ``city.finish_margin`` of its route's end; SUMO then
-takes it as arrived and it leaves the network.
-
-Not yet: right of way at junctions without signals, and gap acceptance for the lane changes
-(the committed plans' exact check keeps a change that would meet a car from being driven, so the
-car waits in its lane). Positions in SUMO's network frame [m].
+takes it as arrived and it leaves the network. A lane change for a turn is driven where the
+committed plans' exact check passes against the cars in the target lane (``aac.traffic_beside``),
+else the car waits in its lane. Positions in SUMO's network frame [m].
 """
 
 from __future__ import annotations
