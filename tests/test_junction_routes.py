@@ -306,33 +306,3 @@ def test_a_junction_whose_internal_lane_has_no_length_is_passed_as_the_lanes_mee
     assert_smooth(route.points)
     (span,) = [j for j in route.junctions if j.junction == "bottom1"]
     assert span.s_out - span.s_in < 1.0
-
-
-@pytest.fixture(scope="module")
-def walked(tmp_path_factory):
-    """A right turn at a priority node C (radius 10 m) between one-lane streets with 2 m sidewalks
-    to their right: NC leads from N into C, CW from C out to W (and EC from E into C)."""
-    folder = tmp_path_factory.mktemp("walked") / "walked"
-    folder.mkdir()
-    (folder / "net.nod.xml").write_text('<nodes><node id="C" x="0" y="0" radius="10"/><node id="N" x="0" y="100"/>'
-                                        '<node id="W" x="-100" y="0"/><node id="E" x="100" y="0"/></nodes>')
-    (folder / "net.edg.xml").write_text('<edges><edge id="NC" from="N" to="C" numLanes="1" speed="13.9" sidewalkWidth="2.0"/>'
-                                        '<edge id="CW" from="C" to="W" numLanes="1" speed="13.9" sidewalkWidth="2.0"/>'
-                                        '<edge id="EC" from="E" to="C" numLanes="1" speed="13.9" sidewalkWidth="2.0"/></edges>')
-    return read(network.build(folder)[0])
-
-
-def test_a_lane_with_a_sidewalk_to_its_right_is_driven_left_of_its_centre_and_the_junction_in_between(walked):
-    lane = lane_of(walked, "NC", 0)
-    assert walked.getEdge("NC").getLanes()[0].allows("pedestrian") and lane.getIndex() == 1  # the sidewalk, then the car lane
-    plain = path(walked, ["NC", "CW"])
-    kept = path(walked, ["NC", "CW"], sidewalk_keep=0.4, half_width=0.9)
-    roomy = path(walked, ["NC", "CW"], sidewalk_keep=2.0, half_width=0.9)  # as far as the lane leaves room: 1.6 - 0.9 - 0.1
-    x_nc, y_cw = shape(lane)[0, 0], shape(lane_of(walked, "CW", 0))[0, 1]
-    for p, keep in ((plain, 0.0), (kept, 0.4), (roomy, 0.6)):
-        on_nc, on_cw = p.points[p.points[:, 1] > 30.0], p.points[p.points[:, 0] < -30.0]  # 20 m off the junction's 10 m corners
-        assert np.allclose(on_nc[:, 0] - x_nc, keep, atol=0.04)  # driving south: left is +x
-        assert np.allclose(y_cw - on_cw[:, 1], keep, atol=0.04)  # driving west: left is -y
-        assert_smooth(p.points)
-    on_nc = kept.points[:, 1] > 30.0
-    assert np.allclose(kept.band_right[on_nc, 0], x_nc - 1.6) and np.allclose(kept.band_left[on_nc, 0], x_nc + 1.6)  # the lane stays the band

@@ -17,8 +17,7 @@ reach the coordinators as obstacles. From its departure on a car is ours:
   ``red_light_violations`` counts the cars that crossed one at red;
 - where its link must yield, its line holds it while a foe with priority could reach the
   junction before it has left it (:mod:`aac_sumo.experiments.right_of_way`);
-  ``right_of_way_violations`` counts the entries against one;
-- where a sidewalk runs to its right it keeps ``city.sidewalk_keep`` left of its lane's centre.
+  ``right_of_way_violations`` counts the entries against one.
 
 It has finished when its rear axle is within ``city.finish_margin`` of its route's end; SUMO then
 takes it as arrived and it leaves the network. A lane change for a turn is driven where the
@@ -65,8 +64,6 @@ class CityParams:
     change_start: float = param(10.0, "a lane change for the next turn begins this far into its edge [m]", **NN)
     change_length: float = param(30.0, "arc length a lane change takes per lane crossed [m]", **P)
     finish_margin: float = param(15.0, "a car has finished when its rear axle is within this of its route's end [m]", **NN)
-    sidewalk_keep: float = param(0.4, "on a lane with a sidewalk to its right a car keeps this far left of the lane's centre, as far "
-                                 "as the lane leaves room: SUMO's walkers walk up to 0.3 m from the sidewalk's edge [m]", **NN)
     yield_gap: float = param(1.0, "a car whose link must yield enters the junction only if it leaves it this long before any "
                              "foe with priority could reach the junction (SUMO's jmTimegapMinor) [s]", **NN)
 
@@ -125,7 +122,7 @@ class CityCars:
         try:
             legs = route_legs(self.net, list(self.edges[k]), start)
             path = route_path(self.net, legs, s0, min(self.p.curve_lat_accel, self.scenario["robot.a_lat_max"]), self.p.change_start,
-                              self.p.change_length, self.p.sidewalk_keep, 0.5 * robot.width)
+                              self.p.change_length)
         except ValueError as exc:
             raise ScenarioError(self.scenario.source, KEYS, f"routes a controlled car can drive ({robot.name}: {exc})") from None
         self.paths[k] = path
@@ -158,8 +155,9 @@ class CityCars:
         speeds = np.maximum(world.states[:, 3], 0.0)
         comfort = np.array([r.model.limits.comfort_decel for r in self.robots])
         lengths = np.array([r.length for r in self.robots])
+        hardest = np.array([-r.model.limits.a_min for r in self.robots])
         boxes = self.right_of_way.boxes(world.t, yields, states, self.sim.lane_vehicles(RightOfWay.lanes(yields)), self.names, speeds,
-                                        comfort, lengths) if yields else []
+                                        comfort, lengths, hardest) if yields else []
         return boxes + self.signal_boxes(world, approach, states, speeds, comfort, lengths)
 
     def signal_boxes(self, world: WorldState, approach: dict, states: dict[str, str], speeds: np.ndarray, comfort: np.ndarray,

@@ -17,7 +17,6 @@ import numpy as np
 
 from aac_sumo.experiments.lane_geometry import (
     CURVE_DECEL,
-    ROAD_MARGIN,
     SAMPLE_STEP,
     SMOOTH_PAD,
     along,
@@ -172,7 +171,6 @@ class _Piece:
     speed: float
     right: np.ndarray
     left: np.ndarray
-    shift: float = np.nan  # how far [m] the path keeps left of the points (nan: ramped between its neighbours')
 
 
 def _edges(points: np.ndarray, width: float) -> tuple[np.ndarray, np.ndarray]:
@@ -186,21 +184,10 @@ def _drawn(net, leg: Leg) -> list:
     return [lane for lane in map(net.getLane, leg.via) if _arc(_shape(lane))[-1] > 1e-6]
 
 
-def _lane_piece(lane, s_from: float = 0.0, shift: float = np.nan) -> _Piece:
+def _lane_piece(lane, s_from: float = 0.0) -> _Piece:
     line = _shape(lane)
     points = along(line, _stations(line, s_from))[0]
-    return _Piece(points, lane.getSpeed(), *_edges(points, lane.getWidth()), shift)
-
-
-def _sidewalk_shift(lane, keep: float, half_width: float) -> float:
-    """How far [m] left of ``lane``'s centre a car of ``half_width`` [m] keeps: ``keep`` where the
-    lane to its right is a sidewalk (open to pedestrians only), as far as the lane leaves room
-    (``ROAD_MARGIN`` from its edge), else 0."""
-    lanes = lane.getEdge().getLanes()
-    right = lanes[lane.getIndex() - 1] if lane.getIndex() > 0 else None
-    if right is None or not right.allows("pedestrian") or right.allows(VEHICLE_CLASS):
-        return 0.0
-    return float(np.clip(0.5 * lane.getWidth() - half_width - ROAD_MARGIN, 0.0, keep))
+    return _Piece(points, lane.getSpeed(), *_edges(points, lane.getWidth()))
 
 
 def _change_piece(edge_id: str, lane_a, lane_b, s_from: float, crossed: int, change_start: float, change_length: float) -> _Piece:
@@ -224,7 +211,7 @@ def _change_piece(edge_id: str, lane_a, lane_b, s_from: float, crossed: int, cha
     before, after = (s < begin)[:, None], (s > begin + length)[:, None]
     right = np.where(before, a_edges[0], np.where(after, b_edges[0], rightmost[0]))
     left = np.where(before, a_edges[1], np.where(after, b_edges[1], leftmost[1]))
-    return _Piece((1.0 - w) * pa + w * pb, min(lane_a.getSpeed(), lane_b.getSpeed()), right, left, 0.0)
+    return _Piece((1.0 - w) * pa + w * pb, min(lane_a.getSpeed(), lane_b.getSpeed()), right, left)
 
 
 def _project(points: np.ndarray, arc: np.ndarray, point: np.ndarray, near: float) -> float:
@@ -253,8 +240,7 @@ def _smooth(line: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     return points[len(pad): len(pad) + n + 1], curvature[len(pad): len(pad) + n + 1], step
 
 
-def route_path(net, legs: list[Leg], s0: float, a_lat: float, change_start: float, change_length: float, sidewalk_keep: float = 0.0,
-               half_width: float = 0.9) -> RoutePath:
+def route_path(net, legs: list[Leg], s0: float, a_lat: float, change_start: float, change_length: float) -> RoutePath:
     """The path along ``legs`` from arc length ``s0`` [m] of the first leg's arrive lane (along its
     shape: SUMO's lane positions run along ``getLength()``, which may differ) to the end of the last
     edge's lane, through the junctions' internal lanes: ``smooth_path`` of the lanes' shapes sampled
@@ -263,9 +249,6 @@ def route_path(net, legs: list[Leg], s0: float, a_lat: float, change_start: floa
     ``s0`` on the first edge), ``change_length`` [m] per lane crossed, cut short to end
     ``change_start`` before the edge's end. ``limits`` caps the speed at each lane's limit and at
     ``a_lat`` [m/s^2] of lateral acceleration, lowered ahead of each cap at ``CURVE_DECEL``.
-    On a lane with a sidewalk to its right the path keeps ``sidewalk_keep`` [m] left of the lane's
-    centre, as far as the lane leaves a car of ``half_width`` [m] room (:func:`_sidewalk_shift`),
-    and moves over linearly through the junctions' internal lanes (a lane change keeps the centres).
     ``ValueError`` where ``s0`` does not lie on the first lane, or a change would be cut to less
     than half its length."""
     first = car_lanes(net.getEdge(legs[0].edge))[legs[0].arrive]
@@ -276,7 +259,7 @@ def route_path(net, legs: list[Leg], s0: float, a_lat: float, change_start: floa
         lanes = car_lanes(net.getEdge(leg.edge))
         s_from = s0 if i == 0 else 0.0
         if leg.arrive == leg.leave:
-            pieces.append(_lane_piece(lanes[leg.arrive], s_from, _sidewalk_shift(lanes[leg.arrive], sidewalk_keep, half_width)))
+            pieces.append(_lane_piece(lanes[leg.arrive], s_from))
         else:
             pieces.append(_change_piece(leg.edge, lanes[leg.arrive], lanes[leg.leave], s_from, abs(leg.leave - leg.arrive),
                                         change_start, change_length))
@@ -290,11 +273,6 @@ def route_path(net, legs: list[Leg], s0: float, a_lat: float, change_start: floa
     line, arc = raw[keep], raw_arc[keep]
     speed = np.concatenate([np.full(len(p.points), p.speed) for p in pieces])[keep]
     right, left = (np.vstack([getattr(p, side) for p in pieces])[keep] for side in ("right", "left"))
-    shift = np.concatenate([np.full(len(p.points), p.shift) for p in pieces])[keep]
-    known = ~np.isnan(shift)
-    if known.any() and np.any(shift[known] != 0.0):  # the junctions' ramps, then the shift along the normals
-        shift = np.interp(arc, arc[known], shift[known])
-        line = line + shift[:, None] * (offset_polyline(line, 1.0) - line)
 
     points, curvature, step = _smooth(line)
     s_raw = np.arange(len(points)) * step  # point k is the spline at the shapes' arc length k * step

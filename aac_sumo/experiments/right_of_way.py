@@ -244,13 +244,16 @@ class RightOfWay:
 
     def boxes(self, t: float, approach: dict[int, list[tuple[YieldLine, float]]], states: dict[str, str],
               vehicles: dict[str, list[tuple[str, float, float]]], names: list[str], speeds: np.ndarray, comfort: np.ndarray,
-              lengths: np.ndarray) -> list:
+              lengths: np.ndarray, hardest: np.ndarray | None = None) -> list:
         """The boxes of the yield lines that hold now. ``approach``: per car on the road, its
         yield lines with its front's distance [m] to each (negative: beyond it, until its rear
         has left the junction); ``states``: the signals' link states; ``vehicles``: per lane of
         :meth:`lanes`, ``(id, front's lane position [m], speed [m/s])``; ``names`` SUMO's ids,
-        ``speeds`` [m/s], ``comfort`` decelerations [m/s^2], ``lengths`` [m] per car. Counts the
-        violations of cars whose rear left a junction since the last period."""
+        ``speeds`` [m/s], ``comfort`` decelerations [m/s^2], ``lengths`` [m] per car. A line that
+        starts to hold lets through the cars that cannot stop before it at ``comfort``; at an
+        unregulated junction (foes seen late: a source lane's start may lie near) only those that
+        cannot stop at ``hardest`` [m/s^2] (default ``comfort``). Counts the violations of cars
+        whose rear left a junction since the last period."""
         seen: dict[tuple, list[tuple[int, float]]] = {}
         ylines: dict[tuple, YieldLine] = {}
         for k, lines in approach.items():
@@ -268,7 +271,10 @@ class RightOfWay:
                 d, k = min(ahead)
                 clear = travel_time(d + (y.s_out - y.s_in) + float(lengths[k]), float(speeds[k]), self.accel, y.speed)
                 holding[key] = self.arrivals(y, states, vehicles, names[k], False) < clear + self.gap
-        return self.holds.boxes(holding, seen, speeds, comfort, lengths)
+        late = {key for key in seen if not ylines[key].counts}
+        split = [({k: v for k, v in seen.items() if (k in late) == un}, decel) for un, decel in ((False, comfort), (True, hardest))]
+        return [box for part, decel in split if part for box in self.holds.boxes(holding, part, speeds, comfort if decel is None else decel,
+                                                                                 lengths)]
 
     def count(self, t: float, k: int, y: YieldLine, d: float, states: dict[str, str], vehicles: dict, name: str,
               length: float) -> None:

@@ -69,6 +69,9 @@ HIGHWAY_ONE_AUTHORITY = tuple(a.replace("aac.authorities=clusters", "aac.authori
 HIGHWAY_STORED = ("sweep", "highway_work_zone", *(a for key in (
     "aac.commit=false", "aac.authorities=1", "aac.safety_stop=true", "aac.fallback=tracking", "aac.ignore_followers=true",
     "sumo.declared_decel=0") for a in ("--set", key)), "--grid", "controller.coordinator=aac", "--seeds", "5")
+#: The city's controlled cars under AAC and under SUMO's own driver (the same cars, routes, walkers and traffic).
+CITY = ("sweep", "city", "--grid", "controller.coordinator=aac,sumo", "--seeds", "5")
+
 JOBS = (
     Job("swarm_table1_seeds0-4", ("table", "swarm", "--seeds", "5", "--baselines")),
     Job("swarm_table1_seeds5-9", ("table", "swarm", "--seeds", "5", "--baselines") + HELD_OUT),
@@ -88,6 +91,8 @@ JOBS = (
     Job("highway_work_zone_committed_seeds0-4", HIGHWAY_COMMITTED, SWEEP_OUTPUTS),
     Job("highway_work_zone_committed_seeds5-9", HIGHWAY_COMMITTED + HELD_OUT, SWEEP_OUTPUTS),
     Job("highway_work_zone_one_authority_seeds0-4", HIGHWAY_ONE_AUTHORITY, SWEEP_OUTPUTS),
+    Job("city_seeds0-4", CITY, SWEEP_OUTPUTS),
+    Job("city_grid6_seeds0-4", CITY + ("--set", "sumo.config=../sumo_networks/grid6/grid6.sumocfg"), SWEEP_OUTPUTS),
     Job("bench_mpc", ("bench", "mpc"), (("bench.md", ".md"), ("bench.json", ".json")), parallel=False),
     Job("bench_lane_change_n10", ("bench", "aac", "--scenarios", "lane_change", "--horizons", "10"),
         (("bench.md", ".md"), ("bench.json", ".json")), parallel=False),
