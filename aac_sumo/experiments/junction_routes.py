@@ -59,13 +59,13 @@ def _links(here, there) -> dict[tuple[int, int], object]:
             if c.getFromLane() in src and c.getToLane() in dst}
 
 
-def _via(net, conn) -> tuple[str, ...]:
+def internal_lanes(net, conn) -> tuple[str, ...]:
     """The internal lanes of ``conn`` in driving order: its via lane and those it leads on through
     to ``conn``'s target lane (SUMO splits a turn that waits inside the junction in two)."""
     chain, lane_id = [], conn.getViaLaneID()
     while lane_id:
         chain.append(lane_id)
-        lane_id = next(c.getViaLaneID() for c in net.getLane(lane_id).getOutgoing() if c.getToLane() == conn.getToLane())
+        lane_id = next((c.getViaLaneID() for c in net.getLane(lane_id).getOutgoing() if c.getToLane() == conn.getToLane()), "")
     return tuple(chain)
 
 
@@ -97,7 +97,7 @@ def route_legs(net, edges: list[str], start_lane: int) -> list[Leg]:
     for edge, found, pick in zip(route, links, picks):
         leave, after = pick[arrive]
         conn = found[(leave, after)]
-        legs.append(Leg(edge.getID(), arrive, leave, _via(net, conn), conn.getTLSID(), conn.getTLLinkIndex(), edge.getToNode().getID()))
+        legs.append(Leg(edge.getID(), arrive, leave, internal_lanes(net, conn), conn.getTLSID(), conn.getTLLinkIndex(), edge.getToNode().getID()))
         arrive = after
     return legs + [Leg(edges[-1], arrive, arrive, (), "", -1, route[-1].getToNode().getID())]
 

@@ -33,7 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aac_sumo.experiments.junction_routes import RoutePath
+from aac_sumo.experiments.junction_routes import RoutePath, internal_lanes
 from aac_sumo.experiments.signals import Holds, Line
 from aac_sumo.network import VEHICLE_CLASS, car_lanes
 from aac_sumo.sim.sumo_reading import polylines_cross
@@ -94,9 +94,9 @@ def _upstream(lane, lookback: float) -> tuple[tuple[str, float], ...]:
 class YieldLine:
     """One junction link on a car's way: its ``line`` (the incoming lane's end), its signal ``tls``
     and link index ``tl_link`` ('' and -1 without), its static ``state`` (SUMO's link state, read
-    without a signal), the arc lengths ``s_in``, ``s_out`` [m] of the
-    junction on the car's path, the path's lowest speed cap ``speed`` [m/s] in it, whether it
-    ``counts`` for the metric (not at an unregulated junction), and its ``foes``."""
+    without a signal), the arc lengths ``s_in``, ``s_out`` [m] of the junction on the car's path,
+    the path's lowest speed cap ``speed`` [m/s] in it, whether it ``counts`` for the metric (not at
+    an unregulated junction), and its ``foes``."""
 
     line: Line
     tls: str
@@ -109,19 +109,6 @@ class YieldLine:
     foes: tuple[Foe, ...]
 
 
-def _connection(net, from_lane, to_lane):
-    return next(c for c in from_lane.getOutgoing() if c.getToLane() == to_lane)
-
-
-def _way(net, conn) -> tuple[str, ...]:
-    """``conn``'s internal lanes in driving order (see :func:`~aac_sumo.experiments.junction_routes._via`)."""
-    chain, lane_id = [], conn.getViaLaneID()
-    while lane_id:
-        chain.append(lane_id)
-        lane_id = next((c.getViaLaneID() for c in net.getLane(lane_id).getOutgoing() if c.getToLane() == conn.getToLane()), "")
-    return tuple(chain)
-
-
 def _shape(net, lanes: tuple[str, ...]) -> np.ndarray:
     return np.vstack([np.asarray(net.getLane(lane).getShape(), dtype=float)[:, :2] for lane in lanes]) if lanes else np.zeros((0, 2))
 
@@ -132,8 +119,8 @@ def _foes(net, node, conn) -> tuple[list, bool]:
     others = [c for c in node.getConnections() if c.getFrom().getFunction() == "" and c.getFromLane().allows(VEHICLE_CLASS)
               and c.getToLane().allows(VEHICLE_CLASS) and c.getFromLane() != conn.getFromLane()]
     if node.getType() == "unregulated":
-        mine = _shape(net, _way(net, conn))
-        return [c for c in others if c.getToLane() == conn.getToLane() or polylines_cross(mine, _shape(net, _way(net, c)))], False
+        mine = _shape(net, internal_lanes(net, conn))
+        return [c for c in others if c.getToLane() == conn.getToLane() or polylines_cross(mine, _shape(net, internal_lanes(net, c)))], False
     found = []
     for c in others:
         try:
@@ -146,10 +133,10 @@ def _foes(net, node, conn) -> tuple[list, bool]:
 
 def yield_lines(net, path: RoutePath) -> list[tuple[YieldLine, float]]:
     """Each junction link on ``path`` that may have to yield, with the line's arc length [m]."""
-    out = []
-    for k, (leg, after, span) in enumerate(zip(path.legs, path.legs[1:], path.junctions)):
-        from_lane = car_lanes(net.getEdge(leg.edge))[leg.leave]
-        conn = _connection(net, from_lane, car_lanes(net.getEdge(after.edge))[after.arrive])
+    out, arc = [], np.r_[0.0, np.cumsum(np.hypot(*np.diff(path.points, axis=0).T))]
+    for leg, after, span in zip(path.legs, path.legs[1:], path.junctions):
+        from_lane, to_lane = car_lanes(net.getEdge(leg.edge))[leg.leave], car_lanes(net.getEdge(after.edge))[after.arrive]
+        conn = next(c for c in from_lane.getOutgoing() if c.getToLane() == to_lane)
         node = net.getNode(leg.junction)
         foes, counts = _foes(net, node, conn)
         if not foes:
@@ -159,12 +146,10 @@ def yield_lines(net, path: RoutePath) -> list[tuple[YieldLine, float]]:
             key = (c.getFromLane().getID(), c.getToLane().getID())
             if key not in seen:
                 seen.add(key)
-                kept.append(Foe(c.getFromLane().getID(), c.getFromLane().getLength(), _upstream(c.getFromLane(), LOOKBACK), _way(net, c),
-                                c.getFromLane().getSpeed(),
-                                c.getTLSID(), c.getTLLinkIndex()))
+                kept.append(Foe(c.getFromLane().getID(), c.getFromLane().getLength(), _upstream(c.getFromLane(), LOOKBACK), internal_lanes(net, c),
+                                c.getFromLane().getSpeed(), c.getTLSID(), c.getTLLinkIndex()))
         (x0, y0), (x1, y1) = np.asarray(from_lane.getShape(), dtype=float)[-2:, :2]
         line = Line(f"yield {leg.junction}", node.getLinkIndex(conn), from_lane.getID(), np.array([x1, y1]), float(np.arctan2(y1 - y0, x1 - x0)))
-        arc = np.r_[0.0, np.cumsum(np.hypot(*np.diff(path.points, axis=0).T))]
         inside = (arc >= span.s_in) & (arc <= span.s_out)
         speed = float(path.limits[inside].min()) if inside.any() else float(path.limits[np.searchsorted(arc, span.s_in)])
         out.append((YieldLine(line, leg.tls, leg.link, conn.getState(), span.s_in, span.s_out, speed, counts, tuple(kept)), span.s_in))
