@@ -96,3 +96,13 @@ def test_cars_of_random_trips_drive_the_wheels_grid6_through_its_signals(tmp_pat
     assert metrics["n_robots"] == 4 and metrics["completed"]
     assert metrics["collisions"] == 0 and metrics["sim_collisions"] == 0
     assert metrics["red_light_violations"] == 0 and metrics["right_of_way_violations"] == 0
+
+
+def test_the_bundled_grid6_runs_as_a_city(tmp_path, capsys):
+    """sumo_networks/grid6: the wheel's network with net-trips routes, named by its .sumocfg."""
+    out = tmp_path / "out"
+    code = cli.main(["run", "city", "--set", "sumo.config=../sumo_networks/grid6/grid6.sumocfg", "--set", "scenario.duration=12",
+                     "--out", str(out)])
+    assert code == 0, capsys.readouterr().err
+    metrics = pd.read_json(out / "metrics.json", typ="series")
+    assert metrics["n_robots"] >= 1 and metrics["collisions"] == 0 and metrics["right_of_way_violations"] == 0
