@@ -256,10 +256,17 @@ def random_trips(net: Path, out: Path, controlled: int, background: int, end: fl
     with randomTrips' first error line. Fewer routes may result where trips cannot be routed."""
     import sumo
 
+    for flag, value in (("--controlled", controlled), ("--background", background)):
+        if value < 0:
+            raise ScenarioError(net, f"net trips {flag}", "a count >= 0", str(value))
+    if controlled + background == 0:
+        raise ScenarioError(net, "net trips --controlled/--background", "at least one car to route", "0")
+    if not end > 0.0:
+        raise ScenarioError(net, "net trips --end", "a time > 0 [s]", f"{end:g}")
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     if not Path(net).is_file():
         raise ScenarioError(net, "net trips", f"an existing SUMO .net.xml file{build_hint(Path(net))}")
+    out.mkdir(parents=True, exist_ok=True)
     (out / "vtypes.add.xml").write_text(f"<additional>{TRIPS_VTYPE.format(vtype=vtype)}</additional>\n")
     tool = Path(sumo.SUMO_HOME) / "tools" / "randomTrips.py"
     env = dict(os.environ, SUMO_HOME=str(sumo.SUMO_HOME), PATH=f"{Path(sumo.SUMO_HOME) / 'bin'}{os.pathsep}{os.environ.get('PATH', '')}")

@@ -81,6 +81,15 @@ def test_net_trips_on_a_missing_network_is_one_line_exit_2(tmp_path, capsys):
     assert code == 2 and len(err.splitlines()) == 1 and "none.net.xml" in err
 
 
+@pytest.mark.parametrize("args, key", [(["--end", "0"], "--end"), (["--controlled", "-3"], "--controlled"),
+                                       (["--controlled", "0", "--background", "0"], "--controlled/--background")])
+def test_net_trips_with_impossible_counts_or_times_is_one_line_exit_2_and_writes_nothing(tmp_path, capsys, args, key):
+    code = cli.main(["net", "trips", str(GRID6), *args, "--out", str(tmp_path / "routes")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and f"net trips {key}:" in err
+    assert not (tmp_path / "routes").exists()
+
+
 @pytest.mark.slow
 def test_cars_of_random_trips_drive_the_wheels_grid6_through_its_signals(tmp_path, capsys):
     """grid6: six signalised junctions 80 m apart, one-lane streets, its fringe joined by unregulated
