@@ -308,7 +308,7 @@ def pedestrian_waits(steps: pd.DataFrame, walkers: pd.DataFrame, crossings, *, c
     waits = pd.Series(0.0, index=pd.unique(steps["robot"]), dtype=float)
     standing = steps[steps["v"].abs() < stop_speed]
     if held:
-        standing = standing[[(t, name) not in held for t, name in zip(standing["t"].round(9), standing["robot"])]]
+        standing = standing[~pd.MultiIndex.from_arrays([standing["t"].round(9), standing["robot"]]).isin(list(held))]
     if len(standing) and crossings:  # only rows near a crossing can count: a cheap test first
         axle = standing[["x", "y"]].to_numpy(dtype=float)
         near = np.zeros(len(standing), dtype=bool)

@@ -95,31 +95,31 @@ def test_a_yield_line_holds_a_car_while_a_foe_could_arrive_before_it_has_left_an
     for gap_s, holds in ((car_clears - 1.0, True), (car_clears + 2.0, False)):
         room = FOE_SPEED_FACTOR * foe.speed * gap_s  # a foe at top speed arriving gap_s from now
         vehicles = {foe.approach: [("bg.0", foe.length - room, FOE_SPEED_FACTOR * foe.speed)]}
-        row = RightOfWay(priority, gap=1.0, accel=1.5)
+        row = RightOfWay(gap=1.0, accel=1.5)
         boxes = row.boxes(0.0, approach(y, 2.0), {}, vehicles, ["aac.0"], speeds, comfort, lengths)
         assert len(boxes) == int(holds), gap_s
         if holds:
             assert boxes[0].kind == "signal" and np.hypot(*(boxes[0].centre - y.line.point)) == pytest.approx(0.5)
     inside = {foe.inside[0]: [("bg.0", 1.0, 5.0)]}
-    assert len(RightOfWay(priority, 1.0, 1.5).boxes(0.0, approach(y, 2.0), {}, inside, ["aac.0"], speeds, comfort, lengths)) == 1
+    assert len(RightOfWay(1.0, 1.5).boxes(0.0, approach(y, 2.0), {}, inside, ["aac.0"], speeds, comfort, lengths)) == 1
     standing = {foe.approach: [("bg.0", foe.length - 1.0, 0.0)]}  # a standing foe at its line may set off
-    assert len(RightOfWay(priority, 1.0, 1.5).boxes(0.0, approach(y, 2.0), {}, standing, ["aac.0"], speeds, comfort, lengths)) == 1
+    assert len(RightOfWay(1.0, 1.5).boxes(0.0, approach(y, 2.0), {}, standing, ["aac.0"], speeds, comfort, lengths)) == 1
     far = {foe.approach: [("bg.0", 0.0, 0.0)]}  # standing at its lane's far end: too far to come
-    assert RightOfWay(priority, 1.0, 1.5).boxes(0.0, approach(y, 2.0), {}, far, ["aac.0"], speeds, comfort, lengths) == []
+    assert RightOfWay(1.0, 1.5).boxes(0.0, approach(y, 2.0), {}, far, ["aac.0"], speeds, comfort, lengths) == []
 
 
 def test_a_car_that_cannot_stop_comfortably_when_the_line_starts_to_hold_goes_on(priority):
     ((y, _),), _ = lines(priority, ["SC", "CN"])
     foe = next(f for f in y.foes if f.approach == "WC_0")
-    row = RightOfWay(priority, 1.0, 1.5)
+    row = RightOfWay(1.0, 1.5)
     near = {foe.approach: [("bg.0", foe.length - 5.0, 10.0)]}
     assert row.boxes(0.0, approach(y, 10.0), {}, near, ["aac.0"], np.array([10.0]), np.array([2.0]), np.array([4.0])) == []
 
 
-def run_through(net, y, foe_pos, foe_speed, dt=0.1, speed=10.0):
+def run_through(y, foe_pos, foe_speed, dt=0.1, speed=10.0):
     """A car driving through ``y``'s junction at ``speed`` from 20 m before the line, a foe on the
     major road at ``foe_pos`` going ``foe_speed``: the violations counted."""
-    row = RightOfWay(net, 1.0, 1.5)
+    row = RightOfWay(1.0, 1.5)
     foe = next(f for f in y.foes if f.approach == "WC_0")
     d, t = 20.0, 0.0
     while d > -(y.s_out - y.s_in + 4.0 + 2.0):
@@ -134,9 +134,9 @@ def test_entering_before_a_foe_with_priority_that_arrives_while_the_car_is_insid
     ((y, _),), _ = lines(priority, ["SC", "CN"])
     length = next(f for f in y.foes if f.approach == "WC_0").length
     entry = 2.0  # the car crosses its line 2 s in, and leaves the junction about 2.6 s later
-    assert run_through(priority, y, length - 10.0 * (entry + 0.5), 10.0) == 1  # the foe arrives 0.5 s after the car entered
-    assert run_through(priority, y, length - 10.0 * (entry + 6.0), 10.0) == 0  # 6 s after: the car is long gone
-    assert run_through(priority, y, length - 1.0, 0.0) == 0  # a foe standing at its line does not arrive
+    assert run_through(y, length - 10.0 * (entry + 0.5), 10.0) == 1  # the foe arrives 0.5 s after the car entered
+    assert run_through(y, length - 10.0 * (entry + 6.0), 10.0) == 0  # 6 s after: the car is long gone
+    assert run_through(y, length - 1.0, 0.0) == 0  # a foe standing at its line does not arrive
     assert math.isfinite(FOE_ACCEL)
 
 
@@ -144,6 +144,6 @@ def test_at_an_unregulated_junction_the_line_holds_for_a_crossing_foe(unregulate
     ((y, _),), _ = lines(unregulated, ["SC", "CN"])
     foe = next(f for f in y.foes if f.approach == "WC_0")
     vehicles = {foe.approach: [("bg.0", foe.length - 20.0, 13.9)]}
-    boxes = RightOfWay(unregulated, 1.0, 1.5).boxes(0.0, approach(y, 2.0), {}, vehicles, ["aac.0"], np.array([0.0]), np.array([2.0]),
+    boxes = RightOfWay(1.0, 1.5).boxes(0.0, approach(y, 2.0), {}, vehicles, ["aac.0"], np.array([0.0]), np.array([2.0]),
                                                    np.array([4.0]))
     assert len(boxes) == 1

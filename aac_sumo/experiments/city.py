@@ -42,7 +42,7 @@ from aac_sumo.experiments.lane_geometry import ROAD_MARGIN
 from aac_sumo.experiments.routed_vehicles import KEYS, route_edges, routed_robots, routed_setup, routed_vehicles
 from aac_sumo.experiments.right_of_way import RightOfWay, YieldLine, yield_lines
 from aac_sumo.experiments.signals import BOX_LENGTH, GO, Line, Signals
-from aac_sumo.experiments.junction_routes import RoutePath, route_legs, route_path
+from aac_sumo.experiments.junction_routes import route_legs, route_path
 from aac_sumo.references import LateralBand, PathReference
 from aac_sumo.registry import register_experiment
 from aac_sumo.sim.sumo_options import SumoParams, sumo_params
@@ -80,13 +80,12 @@ class CityCars:
         self.tasks = [PathReference([parking_spot(k)[:2], parking_spot(k)[:2] + [1.0, 0.0]], self.p.speed, stop_at_end=False)
                       for k in range(n)]
         self.bands: list = [None] * n
-        self.paths: list[RoutePath | None] = [None] * n
         self.lines: list[list[tuple[Line, float]]] = [[] for _ in range(n)]  # per car: its stop lines and their arc lengths [m]
         self.free_flow = np.full(n, np.nan)
         self.done = np.zeros(n, dtype=bool)
         self.admitted = np.zeros(n, dtype=bool)
         self.signals = Signals()
-        self.right_of_way = RightOfWay(net, self.p.yield_gap, scenario["controller.anticipate_accel"])
+        self.right_of_way = RightOfWay(self.p.yield_gap, scenario["controller.anticipate_accel"])
         self.yields: list[list[tuple[YieldLine, float]]] = [[] for _ in range(n)]  # per car: the links that may have to yield
         self.names = [r.name for r in robots]
         self.held: set[tuple[float, str]] = set()  # (t, car) of the periods whose next stop line showed red or yellow
@@ -125,7 +124,6 @@ class CityCars:
                               self.p.change_length)
         except ValueError as exc:
             raise ScenarioError(self.scenario.source, KEYS, f"routes a controlled car can drive ({robot.name}: {exc})") from None
-        self.paths[k] = path
         self.tasks[k] = PathReference(path.points, self.p.speed, stop_at_end=False, limits=path.limits)
         self.bands[k] = LateralBand(path.band_right, path.band_left, 0.5 * robot.width + ROAD_MARGIN)
         self.yields[k] = yield_lines(self.net, path)

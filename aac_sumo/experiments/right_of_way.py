@@ -55,27 +55,28 @@ LOOKBACK = 150.0
 @dataclass(frozen=True)
 class Foe:
     """A link with priority over a car's: its incoming ``approach`` lane id and length [m], the
-    ``upstream`` lanes that lead into it with the distance [m] from each one's end to the link's
-    line (within ``LOOKBACK``), its internal lanes ``inside``, its lane's speed limit [m/s] and its
-    signal (``tls`` '' without)."""
+    ``upstream`` lanes that lead into it, each ``(id, distance [m] from its end to the link's line,
+    its length [m])`` (within ``LOOKBACK``), its internal lanes ``inside``, its lane's speed limit
+    [m/s] and its signal (``tls`` '' without)."""
 
     approach: str
     length: float
-    upstream: tuple[tuple[str, float], ...]
+    upstream: tuple[tuple[str, float, float], ...]
     inside: tuple[str, ...]
     speed: float
     tls: str
     link: int
 
     @property
-    def lanes(self) -> tuple[tuple[str, float], ...]:
-        """Its incoming lanes and each one's end's distance [m] to the line, the approach first."""
-        return ((self.approach, 0.0), *self.upstream)
+    def lanes(self) -> tuple[tuple[str, float, float], ...]:
+        """Its incoming lanes as ``upstream``'s, the approach first."""
+        return ((self.approach, 0.0, self.length), *self.upstream)
 
 
-def _upstream(lane, lookback: float) -> tuple[tuple[str, float], ...]:
+def _upstream(lane, lookback: float) -> tuple[tuple[str, float, float], ...]:
     """The lanes that lead into ``lane`` (through the junction before it; those inside it too),
-    each with the distance [m] from its end to ``lane``'s end, while that is under ``lookback``."""
+    each with the distance [m] from its end to ``lane``'s end, while that is under ``lookback``,
+    and its length [m]."""
     out, todo, seen = [], [(lane, 0.0)], {lane.getID()}
     while todo:
         here, to_end = todo.pop()
@@ -85,7 +86,7 @@ def _upstream(lane, lookback: float) -> tuple[tuple[str, float], ...]:
         for before in here.getIncoming():
             if before.getID() not in seen and before.getEdge().getFunction() in ("", "internal") and before.allows(VEHICLE_CLASS):
                 seen.add(before.getID())
-                out.append((before.getID(), ahead))
+                out.append((before.getID(), ahead, before.getLength()))
                 todo.append((before, ahead))
     return tuple(out)
 
@@ -171,25 +172,12 @@ def travel_time(distance: float, speed: float, accel: float, top: float) -> floa
     return t_up + (distance - d_up) / top
 
 
-class _Lengths(dict):
-    """Lane lengths [m] of ``net`` by id, read as asked for."""
-
-    def __init__(self, net):
-        super().__init__()
-        self.net = net
-
-    def __missing__(self, lane: str) -> float:
-        self[lane] = float(self.net.getLane(lane).getLength())
-        return self[lane]
-
-
 class RightOfWay:
     """The yield lines' boxes and the violations (see the module); ``gap`` [s] is the car's time
     margin before a foe's arrival, ``accel`` [m/s^2] how fast a car is taken to speed up."""
 
-    def __init__(self, net, gap: float, accel: float):
+    def __init__(self, gap: float, accel: float):
         self.gap, self.accel = gap, accel
-        self.lengths = _Lengths(net)  # lane id -> its length [m]
         self.holds = Holds()
         self.before: dict[tuple[int, tuple], float] = {}  # (car, line) -> its front's distance to the line last period [m]
         self.pending: dict[tuple[int, tuple], tuple[float, float]] = {}  # (car, line) -> (s_out - s_in [m], earliest foe arrival [s])
@@ -199,7 +187,7 @@ class RightOfWay:
     def lanes(approach: dict[int, list[tuple[YieldLine, float]]]) -> tuple[str, ...]:
         """The lanes whose vehicles :meth:`boxes` reads."""
         return tuple(sorted({lane for lines in approach.values() for y, _ in lines for foe in y.foes
-                             for lane in (*(lane for lane, _ in foe.lanes), *foe.inside)}))
+                             for lane in (*(lane for lane, _, _ in foe.lanes), *foe.inside)}))
 
     @staticmethod
     def minor(y: YieldLine, states: dict[str, str]) -> bool:
@@ -217,11 +205,11 @@ class RightOfWay:
                 return 0.0
             if foe.tls and states[foe.tls][foe.link] in STOPPED:
                 continue
-            for lane, to_line in foe.lanes:
+            for lane, to_line, length in foe.lanes:
                 for vid, pos, speed in vehicles.get(lane, ()):
                     if vid == me:
                         continue
-                    room = to_line + max(self.lengths[lane] - pos, 0.0)
+                    room = to_line + max(length - pos, 0.0)
                     t = room / speed if keep_speed and speed > 0.1 else math.inf if keep_speed else \
                         travel_time(room, speed, FOE_ACCEL, FOE_SPEED_FACTOR * foe.speed)
                     first = min(first, t)
@@ -256,10 +244,10 @@ class RightOfWay:
                 d, k = min(ahead)
                 clear = travel_time(d + (y.s_out - y.s_in) + float(lengths[k]), float(speeds[k]), self.accel, y.speed)
                 holding[key] = self.arrivals(y, states, vehicles, names[k], False) < clear + self.gap
-        late = {key for key in seen if not ylines[key].counts}
-        split = [({k: v for k, v in seen.items() if (k in late) == un}, decel) for un, decel in ((False, comfort), (True, hardest))]
-        return [box for part, decel in split if part for box in self.holds.boxes(holding, part, speeds, comfort if decel is None else decel,
-                                                                                 lengths)]
+        regulated = {key: cars for key, cars in seen.items() if ylines[key].counts}
+        unregulated = {key: cars for key, cars in seen.items() if not ylines[key].counts}
+        return (self.holds.boxes(holding, regulated, speeds, comfort, lengths)
+                + self.holds.boxes(holding, unregulated, speeds, comfort if hardest is None else hardest, lengths))
 
     def count(self, t: float, k: int, y: YieldLine, d: float, states: dict[str, str], vehicles: dict, name: str,
               length: float) -> None:

@@ -93,10 +93,6 @@ class Signals:
         self.before: dict[tuple[int, tuple[str, int, str]], tuple[float, str]] = {}  # (car, line) -> (its front's distance to it [m], state) last period
         self.violations = 0
 
-    @property
-    def through(self) -> dict[tuple[str, int, str], set[int]]:
-        return self.holds.through
-
     def boxes(self, states: dict[str, str], approach: dict[int, list[tuple[Line, float]]], speeds: np.ndarray,
               comfort: np.ndarray, lengths: np.ndarray) -> list[Obstacle]:
         """The boxes of this period's stop lines that hold traffic. ``states``: each traffic
@@ -110,7 +106,7 @@ class Signals:
                 self.holds.lines.setdefault(line.key, line)
                 seen.setdefault(line.key, []).append((k, d))
                 last = self.before.get((k, line.key))
-                if last is not None and last[0] >= 0.0 > d and (last[1] in RED or (last[1] not in GO and k not in self.through.get(line.key, ()))):
+                if last is not None and last[0] >= 0.0 > d and (last[1] in RED or (last[1] not in GO and k not in self.holds.through.get(line.key, ()))):
                     self.violations += 1
                 self.before[(k, line.key)] = (d, states[line.tls][line.link])
         holding = {key: states[key[0]][key[1]] not in GO for key in seen}

@@ -230,17 +230,18 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
         hard = standing_points(task, self.book.traffic + self.signalled, world.robot_centres()[i], float(world.states[i, 2]), 0.5 * robot.width + self.book.margin,
                                robot.centre_offset + 0.5 * robot.length + self.book.margin + TRAFFIC_SPARE)
         self.behind_traffic[i] = len(hard) > 0
+        args = (len(head), cfg.dt, np.ascontiguousarray(stops, dtype=float), float(rules.decel), float(rules.accel), float(calm),
+                max(CONTINUATION_LAG, cfg.dt), *tracking_bounds(robot, self.tracking_lat()), steer, *task.arrays(), float(task.speed),
+                float(task.decel), float(self.params.lookahead), float(self.params.speed_gain), float(self.keep_right_shift(world, i)), hard,
+                float(HARD_SHARE * self.held_decel(calm)[i]), accel, float(self.params.continuation_jerk))
+        more = continuation_inputs(float(x), float(y), float(h), float(v), periods, *args)
         longer = (2 * periods, 3 * periods) if self.book.walkers is not None and len(self.book.walkers.strips) else ()
-        more = continuation_inputs(float(x), float(y), float(h), float(v), max((periods, *longer)), len(head), cfg.dt, np.ascontiguousarray(stops, dtype=float),
-                                   float(rules.decel), float(rules.accel), float(calm), max(CONTINUATION_LAG, cfg.dt),
-                                   *tracking_bounds(robot, self.tracking_lat()), steer,
-                                   *task.arrays(), float(task.speed), float(task.decel), float(self.params.lookahead),
-                                   float(self.params.speed_gain), float(self.keep_right_shift(world, i)), hard,
-                                   float(HARD_SHARE * self.held_decel(calm)[i]), accel, float(self.params.continuation_jerk))
         first = None  # what refused the whole cruise: a walker (-2), most often its standing on a crossing, asks for longer
         for k in (periods, periods // 2, periods // 4, *longer):
             if k <= 0 or (k > periods and first[1] != -2):
                 continue
+            if k > len(more):  # the same law further on (it looks only back): computed only when asked for
+                more = continuation_inputs(float(x), float(y), float(h), float(v), longer[-1], *args)
             candidate = self.passing(world, i, period, np.vstack([head, more[:k]]), statics)
             if candidate is not None:
                 return candidate
