@@ -16,6 +16,17 @@ from aac_sumo.dynamics import BicycleModel
 #: ``signal``: a red or yellow traffic light's stop line, a standing box that an experiment shows the coordinators
 #: (:mod:`aac_sumo.experiments.signals`); no simulator holds one, so nothing collides with it.
 OBSTACLE_KINDS = ("robot", "scripted", "pedestrian", "cone", "static", "signal")
+#: A stop line binds only the robots that come up to it along its lane: whose heading is within 60 degrees of its own
+#: (the cosine of the difference above this). A car turning or crossing in front of another approach's line passes it.
+LINE_BINDS_COS = 0.5
+
+
+def line_binds(line_heading, heading):
+    """Whether a stop line with heading ``line_heading`` [rad] binds a robot heading ``heading``
+    [rad] (either may be an array): see :data:`LINE_BINDS_COS`."""
+    return np.cos(np.asarray(heading) - np.asarray(line_heading)) > LINE_BINDS_COS
+
+
 #: Where robots that are not on the road stand [m]: far from any network, 1 km apart.
 PARKING = np.array([-1.0e6, -1.0e6])
 PARKING_STEP = 1.0e3
@@ -78,6 +89,12 @@ class Obstacle:
         if self.walkway is None or walkway_time <= 0.0:
             return reach
         return 0.0 if min(self.walkway) > (np.hypot(*self.velocity) + reach) * walkway_time else reach
+
+    def binds(self, heading: float) -> bool:
+        """Whether this obstacle holds a robot heading ``heading`` [rad]: every obstacle but a
+        stop line (kind ``signal``), which holds only the robots that come up to it along its lane
+        (:func:`line_binds`)."""
+        return self.kind != "signal" or bool(line_binds(self.heading, heading))
 
     def footprint(self) -> np.ndarray:
         """Row ``[cx, cy, length, width, heading]``."""

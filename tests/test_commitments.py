@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from aac_sumo import config, experiments
 from aac_sumo.coordination.commitments import CommitmentBook, clusters, reach_radii, stopping_commitment
-from aac_sumo.coordination.traffic_courses import braking_courses, standing_points, traffic_clearances
+from aac_sumo.coordination.traffic_courses import braking_courses, standing_points, stop_lines, traffic_clearances
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.geometry import pairwise_rect_clearance
@@ -439,7 +439,7 @@ def test_a_continuation_stands_behind_where_each_vehicle_ahead_on_its_path_can_s
     vehicles = [car(100.0, 0.0, 15.0), car(20.0, 0.0, 15.0), car(150.0, 3.5, 15.0), car(300.0, 2.2, 9.0, width=5.0),
                 Obstacle("cone", "cone", np.array([400.0, 0.0]), np.zeros(2), 0.0, 0.3, 0.3)]
     courses = braking_courses(vehicles, 4.5, 0.1)
-    got = standing_points(path, courses, np.array([50.0, 0.0]), 0.0, reach=1.9, gap=4.0)
+    got = standing_points(path, courses, stop_lines(vehicles), np.array([50.0, 0.0]), 0.0, reach=1.9, gap=4.0)
     expected = [100.0 + 15.0**2 / 9.0 - 2.25 - 4.0, 300.0 + 9.0**2 / 9.0 - 2.25 - 4.0]
     np.testing.assert_allclose(np.sort(got), expected, atol=1e-6)
 
@@ -454,12 +454,32 @@ def test_traffic_clearances_are_the_bumper_gaps_to_a_standing_car_ahead_stage_by
     course = np.array([[speed * 0.1 * k, 0.0, 4.0, 1.8, 0.0] for k in range(stages + 1)])
     ahead = Obstacle("bg.0", "scripted", np.array([2.0 + gap + 2.25, 0.0]), np.zeros(2), 0.0, 4.5, 1.8)
     behind = Obstacle("bg.1", "scripted", np.array([-10.0, 0.0]), np.array([30.0, 0.0]), 0.0, 4.5, 1.8)
-    got = traffic_clearances(course, braking_courses([ahead, behind], 4.5, 0.1))
+    got = traffic_clearances(course, braking_courses([ahead, behind], 4.5, 0.1), np.zeros(2, dtype=bool))
     assert len(got) == stages + 1
     expected = np.abs(ahead.centre[0] - course[:, 0]) - 4.25
     expected = np.where(expected < 0.0, np.maximum(expected, -1.8), expected)
     np.testing.assert_allclose(got, expected, atol=1e-9)
-    assert np.all(np.isinf(traffic_clearances(course, braking_courses([behind], 4.5, 0.1))))
+    assert np.all(np.isinf(traffic_clearances(course, braking_courses([behind], 4.5, 0.1), np.zeros(1, dtype=bool))))
+
+
+def test_a_stop_line_holds_the_cars_that_come_up_to_it_and_not_those_that_cross_in_front_of_it():
+    """An eastbound lane's red stop line (a standing box, heading 0) stands in the way of two
+    courses: an eastbound car's, which must stop behind it, and a car's that crosses the junction
+    northbound just beyond the line (as one turning from another approach does). Only the first
+    one is held; a SUMO car standing at the same spot holds both."""
+    line = Obstacle("signal J 7 in_0", "signal", np.array([10.5, 0.0]), np.zeros(2), 0.0, 1.0, 1.8)
+    car = Obstacle("bg.0", "scripted", np.array([10.5, 0.0]), np.zeros(2), 0.0, 1.0, 1.8)
+    east = np.array([[2.0 * k, 0.0, 4.0, 1.8, 0.0] for k in range(12)])
+    north = np.array([[10.5, -12.0 + 2.0 * k, 4.0, 1.8, 0.5 * np.pi] for k in range(12)])
+    for obstacle, holds_north in ((line, False), (car, True)):
+        courses, lines = braking_courses([obstacle], 4.5, 0.1), stop_lines([obstacle])
+        assert traffic_clearances(east, courses, lines).min() < 0.0
+        assert (traffic_clearances(north, courses, lines).min() < 0.0) == holds_north
+        assert obstacle.binds(0.3) and obstacle.binds(0.5 * np.pi) == holds_north and obstacle.binds(np.pi) == holds_north
+    from aac_sumo.references import PathReference
+    path = PathReference(np.array([[0.0, 0.0], [100.0, 0.0]]), 10.0, stop_at_end=False)
+    assert standing_points(path, braking_courses([line], 4.5, 0.1), stop_lines([line]), np.zeros(2), 0.0, 1.0, 4.0).size == 1
+    assert standing_points(path, braking_courses([line], 4.5, 0.1), stop_lines([line]), np.array([10.5, -10.0]), 0.5 * np.pi, 1.0, 4.0).size == 0
 
 
 @pytest.mark.parametrize("disabled", [False, True])

@@ -40,7 +40,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from aac_sumo.coordination.regions import Fleet
-from aac_sumo.coordination.traffic_courses import ahead_of
+from aac_sumo.coordination.traffic_courses import ahead_of, binding
 from aac_sumo.coordination.walker_reach import WalkerReach
 from aac_sumo.kernels.commitments import course_boxes, course_clearance, pair_components, ragged_nearest, stopping_course
 from aac_sumo.kernels.motion import footprint_rows
@@ -132,6 +132,7 @@ class CommitmentBook:
         self._refused: dict[int, tuple | None] = {}  # per robot, its last refusal by something standing (see refuse)
         self.walkers: WalkerReach | None = None  # the walkers of the current period, set by the coordinator (see check)
         self.traffic: list[np.ndarray] = []  # footprint rows of the uncontrolled vehicles' braking courses this period (see check)
+        self.lines = np.zeros(0, dtype=bool)  # which of them are stop lines (traffic_courses.stop_lines)
         self._traffic: tuple | None = None  # (period, the list above, its flat rows, starts, lengths, boxes)
         self.reaction: tuple[np.ndarray, float] | None = None  # (per robot deceleration [m/s^2], dt [s]): see traffic_rows
         self.beside = False  # whether traffic_gap also holds the vehicles beside and behind in another lane
@@ -284,7 +285,8 @@ class CommitmentBook:
         """Least clearance [m] of the footprint rows ``rows`` (a course from ``period`` on) to
         the braking courses of the uncontrolled vehicles whose centres are ahead of ``rows[0]``
         along its heading, and with ``beside`` also of those that are not straight behind it
-        (their centre further across its heading than half the two widths: in another lane);
+        (their centre further across its heading than half the two widths: in another lane); of
+        the stop lines among them (:attr:`lines`) only those that bind it;
         inf without any."""
         if self._traffic is None or self._traffic[0] != period or self._traffic[1] is not self.traffic:
             self._traffic = (period, self.traffic, *_ragged(self.traffic))
@@ -293,6 +295,7 @@ class CommitmentBook:
         if self.beside:
             normal = np.array([-np.sin(rows[0, 4]), np.cos(rows[0, 4])])
             counted |= np.abs((flat[starts, :2] - rows[0, :2]) @ normal) > 0.5 * (rows[0, 3] + flat[starts, 3])
+        counted &= binding(flat[starts], self.lines, float(rows[0, 4]))
         ahead = np.flatnonzero(counted)
         if ahead.size == 0:
             return np.inf

@@ -43,7 +43,7 @@ from aac_sumo.kernels.safety import braking_courses, gentlest_stops, stop_flags
 from aac_sumo.kernels.motion import heading_along
 from aac_sumo.mpc.planner import FALLBACK_TURN_TIME
 from aac_sumo.mpc.settings import MpcConfig
-from aac_sumo.world import WorldState
+from aac_sumo.world import WorldState, line_binds
 
 #: Gap difference [m] below which a course counts as no closer than braking at once.
 BRAKING_TIE = 1e-6
@@ -99,6 +99,10 @@ class SafetyCheck:
         self.walkers = WalkerPaths(world, fleet, config, self.table, self.spacing, walker_speeds)
         index, _, enter, passing = self.walker_paths()
         self.ignored[:, 2 * len(world.robots) + index] |= np.isfinite(enter) | passing
+        lines = np.flatnonzero([o.kind == "signal" for o in world.obstacles])  # another approach's stop line holds no one
+        if lines.size:
+            held = line_binds(np.array([world.obstacles[k].heading for k in lines])[None, :], world.states[:, 2:3])
+            self.ignored[:, 2 * len(world.robots) + lines] |= ~held
         self._around: dict = {}
         self._steer = None
 

@@ -17,6 +17,7 @@ import numpy as np
 
 from aac_sumo.kernels.geometry import paired_clearance
 from aac_sumo.references import PathReference
+from aac_sumo.world import line_binds
 
 
 def braking_courses(obstacles, decel: float, dt: float) -> list[np.ndarray]:
@@ -43,6 +44,19 @@ def braking_courses(obstacles, decel: float, dt: float) -> list[np.ndarray]:
     return out
 
 
+def stop_lines(obstacles) -> np.ndarray:
+    """Which of :func:`braking_courses` of ``obstacles`` (K,) are stop lines (kind ``signal``)."""
+    return np.array([o.kind == "signal" for o in obstacles if o.kind in ("scripted", "signal")], dtype=bool)
+
+
+def binding(first: np.ndarray, lines: np.ndarray, heading: float) -> np.ndarray:
+    """Which courses (first rows ``first`` (K, 5); ``lines``: which of the first ones are stop lines,
+    the rest are not) can hold a robot heading ``heading`` [rad]: every vehicle, and the stop lines
+    it comes up to along their lanes (:func:`~aac_sumo.world.line_binds`)."""
+    lines = np.r_[np.asarray(lines, dtype=bool), np.zeros(len(first) - len(lines), dtype=bool)]
+    return ~lines | line_binds(first[:, 4], heading)
+
+
 def signalled_courses(obstacles, decel: float, dt: float) -> list[np.ndarray]:
     """:func:`braking_courses` of the vehicles among ``obstacles`` whose blinker signals a lane
     change they wait to make, seen over their lane and the next on that side
@@ -59,19 +73,20 @@ def ahead_of(points: np.ndarray, here: np.ndarray, heading: float) -> np.ndarray
     return (points[:, 0] - here[0]) * np.cos(heading) + (points[:, 1] - here[1]) * np.sin(heading) > 0.0
 
 
-def standing_points(path: PathReference, traffic: list[np.ndarray], here: np.ndarray, heading: float, reach: float,
-                    gap: float) -> np.ndarray:
+def standing_points(path: PathReference, traffic: list[np.ndarray], lines: np.ndarray, here: np.ndarray, heading: float,
+                    reach: float, gap: float) -> np.ndarray:
     """Arc lengths [m] along ``path`` (K,) where a robot's rear axle must stand to keep ``gap``
     [m] (its rear axle to its front, and room to spare) behind where each vehicle of
-    ``traffic`` (braking courses, :func:`braking_courses`) stands at the end of its course: the
-    vehicles whose centres are ahead of ``here`` (the robot's footprint centre [m]) along
-    ``heading`` [rad], as the check counts them, and whose standing footprints come within
+    ``traffic`` (braking courses, :func:`braking_courses`; ``lines``: which of the first ones are stop lines)
+    stands at the end of its course: the vehicles whose centres are ahead of ``here`` (the robot's
+    footprint centre [m]) along ``heading`` [rad] and the stop lines that bind it (:func:`binding`),
+    as the check counts them, and whose standing footprints come within
     ``reach`` [m] of the path (on top of half their width)."""
     if not traffic:
         return np.empty(0)
     first = np.array([c[0] for c in traffic])
     ends = np.array([c[-1] for c in traffic])
-    ends = ends[ahead_of(first[:, :2], here, heading)]
+    ends = ends[ahead_of(first[:, :2], here, heading) & binding(first, lines, heading)]
     if len(ends) == 0:
         return np.empty(0)
     s, off = path.project_many(ends[:, :2])
@@ -80,13 +95,15 @@ def standing_points(path: PathReference, traffic: list[np.ndarray], here: np.nda
 
 
 
-def traffic_clearances(rows: np.ndarray, traffic: list[np.ndarray]) -> np.ndarray:
+def traffic_clearances(rows: np.ndarray, traffic: list[np.ndarray], lines: np.ndarray) -> np.ndarray:
     """Per stage, the least clearance [m] of the footprint rows ``rows`` (K, 5), a course from now
     that stands at its last row once it has ended, to the braking courses of the vehicles of
-    ``traffic`` ahead of ``rows[0]`` (each also standing at its end), over the stages until all
+    ``traffic`` ahead of ``rows[0]`` (each also standing at its end; of the stop lines among them,
+    ``lines`` (K,), those that bind it: :func:`binding`), over the stages until all
     have ended (inf where none is ahead)."""
     here = rows[0]
-    courses = [c for c in traffic if ahead_of(c[:1, :2], here[:2], float(here[4]))[0]]
+    courses = [c for c, line in zip(traffic, lines)
+               if ahead_of(c[:1, :2], here[:2], float(here[4]))[0] and binding(c[:1], np.array([line]), float(here[4]))[0]]
     stages = max([len(rows)] + [len(c) for c in courses])
     own = rows[np.minimum(np.arange(stages), len(rows) - 1)]
     least = np.full(stages, np.inf)

@@ -62,6 +62,7 @@ class MpcPlanner:
         ``ego_decel`` [m/s^2] when that is 0), grown like the stages for a walker; NaN for swept
         regions (committed courses stop by themselves)."""
         cfg = self.config
+        obstacles = [o for o in obstacles if not isinstance(o, Obstacle) or o.binds(float(state[2]))]  # no other approach's stop line
         if len(obstacles) > cfg.slots:
             obstacles = [obstacles[i] for i in self.nearest(state, obstacles)]
         swept = np.array([isinstance(o, RegionTrack) for o in obstacles], dtype=bool)

@@ -22,7 +22,7 @@ from aac_sumo.coordination.aac.queueing import Queueing
 from aac_sumo.coordination.aac.traffic import TrafficBraking
 from aac_sumo.coordination.base import Decision, RobotDecision
 from aac_sumo.coordination.commitments import CommitmentBook, reach_radii, stopping_commitment
-from aac_sumo.coordination.traffic_courses import braking_courses, signalled_courses, standing_points
+from aac_sumo.coordination.traffic_courses import braking_courses, signalled_courses, standing_points, stop_lines
 from aac_sumo.coordination.detour import Detours
 from aac_sumo.coordination.make_room import STILL_SPEED, MakeRoom
 from aac_sumo.coordination.anticipation import near_pedestrian, stop_points
@@ -91,7 +91,7 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
             self.book = CommitmentBook(fleet, [self.commitment(world, i, period, np.zeros((0, 2))) for i in range(n)],
                                        self.params.commit_margin)
         self.book.walkers = walkers
-        self.book.traffic = braking_courses(world.obstacles, self.params.traffic_decel, cfg.dt)
+        self.book.traffic, self.book.lines = braking_courses(world.obstacles, self.params.traffic_decel, cfg.dt), stop_lines(world.obstacles)
         self.signalled = signalled_courses(world.obstacles, self.params.traffic_decel, cfg.dt)
         if self.params.traffic_reaction:
             self.book.reaction = (self.reaction_decel(), cfg.dt)
@@ -227,7 +227,8 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
         x, y, h, v = self.fleet.rollout(np.array([i]), world.states[[i]], head[None], cfg.dt)[0, -1]
         steer, accel = (float(head[-1, 1]), float(head[-1, 0])) if len(head) else (float(self.last_inputs[i, 1]), float(self.last_inputs[i, 0]))
         calm = cfg.comfort_accel if cfg.comfort_accel > 0.0 else float(self.fleet.comfort[i])  # brakes within the comfort envelope
-        hard = standing_points(task, self.book.traffic + self.signalled, world.robot_centres()[i], float(world.states[i, 2]), 0.5 * robot.width + self.book.margin,
+        hard = standing_points(task, self.book.traffic + self.signalled, self.book.lines, world.robot_centres()[i], float(world.states[i, 2]),
+                               0.5 * robot.width + self.book.margin,
                                robot.centre_offset + 0.5 * robot.length + self.book.margin + TRAFFIC_SPARE)
         self.behind_traffic[i] = len(hard) > 0
         args = (len(head), cfg.dt, np.ascontiguousarray(stops, dtype=float), float(rules.decel), float(rules.accel), float(calm),

@@ -186,7 +186,7 @@ class TrafficBraking:
         fast it meets it and how far into it; 0 without an overlap."""
         if not self.book.traffic:
             return 0.0
-        overlap = np.flatnonzero(traffic_clearances(rows, self.book.traffic) < 0.0)
+        overlap = np.flatnonzero(traffic_clearances(rows, self.book.traffic, self.book.lines) < 0.0)
         if overlap.size == 0:
             return 0.0
         speeds = np.abs(commitment.course(period, len(rows))[overlap[0]:, 3])
