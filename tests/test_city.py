@@ -115,3 +115,35 @@ def test_the_bundled_grid6_runs_as_a_city(tmp_path, capsys):
     assert code == 0, capsys.readouterr().err
     metrics = pd.read_json(out / "metrics.json", typ="series")
     assert metrics["n_robots"] >= 1 and metrics["collisions"] == 0 and metrics["right_of_way_violations"] == 0
+
+
+DRT = Path(sumo.__file__).parent / "tools" / "game" / "DRT" / "osm.net.xml"
+
+
+@pytest.mark.slow
+def test_an_osm_city_of_the_wheel_runs_on_random_trips_and_leaves_undrivable_routes_to_sumo_in_one_line_each(tmp_path, capsys):
+    """The wheel's DRT network (from OpenStreetMap) with routes of ``net trips``: routes whose lane
+    change for a turn falls on an edge too short for it, or with a corner sharper than the car can
+    turn, are SUMO's to drive, each said in one line naming the car and why; the rest are ours and
+    the run ends without error or collision."""
+    assert cli.main(["net", "trips", str(DRT), "--controlled", "10", "--background", "20", "--end", "60", "--seed", "0",
+                     "--vtype", "aac", "--out", str(tmp_path / "routes")]) == 0
+    capsys.readouterr()
+    routes = ",".join(str(tmp_path / "routes" / f) for f in ("controlled.rou.xml", "background.rou.xml"))
+    out = tmp_path / "out"
+    code = cli.main(["run", "city", "--set", "sumo.config=", "--set", f"sumo.net={DRT}", "--set", f"sumo.routes={routes}",
+                     "--set", "scenario.duration=60", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    left = [line for line in err.splitlines() if "is left to SUMO's driver" in line]
+    assert left and all("too short" in line or "tighter than the car" in line or "no car lane" in line for line in left)
+    metrics = pd.read_json(out / "metrics.json", typ="series")
+    controlled = ET.parse(tmp_path / "routes" / "controlled.rou.xml").getroot().findall("vehicle")
+    departing = [v for v in controlled if float(v.get("depart")) <= 60.0]
+    assert metrics["n_robots"] == len(departing) - len(left) > 0
+    assert metrics["collisions"] == 0
+    refused = left[0].split(": ")[1].split()[0]  # one car that no controlled car can drive alone: one line, exit 2
+    code = cli.main(["run", "city", "--set", "sumo.config=", "--set", f"sumo.net={DRT}", "--set", f"sumo.routes={routes}",
+                     "--set", "sumo.controlled_types=[]", "--set", f'sumo.controlled_ids=["{refused}"]', "--out", str(tmp_path / "none")])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1 and "none of 1 is" in err and refused in err

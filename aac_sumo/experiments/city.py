@@ -28,6 +28,7 @@ else the car waits in its lane. Positions in SUMO's network frame [m].
 from __future__ import annotations
 
 import dataclasses
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -38,7 +39,7 @@ from aac_sumo.config.keys import NN, P
 from aac_sumo.config.schema import from_section, param
 from aac_sumo.experiments.common import Setup, simulator_drives
 from aac_sumo.experiments.lane_change import network_files, sumo_options, with_resolved_paths
-from aac_sumo.experiments.lane_geometry import ROAD_MARGIN
+from aac_sumo.experiments.lane_geometry import ROAD_MARGIN, SAMPLE_STEP
 from aac_sumo.experiments.routed_vehicles import KEYS, route_edges, routed_robots, routed_setup, routed_vehicles
 from aac_sumo.experiments.right_of_way import RightOfWay, YieldLine, yield_lines
 from aac_sumo.experiments.signals import BOX_LENGTH, GO, Line, Signals
@@ -119,9 +120,7 @@ class CityCars:
         start = int(np.argmin([shape.project(state[:2])[1] for shape in shapes]))
         s0 = shapes[start].project(state[:2])[0]
         try:
-            legs = route_legs(self.net, list(self.edges[k]), start)
-            path = route_path(self.net, legs, s0, min(self.p.curve_lat_accel, self.scenario["robot.a_lat_max"]), self.p.change_start,
-                              self.p.change_length)
+            path = city_path(self.net, self.edges[k], start, s0, self.p, self.scenario["robot.a_lat_max"])
         except ValueError as exc:
             raise ScenarioError(self.scenario.source, KEYS, f"routes a controlled car can drive ({robot.name}: {exc})") from None
         self.tasks[k] = PathReference(path.points, self.p.speed, stop_at_end=False, limits=path.limits)
@@ -178,6 +177,52 @@ class CityCars:
         return self.done.copy()
 
 
+def city_path(net, edges, start: int, s0: float, p: CityParams, a_lat_max: float):
+    """The way (:func:`~aac_sumo.experiments.junction_routes.route_path`) of a car on the route
+    ``edges`` from lane ``start`` of the first, ``s0`` [m] into it, as ``p`` asks; ValueError where
+    there is none."""
+    return route_path(net, route_legs(net, list(edges), start), s0, min(p.curve_lat_accel, a_lat_max), p.change_start, p.change_length)
+
+
+def drivable(scenario: Scenario, net, vehicles: list) -> list:
+    """The ``vehicles`` whose routes a controlled car can drive from some lane of its first edge:
+    every lane change on an edge long enough for it, no turn tighter than the car's smallest
+    (``robot.wheelbase`` / tan ``robot.steer_max``) over two car lengths (the path's curvature
+    averaged over them: a corner of the spline through a junction's coarse internal lane is
+    tighter, and the car rounds it). Each other one is left to SUMO's own driver,
+    said in one line on stderr (a route file made for any network, say an OpenStreetMap one by
+    ``aac-sumo net trips``, may hold a turn too close behind the last, or a corner drawn sharper
+    than a car can turn); an exit-2 error when none is left."""
+    p, out, refused = from_section(CityParams, scenario, SECTION), [], []
+    tightest = float(np.tan(scenario["robot.steer_max"]) / scenario["robot.wheelbase"])  # [1/m]
+    window = np.ones(max(1, int(round(2.0 * scenario["robot.length"] / SAMPLE_STEP))))
+    for v in vehicles:
+        edges = list(route_edges(scenario, net, v))
+        reasons = []
+        for start in range(len(network.car_lanes(net.getEdge(edges[0])))):
+            try:
+                path = city_path(net, edges, start, 0.0, p, scenario["robot.a_lat_max"])
+            except ValueError as exc:
+                reasons.append(str(exc))
+                continue
+            bend = np.convolve(np.abs(path.curvature), window / len(window), mode="same")
+            k = int(np.argmax(bend))
+            if bend[k] <= tightest:
+                break
+            reasons.append(f"a turn of radius {1.0 / bend[k]:.1f} m at ({path.points[k, 0]:.1f}, {path.points[k, 1]:.1f}), "
+                           f"tighter than the car's {1.0 / tightest:.1f} m")
+        else:
+            refused.append(f"{v.id} is left to SUMO's driver: no way a controlled car can drive its route "
+                           f"({reasons[0] if reasons else 'no car lane'})")
+            continue
+        out.append(v)
+    if not out:
+        raise ScenarioError(scenario.source, KEYS, f"routes a controlled car can drive (none of {len(refused)} is: {refused[0]})")
+    for line in refused:
+        print(f"aac-sumo: {line}", file=sys.stderr)
+    return out
+
+
 @register_experiment("city", params=CityParams, sections={"sumo": SumoParams})
 def build_city(scenario: Scenario) -> Setup:
     """The city's Setup: the controlled cars of SUMO's routes (see the module)."""
@@ -186,8 +231,8 @@ def build_city(scenario: Scenario) -> Setup:
     su = sumo_params(scenario)
     if not (su.controlled_types or su.controlled_ids):
         raise ScenarioError(scenario.source, KEYS, "the vTypes of the controlled cars (a city's cars come from SUMO's routes)", "")
-    vehicles = routed_vehicles(scenario, routes)
     net = network.read(net_path, "sumo.net", scenario.source, withInternal=True)
+    vehicles = drivable(scenario, net, routed_vehicles(scenario, routes))
     robots = routed_robots(scenario, vehicles, from_section(CityParams, scenario, SECTION).speed, "city.speed")
     cars = CityCars(scenario, net, vehicles, robots)
     cars.sumo_drives = simulator_drives(scenario)

@@ -134,7 +134,8 @@ class RoutePath:
     apart; speed caps ``limits`` (M,) [m/s] (lane speed limits and curve speeds); the ``legs``; the
     traffic lights' ``stops`` and the ``junctions`` in driving order; and the right and left edges
     ``band_right``, ``band_left`` (M, 2) [m] of the lane(s) the car is in beside each point: the
-    lanes' shapes (internal lanes' too) offset by half their widths, both lanes while it changes."""
+    lanes' shapes (internal lanes' too) offset by half their widths, both lanes while it changes;
+    and the ``curvature`` (M,) [1/m] at each point."""
 
     points: np.ndarray
     limits: np.ndarray
@@ -143,6 +144,7 @@ class RoutePath:
     junctions: list[JunctionSpan]
     band_right: np.ndarray
     band_left: np.ndarray
+    curvature: np.ndarray
 
 
 def _shape(lane) -> np.ndarray:
@@ -296,4 +298,4 @@ def route_path(net, legs: list[Leg], s0: float, a_lat: float, change_start: floa
             (x0, y0), (x1, y1) = _shape(lane)[-2:]
             stops.append(StopLine(np.array([x1, y1]), float(np.arctan2(y1 - y0, x1 - x0)), s_in, lane.getWidth(), leg.tls, leg.link,
                                   lane.getID()))
-    return RoutePath(points, limits, legs, stops, junctions, band_right, band_left)
+    return RoutePath(points, limits, legs, stops, junctions, band_right, band_left, curvature)
