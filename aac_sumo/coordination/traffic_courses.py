@@ -99,11 +99,12 @@ def traffic_clearances(rows: np.ndarray, traffic: list[np.ndarray], lines: np.nd
     """Per stage, the least clearance [m] of the footprint rows ``rows`` (K, 5), a course from now
     that stands at its last row once it has ended, to the braking courses of the vehicles of
     ``traffic`` ahead of ``rows[0]`` (each also standing at its end; of the stop lines among them,
-    ``lines`` (K,), those that bind it: :func:`binding`), over the stages until all
+    ``lines`` (as :func:`binding`), those that bind it), over the stages until all
     have ended (inf where none is ahead)."""
     here = rows[0]
-    courses = [c for c, line in zip(traffic, lines)
-               if ahead_of(c[:1, :2], here[:2], float(here[4]))[0] and binding(c[:1], np.array([line]), float(here[4]))[0]]
+    first = np.array([c[0] for c in traffic]).reshape(-1, 5)
+    held = ahead_of(first[:, :2], here[:2], float(here[4])) & binding(first, lines, float(here[4]))
+    courses = [c for c, h in zip(traffic, held) if h]
     stages = max([len(rows)] + [len(c) for c in courses])
     own = rows[np.minimum(np.arange(stages), len(rows) - 1)]
     least = np.full(stages, np.inf)
