@@ -195,7 +195,7 @@ def drivable(scenario: Scenario, net, vehicles: list) -> list:
     than a car can turn); an exit-2 error when none is left."""
     p, out, refused = from_section(CityParams, scenario, SECTION), [], []
     tightest = float(np.tan(scenario["robot.steer_max"]) / scenario["robot.wheelbase"])  # [1/m]
-    window = np.ones(max(1, int(round(2.0 * scenario["robot.length"] / SAMPLE_STEP))))
+    span = max(1, int(round(2.0 * scenario["robot.length"] / SAMPLE_STEP)))  # points over two car lengths
     for v in vehicles:
         edges = list(route_edges(scenario, net, v))
         reasons = []
@@ -205,7 +205,7 @@ def drivable(scenario: Scenario, net, vehicles: list) -> list:
             except ValueError as exc:
                 reasons.append(str(exc))
                 continue
-            bend = np.convolve(np.abs(path.curvature), window / len(window), mode="same")
+            bend = np.convolve(np.abs(path.curvature), np.full(span, 1.0 / span), mode="same")
             k = int(np.argmax(bend))
             if bend[k] <= tightest:
                 break
