@@ -534,6 +534,34 @@ def test_a_reactive_check_holds_a_car_to_stopping_behind_a_vehicle_once_it_sees_
         assert (book.check(0, cruise, 0, statics)[0] >= book.margin) == passes
 
 
+def test_a_reaction_in_the_middle_of_a_lane_change_finishes_it_and_keeps_clear_of_the_car_in_the_lane_beyond():
+    """A car at 12 m/s three quarters of the way through a change from the lane at y = 0 to the one at y = -3.5
+    (heading -0.15 rad) reacts by braking at 6 m/s^2. Braking straight on at its angle it would
+    cross its target lane (13 m of stopping, 1.9 m further right) to within the 1 m margin of a
+    car driving in the lane beyond (y = -7); along its path (:attr:`CommitmentBook.paths`) it
+    settles into its target lane, and the two reactions keep the margin."""
+    from aac_sumo.references import PathReference
+
+    limits = VehicleLimits(-6.0, 3.0, 0.5, 0.0, 20.0)
+    robots = [RobotSpec(f"car{i}", 4.0, 1.8, BicycleModel(2.6, limits)) for i in range(2)]
+    fleet, dt = Fleet(robots), 0.1
+    change = PathReference(np.array([[0.0, 0.0], [20.0, 0.0], [43.3, -3.5], [500.0, -3.5]]), 12.0, stop_at_end=False)
+    beside = PathReference(np.array([[0.0, -7.0], [500.0, -7.0]]), 12.0, stop_at_end=False)
+    states = np.array([[37.0, -2.55, -0.15, 12.0], [38.0, -7.0, 0.0, 12.0]])
+    cruise = [stopping_commitment(fleet, i, 0, states[i], np.zeros((20, 2)), path, 2.0, 0.0, dt)
+              for i, path in enumerate((change, beside))]
+    book = CommitmentBook(fleet, cruise, 1.0)
+    book.reaction = (np.array([6.0, 6.0]), dt)
+    straight = book.reaction_course(0, cruise[0], 0)
+    assert straight.states[-1, 1] < -4.4  # its right side 0.6 m from the car beyond
+    assert book.reaction_gap(0, cruise[0], 0)[0] < book.margin
+    book.paths = [change, beside]
+    along = book.reaction_course(0, cruise[0], 0)
+    assert along.states[-1, 3] == pytest.approx(0.0, abs=1e-9) and abs(along.states[-1, 1] + 3.5) < 0.6
+    cruise[0].react = None  # the reaction held straight on was kept for this period
+    assert book.reaction_gap(0, cruise[0], 0)[0] >= book.margin
+
+
 @pytest.mark.parametrize("walker_brake", [False, True])
 def test_a_walker_set_down_in_a_committed_robots_way_makes_it_brake_at_once_with_walker_brake(walker_brake):
     """A walker appears (as SUMO sets a pedestrian down) standing in the lane 14 m ahead of a

@@ -90,7 +90,7 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
         if first:
             self.book = CommitmentBook(fleet, [self.commitment(world, i, period, np.zeros((0, 2))) for i in range(n)],
                                        self.params.commit_margin)
-        self.book.walkers = walkers
+        self.book.walkers, self.book.paths = walkers, [self.path(i) for i in range(n)]
         self.book.traffic, self.book.lines = braking_courses(world.obstacles, self.params.traffic_decel, cfg.dt), stop_lines(world.obstacles)
         self.signalled = signalled_courses(world.obstacles, self.params.traffic_decel, cfg.dt)
         if self.params.traffic_reaction:
