@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from hypothesis import given, strategies as st
 
-from aac_sumo.experiments.signals import BOX_LENGTH, BOX_WIDTH, Line, Signals
+from aac_sumo.experiments.signals import BOX_LENGTH, BOX_WIDTH, YELLOW_SPARE, Line, Signals, YellowRule
 from aac_sumo.geometry import OrientedRect, point_rect_signed_distance
 
 LINE = Line("J1", 2, "e_in_0", np.array([100.0, 0.0]), 0.0)
@@ -74,3 +74,29 @@ def test_a_car_is_held_at_yellow_exactly_when_it_can_stop_before_the_line_at_its
     s = Signals()
     held = s.boxes({"J1": "rry"}, {0: [(LINE, d)]}, np.array([v]), np.array([comfort]), np.array([4.0]))
     assert bool(held) == (v * v <= 2.0 * comfort * d)
+
+
+def test_with_a_yellow_rule_a_car_that_would_brake_beyond_its_gentle_deceleration_goes_on_if_it_passes_before_red():
+    """At 13.89 m/s a car stops at 2 m/s^2 in 48.2 m, and with one period's travel and 1 m to
+    spare it needs 50.6 m. 48 m before a line that turns yellow it could stop at its comfort
+    deceleration (3 m/s^2: 32.2 m), so without the rule it is held and must brake beyond 2 m/s^2;
+    with it, it goes on: it reaches the line in 3.46 s, within the 4 s yellow (less 0.5 s). With a
+    3 s yellow it is held. A car 52 m before the line stops gently: held either way."""
+    rule = YellowRule(2.0, 1.0, 0.1, {"J1": 4.0})
+    assert boxes(Signals(), "y", [48.0, 52.0], [13.89, 13.89]) != []
+    s = Signals(rule)
+    assert boxes(s, "y", [48.0], [13.89]) == []  # let through
+    assert len(boxes(Signals(rule), "y", [52.0], [13.89])) == 1  # can stop gently
+    short = Signals(YellowRule(2.0, 1.0, 0.1, {"J1": 3.0}))
+    assert len(boxes(short, "y", [48.0], [13.89])) == 1
+    assert len(boxes(Signals(rule), "r", [48.0], [13.89])) == 1  # straight to red: the comfort rule alone
+
+
+@given(d=st.floats(0.0, 200.0), v=st.floats(0.1, 20.0), yellow=st.floats(0.0, 6.0))
+def test_a_car_the_yellow_rule_lets_through_reaches_the_line_before_the_yellow_ends(d, v, yellow):
+    rule = YellowRule(2.0, 1.0, 0.1, {"J1": yellow})
+    s = Signals(rule)
+    held = s.boxes({"J1": "rry"}, {0: [(LINE, d)]}, np.array([v]), np.array([3.0]), np.array([4.0]))
+    if not held and v * v <= 2.0 * 3.0 * d:  # let through by the gentle rule alone
+        assert d / v < yellow - YELLOW_SPARE
+        assert v * v > 2.0 * 2.0 * (d - 0.1 * v - 1.0)

@@ -42,7 +42,7 @@ from aac_sumo.experiments.lane_change import network_files, sumo_options, with_r
 from aac_sumo.experiments.lane_geometry import ROAD_MARGIN, SAMPLE_STEP
 from aac_sumo.experiments.routed_vehicles import KEYS, route_edges, routed_robots, routed_setup, routed_vehicles
 from aac_sumo.experiments.right_of_way import RightOfWay, YieldLine, yield_lines
-from aac_sumo.experiments.signals import BOX_LENGTH, GO, Line, Signals
+from aac_sumo.experiments.signals import BOX_LENGTH, GO, Line, Signals, YellowRule
 from aac_sumo.experiments.junction_routes import route_legs, route_path
 from aac_sumo.references import LateralBand, PathReference
 from aac_sumo.registry import register_experiment
@@ -53,6 +53,8 @@ SECTION = "city"
 #: A car's stop lines are shown to it from this far [m] before its front reaches them (beyond
 #: what it needs to stop from the fastest city speed) until its rear has left them.
 SIGNAL_RANGE = 150.0
+#: Room [m] a car keeps before a stop line it stops for at yellow, beyond one period's travel.
+YELLOW_SLACK = 1.0
 
 
 @dataclass(frozen=True)
@@ -67,6 +69,9 @@ class CityParams:
     finish_margin: float = param(15.0, "a car has finished when its rear axle is within this of its route's end [m]", **NN)
     yield_gap: float = param(1.0, "a car whose link must yield enters the junction only if it leaves it this long before any "
                              "foe with priority could reach the junction (SUMO's jmTimegapMinor) [s]", **NN)
+    yellow_decel: float = param(2.0, "at a yellow a car goes on where stopping before the line (with one period's travel and 1 m "
+                                "to spare) would need more than this, if it reaches the line before the light's shortest yellow "
+                                "ends; 0: only cars that cannot stop at robot.a_comfort go on [m/s^2]", **NN)
 
 
 class CityCars:
@@ -85,7 +90,7 @@ class CityCars:
         self.free_flow = np.full(n, np.nan)
         self.done = np.zeros(n, dtype=bool)
         self.admitted = np.zeros(n, dtype=bool)
-        self.signals = Signals()
+        self.signals = Signals(YellowRule(self.p.yellow_decel, YELLOW_SLACK, scenario["scenario.dt"], shortest_yellows(net)))
         self.right_of_way = RightOfWay(self.p.yield_gap, scenario["controller.anticipate_accel"])
         self.yields: list[list[tuple[YieldLine, float]]] = [[] for _ in range(n)]  # per car: the links that may have to yield
         self.names = [r.name for r in robots]
@@ -223,6 +228,17 @@ def drivable(scenario: Scenario, net, vehicles: list) -> list:
     return out
 
 
+def shortest_yellows(net) -> dict[str, float]:
+    """Per traffic light of the sumolib network ``net`` (read with its programs), the shortest of
+    its phases [s] that show yellow on some link; lights without one are left out."""
+    out = {}
+    for tls in net.getTrafficLights():
+        amber = [float(ph.duration) for program in tls.getPrograms().values() for ph in program.getPhases() if "y" in ph.state.lower()]
+        if amber:
+            out[tls.getID()] = min(amber)
+    return out
+
+
 @register_experiment("city", params=CityParams, sections={"sumo": SumoParams})
 def build_city(scenario: Scenario) -> Setup:
     """The city's Setup: the controlled cars of SUMO's routes (see the module)."""
@@ -231,7 +247,7 @@ def build_city(scenario: Scenario) -> Setup:
     su = sumo_params(scenario)
     if not (su.controlled_types or su.controlled_ids):
         raise ScenarioError(scenario.source, KEYS, "the vTypes of the controlled cars (a city's cars come from SUMO's routes)", "")
-    net = network.read(net_path, "sumo.net", scenario.source, withInternal=True)
+    net = network.read(net_path, "sumo.net", scenario.source, withInternal=True, withPrograms=True)
     vehicles = drivable(scenario, net, routed_vehicles(scenario, routes))
     robots = routed_robots(scenario, vehicles, from_section(CityParams, scenario, SECTION).speed, "city.speed")
     cars = CityCars(scenario, net, vehicles, robots)

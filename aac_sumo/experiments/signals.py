@@ -8,7 +8,9 @@ vehicle-sized box of kind ``signal`` just beyond the line: the committed plans, 
 and the MPC then stop a car behind it as behind a standing car, and nothing crosses it.
 
 When a line's signal leaves green, the cars that cannot stop before it at their comfort
-deceleration are let through; the box appears once the last of them has passed it. A car whose
+deceleration are let through, and at yellow (with a :class:`YellowRule`) also those that would
+need more than the rule's gentle deceleration to stop there but reach the line before the yellow
+ends; the box appears once the last of them has passed it. A car whose
 front crosses a line while its signal shows red, or yellow when it was not let through (the line
 held it), counts as a red-light violation.
 
@@ -32,6 +34,30 @@ RED = frozenset("rRu")
 #: so that a car passing in the next lane keeps its clearance from it.
 BOX_LENGTH = 1.0
 BOX_WIDTH = 1.8
+#: A car let through a yellow by the gentle rule reaches the line at least this long [s] before
+#: the yellow ends, at its speed when the yellow began.
+YELLOW_SPARE = 0.5
+
+
+@dataclass(frozen=True)
+class YellowRule:
+    """Who goes on through a yellow besides those that cannot stop at their comfort deceleration:
+    a car that would need more than ``decel`` [m/s^2] to stop with ``slack`` [m] and one period
+    ``dt`` [s] of travel to spare before the line, and whose front reaches the line at its speed
+    ``YELLOW_SPARE`` before the shortest yellow of the line's light ends (``yellow``: traffic
+    light id -> that duration [s]; a light without one lets no one through so)."""
+
+    decel: float
+    slack: float
+    dt: float
+    yellow: dict[str, float]
+
+    def goes_on(self, tls: str, speed: float, d: float) -> bool:
+        """Whether a car at ``speed`` [m/s] whose front is ``d`` [m] before a line of light
+        ``tls`` that has just turned yellow goes on."""
+        spare = d - speed * self.dt - self.slack
+        return (self.decel > 0.0 and speed * speed > 2.0 * self.decel * spare
+                and d < speed * (self.yellow.get(tls, 0.0) - YELLOW_SPARE))
 
 
 @dataclass(frozen=True)
@@ -66,17 +92,21 @@ class Holds:
         self.through: dict[tuple[str, int, str], set[int]] = {}  # per line that holds: the cars let through
 
     def boxes(self, holding: dict[tuple[str, int, str], bool], seen: dict[tuple[str, int, str], list[tuple[int, float]]],
-              speeds: np.ndarray, comfort: np.ndarray, lengths: np.ndarray) -> list[Obstacle]:
+              speeds: np.ndarray, comfort: np.ndarray, lengths: np.ndarray, yellow: YellowRule | None = None,
+              amber: frozenset = frozenset()) -> list[Obstacle]:
         """The boxes of the lines (keys of :attr:`lines`) that are ``holding``; ``seen``: per line,
         the cars near it and their fronts' distances to it [m] (negative: beyond it); ``speeds``
-        [m/s], ``comfort`` decelerations [m/s^2] and ``lengths`` [m] per car."""
+        [m/s], ``comfort`` decelerations [m/s^2] and ``lengths`` [m] per car; ``amber``: the
+        lines that show yellow, to which ``yellow`` applies."""
         out = []
         for key, cars in seen.items():
             if not holding[key]:
                 self.through.pop(key, None)
                 continue
             if key not in self.through:  # it has just started to hold: who can no longer stop comfortably goes on
-                self.through[key] = {k for k, d in cars if d >= 0.0 and speeds[k] ** 2 > 2.0 * comfort[k] * d}
+                gentle = yellow if key in amber else None
+                self.through[key] = {k for k, d in cars if d >= 0.0 and (speeds[k] ** 2 > 2.0 * comfort[k] * d or (
+                    gentle is not None and gentle.goes_on(key[0], float(speeds[k]), d)))}
             on_line = any(-(lengths[k] + BOX_LENGTH) < d < 0.0 for k, d in cars)  # a box there would overlap it
             waiting = any(k in self.through[key] and d > -(lengths[k] + BOX_LENGTH) for k, d in cars)
             if not on_line and not waiting:
@@ -88,8 +118,8 @@ class Signals:
     """The stop lines of the controlled cars and what each shows; ``violations`` counts red-light
     violations (see the module)."""
 
-    def __init__(self):
-        self.holds = Holds()
+    def __init__(self, yellow: YellowRule | None = None):
+        self.holds, self.yellow = Holds(), yellow
         self.before: dict[tuple[int, tuple[str, int, str]], tuple[float, str]] = {}  # (car, line) -> (its front's distance to it [m], state) last period
         self.violations = 0
 
@@ -110,4 +140,5 @@ class Signals:
                     self.violations += 1
                 self.before[(k, line.key)] = (d, states[line.tls][line.link])
         holding = {key: states[key[0]][key[1]] not in GO for key in seen}
-        return self.holds.boxes(holding, seen, speeds, comfort, lengths)
+        amber = frozenset(key for key in seen if states[key[0]][key[1]] in "yY")
+        return self.holds.boxes(holding, seen, speeds, comfort, lengths, self.yellow, amber)
