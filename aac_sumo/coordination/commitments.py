@@ -137,7 +137,7 @@ class CommitmentBook:
         self.reaction: tuple[np.ndarray, float] | None = None  # (per robot deceleration [m/s^2], dt [s]): see traffic_rows
         self.beside = False  # whether traffic_gap also holds the vehicles beside and behind in another lane
         self.fallbacks: list[Commitment] | None = None  # with reaction: each robot's reaction of the period before (see hold_fallbacks)
-        self.paths: list | None = None  # each robot's reference path this period, set by the coordinator (see reaction_course)
+        self.paths: list | None = None  # each robot's path this period, set by the coordinator (see reaction_course)
         self._reactions: tuple | None = None  # (period, flat reaction rows, starts, lengths, boxes): see reaction_gap
         # every commitment's states, each padded with its last state to one length (n, L, 4), for courses
         self._states = np.zeros((len(self.items), 1, 4))
@@ -236,8 +236,7 @@ class CommitmentBook:
     def traffic_rows(self, i: int, commitment: Commitment, period: int) -> np.ndarray:
         """The footprint rows robot ``i`` along ``commitment`` holds against the uncontrolled
         vehicles from ``period`` on: the commitment's own, or with :attr:`reaction` set, its
-        first period and then braking to a stop at the reaction's deceleration (as the robot
-        would brake once a vehicle ahead brakes: the check against them is reactive)."""
+        first period and then braking to a stop (:meth:`reaction_course`: the check is reactive)."""
         if self.reaction is None or commitment.reacted:
             return self.footprints(i, commitment, period)
         if commitment.react is None or commitment.react[0] != period:
@@ -247,12 +246,9 @@ class CommitmentBook:
 
     def reaction_course(self, i: int, commitment: Commitment, period: int) -> Commitment:
         """Robot ``i``'s reaction along ``commitment`` from ``period`` (:attr:`reaction` set):
-        the commitment's input of ``period``, then braking to a stop at the reaction's
-        deceleration, along the robot's path where :attr:`paths` holds it (a car in the middle of
-        a lane change finishes it as it brakes, as its stopping tail does; braking straight on
-        at its angle, its reaction ran on into the next lane, where it met the reactions of the
-        cars beside it), else straight on (a reaction taken up, :attr:`Commitment.reacted`, is
-        its own)."""
+        its input of ``period``, then braking to a stop along its path in :attr:`paths` (a car
+        changing lanes finishes the change as its tails do; straight on, it ran into the next
+        lane), else straight on (a reaction taken up, :attr:`Commitment.reacted`, is its own)."""
         if commitment.reacted:
             return commitment
         decel, dt = self.reaction
