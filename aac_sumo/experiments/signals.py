@@ -87,24 +87,24 @@ class Holds:
     cars that can no longer stop before it at their comfort deceleration go on (``through``), and
     its box appears once the last of them has passed it."""
 
-    def __init__(self):
+    def __init__(self, yellow: YellowRule | None = None):
+        self.yellow = yellow  # who else goes on at yellow (None: the comfort rule alone)
         self.lines: dict[tuple[str, int, str], Line] = {}
         self.through: dict[tuple[str, int, str], set[int]] = {}  # per line that holds: the cars let through
 
     def boxes(self, holding: dict[tuple[str, int, str], bool], seen: dict[tuple[str, int, str], list[tuple[int, float]]],
-              speeds: np.ndarray, comfort: np.ndarray, lengths: np.ndarray, yellow: YellowRule | None = None,
-              amber: frozenset = frozenset()) -> list[Obstacle]:
+              speeds: np.ndarray, comfort: np.ndarray, lengths: np.ndarray, amber: frozenset = frozenset()) -> list[Obstacle]:
         """The boxes of the lines (keys of :attr:`lines`) that are ``holding``; ``seen``: per line,
         the cars near it and their fronts' distances to it [m] (negative: beyond it); ``speeds``
         [m/s], ``comfort`` decelerations [m/s^2] and ``lengths`` [m] per car; ``amber``: the
-        lines that show yellow, to which ``yellow`` applies."""
+        lines that show yellow, to which :attr:`yellow` applies."""
         out = []
         for key, cars in seen.items():
             if not holding[key]:
                 self.through.pop(key, None)
                 continue
             if key not in self.through:  # it has just started to hold: who can no longer stop comfortably goes on
-                gentle = yellow if key in amber else None
+                gentle = self.yellow if key in amber else None
                 self.through[key] = {k for k, d in cars if d >= 0.0 and (speeds[k] ** 2 > 2.0 * comfort[k] * d or (
                     gentle is not None and gentle.goes_on(key[0], float(speeds[k]), d)))}
             on_line = any(-(lengths[k] + BOX_LENGTH) < d < 0.0 for k, d in cars)  # a box there would overlap it
@@ -119,7 +119,7 @@ class Signals:
     violations (see the module)."""
 
     def __init__(self, yellow: YellowRule | None = None):
-        self.holds, self.yellow = Holds(), yellow
+        self.holds = Holds(yellow)
         self.before: dict[tuple[int, tuple[str, int, str]], tuple[float, str]] = {}  # (car, line) -> (its front's distance to it [m], state) last period
         self.violations = 0
 
@@ -141,4 +141,4 @@ class Signals:
                 self.before[(k, line.key)] = (d, states[line.tls][line.link])
         holding = {key: states[key[0]][key[1]] not in GO for key in seen}
         amber = frozenset(key for key in seen if states[key[0]][key[1]] in "yY")
-        return self.holds.boxes(holding, seen, speeds, comfort, lengths, self.yellow, amber)
+        return self.holds.boxes(holding, seen, speeds, comfort, lengths, amber)
