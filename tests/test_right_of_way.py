@@ -147,3 +147,35 @@ def test_at_an_unregulated_junction_the_line_holds_for_a_crossing_foe(unregulate
     boxes = RightOfWay(1.0, 1.5).boxes(0.0, approach(y, 2.0), {}, vehicles, ["aac.0"], np.array([0.0]), np.array([2.0]),
                                                    np.array([4.0]))
     assert len(boxes) == 1
+
+
+def lane_position(net, lane: str, d: float) -> float:
+    """The SUMO lane position of a front ``d`` [m] before ``lane``'s end."""
+    return net.getLane(lane).getLength() - d
+
+
+@pytest.mark.parametrize("d_south, d_west, goes", [(2.0, 2.0, "aac.0"), (6.0, 2.0, "aac.1"), (2.0, 6.0, "aac.0")])
+def test_two_controlled_cars_that_must_yield_to_each_other_settle_it_by_who_reaches_the_line_first(unregulated, d_south, d_west,
+                                                                                                    goes):
+    """At an unregulated junction each of two crossing cars yields to the other; standing at their
+    lines, each alone would wait for the other for ever. The one nearer its line (by name when
+    level) goes, the other waits for it, and the cars behind it wait too."""
+    (south, _), (west, _) = lines(unregulated, ["SC", "CN"])[0][0], lines(unregulated, ["WC", "CE"])[0][0]
+    assert any(f.approach == "WC_0" for f in south.foes) and any(f.approach == "SC_0" for f in west.foes)
+    vehicles = {"SC_0": [("aac.0", lane_position(unregulated, "SC_0", d_south), 0.0)],
+                "WC_0": [("aac.1", lane_position(unregulated, "WC_0", d_west), 0.0), ("bg.0", 10.0, 0.0)]}
+    row = RightOfWay(1.0, 1.5)
+    boxes = row.boxes(0.0, {0: [(south, d_south)], 1: [(west, d_west)]}, {}, vehicles, ["aac.0", "aac.1"], np.zeros(2),
+                      np.full(2, 2.0), np.full(2, 4.0), np.full(2, 6.0))
+    held = {box.name.split()[-1] for box in boxes}
+    assert held == {"WC_0" if goes == "aac.0" else "SC_0"}
+
+
+def test_a_controlled_car_that_can_no_longer_stop_is_not_taken_to_give_way(unregulated):
+    (south, _), (west, _) = lines(unregulated, ["SC", "CN"])[0][0], lines(unregulated, ["WC", "CE"])[0][0]
+    vehicles = {"SC_0": [("aac.0", lane_position(unregulated, "SC_0", 2.0), 0.0)],
+                "WC_0": [("aac.1", lane_position(unregulated, "WC_0", 8.0), 12.0)]}  # 12 m/s, 8 m out: 9 m/s^2 to stop
+    row = RightOfWay(1.0, 1.5)
+    boxes = row.boxes(0.0, {0: [(south, 2.0)], 1: [(west, 8.0)]}, {}, vehicles, ["aac.0", "aac.1"], np.array([0.0, 12.0]),
+                      np.full(2, 2.0), np.full(2, 4.0), np.full(2, 6.0))
+    assert {box.name.split()[-1] for box in boxes} == {"SC_0"}  # the standing car waits for the one that must go on

@@ -196,24 +196,51 @@ class RightOfWay:
         return not y.counts or (states[y.tls][y.tl_link] if y.tls else y.state) in MINOR
 
     def arrivals(self, y: YieldLine, states: dict[str, str], vehicles: dict[str, list[tuple[str, float, float]]], me: str,
-                 keep_speed: bool) -> float:
+                 keep_speed: bool, waiting: frozenset[str] = frozenset()) -> float:
         """The earliest time [s from now] a foe of ``y`` reaches its line (0: inside): speeding up
-        as the module says, or ``keep_speed``; inf without foes."""
+        as the module says, or ``keep_speed``; inf without foes. A foe link whose first vehicle is
+        one of ``waiting`` (controlled cars that give way to this one) brings no one: those behind
+        it wait too."""
         first = math.inf
         for foe in y.foes:
             if any(vid != me for lane in foe.inside for vid, _, _ in vehicles.get(lane, ())):
                 return 0.0
             if foe.tls and states[foe.tls][foe.link] in STOPPED:
                 continue
-            for lane, to_line, length in foe.lanes:
-                for vid, pos, speed in vehicles.get(lane, ()):
-                    if vid == me:
-                        continue
-                    room = to_line + max(length - pos, 0.0)
-                    t = room / speed if keep_speed and speed > 0.1 else math.inf if keep_speed else \
-                        travel_time(room, speed, FOE_ACCEL, FOE_SPEED_FACTOR * foe.speed)
-                    first = min(first, t)
+            coming = sorted((to_line + max(length - pos, 0.0), vid, speed) for lane, to_line, length in foe.lanes
+                            for vid, pos, speed in vehicles.get(lane, ()) if vid != me)
+            if coming and coming[0][1] in waiting:
+                continue
+            for room, _, speed in coming:
+                t = room / speed if keep_speed and speed > 0.1 else math.inf if keep_speed else \
+                    travel_time(room, speed, FOE_ACCEL, FOE_SPEED_FACTOR * foe.speed)
+                first = min(first, t)
         return first
+
+    def giving_way(self, nearest: dict[tuple, tuple[int, float]], ylines: dict[tuple, YieldLine], names: list[str],
+                   speeds: np.ndarray, comfort: np.ndarray, hardest: np.ndarray) -> dict[tuple, frozenset[str]]:
+        """Per line, the controlled cars that give way to its first car ``k``: where two links must
+        yield to each other (at an unregulated junction every crossing pair), the car that reaches
+        its line first at ``accel`` goes (ties by name), as SUMO's all-way stops do, and the other
+        waits, if it can still stop before its line (at ``comfort`` [m/s^2], at an unregulated
+        junction ``hardest``, as :meth:`boxes` lets cars through) and was not let through.
+        ``nearest``: per line, its first car and that car's front's distance to it [m]. Without
+        this, two cars facing each other at an unregulated junction each wait for the other."""
+        entries = {}
+        for key, (k, d) in nearest.items():
+            y = ylines[key]
+            entries[key] = (travel_time(d, float(speeds[k]), self.accel, y.speed), names[k])
+        out = {}
+        for key, (k, _) in nearest.items():
+            y, mine = ylines[key], entries[key]
+            out[key] = frozenset(
+                entries[other][1] for other, (j, d) in nearest.items()
+                if other != key and ylines[other].line.tls == y.line.tls and entries[other] > mine
+                and any(foe.approach == y.line.lane for foe in ylines[other].foes)
+                and any(foe.approach == ylines[other].line.lane for foe in y.foes)
+                and speeds[j] ** 2 < 2.0 * (comfort if ylines[other].counts else hardest)[j] * d
+                and j not in self.holds.through.get(other, ()))
+        return out
 
     def boxes(self, t: float, approach: dict[int, list[tuple[YieldLine, float]]], states: dict[str, str],
               vehicles: dict[str, list[tuple[str, float, float]]], names: list[str], speeds: np.ndarray, comfort: np.ndarray,
@@ -236,14 +263,14 @@ class RightOfWay:
                 self.holds.lines.setdefault(key, y.line)
                 seen.setdefault(key, []).append((k, d))
                 self.count(t, k, y, d, states, vehicles, names[k], float(lengths[k]))
-        holding = {}
-        for key, cars in seen.items():
-            y, ahead = ylines[key], [(d, k) for k, d in cars if d >= 0.0]
-            holding[key] = bool(ahead) and self.minor(y, states)
-            if holding[key]:
-                d, k = min(ahead)
-                clear = travel_time(d + (y.s_out - y.s_in) + float(lengths[k]), float(speeds[k]), self.accel, y.speed)
-                holding[key] = self.arrivals(y, states, vehicles, names[k], False) < clear + self.gap
+        nearest = {key: min((d, k) for k, d in cars if d >= 0.0)[::-1] for key, cars in seen.items()
+                   if any(d >= 0.0 for _, d in cars) and self.minor(ylines[key], states)}
+        waiting = self.giving_way(nearest, ylines, names, speeds, comfort, comfort if hardest is None else hardest)
+        holding = dict.fromkeys(seen, False)
+        for key, (k, d) in nearest.items():
+            y = ylines[key]
+            clear = travel_time(d + (y.s_out - y.s_in) + float(lengths[k]), float(speeds[k]), self.accel, y.speed)
+            holding[key] = self.arrivals(y, states, vehicles, names[k], False, waiting[key]) < clear + self.gap
         regulated = {key: cars for key, cars in seen.items() if ylines[key].counts}
         unregulated = {key: cars for key, cars in seen.items() if not ylines[key].counts}
         return (self.holds.boxes(holding, regulated, speeds, comfort, lengths)
