@@ -444,6 +444,22 @@ def test_a_continuation_stands_behind_where_each_vehicle_ahead_on_its_path_can_s
     np.testing.assert_allclose(np.sort(got), expected, atol=1e-6)
 
 
+def test_a_vehicle_beside_a_stretch_of_the_route_already_driven_is_no_place_to_stand_behind():
+    """A route east along y = 0, north up x = 100, then west along y = 50 (a U round a block). A
+    car on the last leg at x = 80 heading west sees a SUMO car ahead of it (west, at x = 40) that
+    drives east on the first leg: nearest to arc 40, which the car passed long ago; it gives no
+    standing point. One in the car's own lane ahead at x = 40 does."""
+    from aac_sumo.references import PathReference
+
+    path = PathReference(np.array([[0.0, 0.0], [100.0, 0.0], [100.0, 50.0], [0.0, 50.0]]), 10.0, stop_at_end=False)
+    beside_first_leg = Obstacle("bg.0", "scripted", np.array([40.0, 0.0]), np.zeros(2), 0.0, 4.5, 1.8)
+    in_lane_ahead = Obstacle("bg.1", "scripted", np.array([40.0, 50.0]), np.zeros(2), np.pi, 4.5, 1.8)
+    here = np.array([80.0, 50.0])
+    for vehicle, expected in ((beside_first_leg, []), (in_lane_ahead, [150.0 + 60.0 - 2.25 - 4.0])):
+        got = standing_points(path, braking_courses([vehicle], 4.5, 0.1), stop_lines([vehicle]), here, np.pi, reach=1.9, gap=4.0)
+        np.testing.assert_allclose(got, expected, atol=1e-6)
+
+
 @settings(max_examples=30, deadline=None)
 @given(gap=st.floats(0.5, 40.0), speed=st.floats(0.0, 20.0), stages=st.integers(1, 60))
 def test_traffic_clearances_are_the_bumper_gaps_to_a_standing_car_ahead_stage_by_stage(gap, speed, stages):

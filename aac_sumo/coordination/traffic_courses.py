@@ -81,7 +81,9 @@ def standing_points(path: PathReference, traffic: list[np.ndarray], lines: np.nd
     stands at the end of its course: the vehicles whose centres are ahead of ``here`` (the robot's
     footprint centre [m]) along ``heading`` [rad] and the stop lines that bind it (:func:`binding`),
     as the check counts them, and whose standing footprints come within
-    ``reach`` [m] of the path (on top of half their width)."""
+    ``reach`` [m] of the path (on top of half their width) ahead of the robot (a vehicle nearest
+    to a stretch of its route it has driven already, say where the route came by earlier, is
+    not a place it must stand behind: that held a car for good just past a junction)."""
     if not traffic:
         return np.empty(0)
     first = np.array([c[0] for c in traffic])
@@ -90,7 +92,7 @@ def standing_points(path: PathReference, traffic: list[np.ndarray], lines: np.nd
     if len(ends) == 0:
         return np.empty(0)
     s, off = path.project_many(ends[:, :2])
-    on = off <= 0.5 * ends[:, 3] + reach
+    on = (off <= 0.5 * ends[:, 3] + reach) & (s >= path.project(here)[0])
     return np.ascontiguousarray(s[on] - 0.5 * ends[on, 2] - gap)
 
 
