@@ -407,6 +407,19 @@ def test_the_tracking_law_comes_within_its_comfort_limit_at_the_steering_rate(sh
         previous, v = applied, v + accel * DT
 
 
+@given(a_up=st.floats(0.5, 3.0))
+def test_the_tracking_law_sets_off_within_a_comfort_bound_when_given_one(a_up):
+    """From standstill on a free lane (10 m/s), the law speeds up at the car's a_max (3 m/s^2)
+    unless given a lower ``a_up``: then at exactly that, and never more."""
+    from aac_sumo.coordination.tracking import track_course
+
+    task = PathReference([[-10.0, 0.0], [500.0, 0.0]], 10.0, stop_at_end=False)
+    free = track_course(CAR, np.zeros(4), task, 10.0, 1.0, 0.0, DT, 5)
+    bounded = track_course(CAR, np.zeros(4), task, 10.0, 1.0, 0.0, DT, 5, a_up=a_up)
+    assert free[0, 0] == pytest.approx(CAR_LIMITS.a_max)
+    np.testing.assert_allclose(bounded[:, 0], min(a_up, CAR_LIMITS.a_max))
+
+
 def test_a_slow_car_yields_to_a_walker_who_reaches_its_path_before_it_has_passed_her():
     """As in the lane change's seed 1 at N = 10, 12.4 s: a car at 2.8 m/s, its front 4.5 m before
     a walker's path, she 5.3 m from its side walking towards it at 1.37 m/s. She is within the

@@ -26,23 +26,26 @@ def track(robot: RobotSpec, state: np.ndarray, task: PathReference, lookahead: f
 
 def track_course(robot: RobotSpec, state: np.ndarray, task: PathReference, lookahead: float, speed_gain: float,
                  previous_steer: float, dt: float, steps: int, offset: float = 0.0, target_speed: float | None = None,
-                 a_lat: float | None = None) -> np.ndarray:
+                 a_lat: float | None = None, a_up: float | None = None) -> np.ndarray:
     """Inputs (steps, 2) of :func:`track` applied for ``steps`` periods from ``state`` under the
-    robot's model (compiled: :func:`~aac_sumo.kernels.tracking_course`)."""
+    robot's model (compiled: :func:`~aac_sumo.kernels.tracking_course`), speeding up at most at
+    ``a_up`` [m/s^2] too when given (a comfort limit)."""
     x, y, h, v = (float(c) for c in state[:4])
-    return tracking_course(x, y, h, v, int(steps), float(dt), *tracking_bounds(robot, a_lat), float(previous_steer), *task.arrays(),
+    return tracking_course(x, y, h, v, int(steps), float(dt), *tracking_bounds(robot, a_lat, a_up), float(previous_steer), *task.arrays(),
                            float(task.speed), float(task.decel),
                            bool(task.stop_at_end), float(task.approach), float(lookahead), float(speed_gain), float(offset),
                            np.nan if target_speed is None else float(target_speed))
 
 
-def tracking_bounds(robot: RobotSpec, a_lat: float | None = None) -> tuple[float, ...]:
+def tracking_bounds(robot: RobotSpec, a_lat: float | None = None, a_up: float | None = None) -> tuple[float, ...]:
     """The robot's model as the compiled tracking law takes it: wheelbase [m], a_min, a_max
-    [m/s^2], steer_max [rad], v_min, v_max [m/s], a_lat_max and the lateral limit it steers
-    within (``a_lat`` [m/s^2] when given and lower), steer_rate_max [rad/s], comfort_decel [m/s^2]."""
+    (``a_up`` [m/s^2] when given and lower) [m/s^2], steer_max [rad], v_min, v_max [m/s], a_lat_max
+    and the lateral limit it steers within (``a_lat`` [m/s^2] when given and lower),
+    steer_rate_max [rad/s], comfort_decel [m/s^2]."""
     lim = robot.model.limits
     comfort = lim.a_lat_max if a_lat is None else min(lim.a_lat_max, a_lat)
-    return tuple(float(b) for b in (robot.model.wheelbase, lim.a_min, lim.a_max, lim.steer_max, lim.v_min, lim.v_max, lim.a_lat_max,
+    a_max = lim.a_max if a_up is None else min(lim.a_max, a_up)
+    return tuple(float(b) for b in (robot.model.wheelbase, lim.a_min, a_max, lim.steer_max, lim.v_min, lim.v_max, lim.a_lat_max,
                                     comfort, lim.steer_rate_max, lim.comfort_decel))
 
 

@@ -35,9 +35,8 @@ from aac_sumo.world import WorldState
 #: Periods a robot whose tracking extension failed the check waits before it tries again.
 EXTENSION_RETRY = 3
 #: With ``cruise`` (a road), a robot without authority renews its continuation every
-#: RENEW_EVERY periods where the new one passes the exact check and takes it further along its
-#: path than its commitment (:data:`~aac_sumo.coordination.aac.queueing.RENEW_GAIN`): a car whose
-#: queue has set off follows it at once.
+#: RENEW_EVERY periods where the new one passes the exact check and takes it further along its path than its
+#: commitment (:data:`~aac_sumo.coordination.aac.queueing.RENEW_GAIN`): a car whose queue has set off follows it at once.
 #: A car slower than its path's speed by more than RENEW_SLOW [m/s] renews every period (a queue
 #: setting off: each car renews after the one ahead of it, front first, in the same period).
 RENEW_EVERY = 5
@@ -361,8 +360,7 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
                 continue
             if self.path(j).heading_free(world.states[j]):
                 continue  # approaching its goal off its path: a manoeuvre for its MPC, not for the forward-only law
-            head = self.tracking_inputs(world, j, cfg.horizon)
-            candidate = self.commitment(world, j, period, head)
+            candidate = self.commitment(world, j, period, self.tracking_inputs(world, j, cfg.horizon, comfort=True))
             gap, blocker = book.check(j, candidate, period, statics)
             if gap >= book.margin:
                 book.replace(j, candidate, period)
@@ -373,11 +371,13 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
                 book.refuse(j, world.states[j], key, blocker, period, statics)
         return extended
 
-    def tracking_inputs(self, world: WorldState, j: int, steps: int) -> np.ndarray:
-        """Inputs (steps, 2) of robot ``j`` following the tracking law from where it is, on its
-        path moved by its keep-right shift of now."""
+    def tracking_inputs(self, world: WorldState, j: int, steps: int, comfort: bool = False) -> np.ndarray:
+        """Inputs (steps, 2) of robot ``j`` following the tracking law from where it is, on its path moved by its keep-right
+        shift of now; with ``comfort``, within the planner's comfort envelope (a course it drives: it set off at 3 m/s^2)."""
+        cfg = self.planner.config
+        up, lat = (cfg.comfort_accel if comfort and cfg.comfort_accel > 0.0 else None), (self.tracking_lat() if comfort else None)
         return track_course(world.robots[j], world.states[j], self.path(j), self.params.lookahead, self.params.speed_gain,
-                            self.last_inputs[j, 1], self.planner.config.dt, steps, self.keep_right_shift(world, j))
+                            self.last_inputs[j, 1], cfg.dt, steps, self.keep_right_shift(world, j), a_lat=lat, a_up=up)
 
     def committed_safety_stop(self, world: WorldState, inputs: np.ndarray, records: list[RobotDecision], period: int,
                               statics: np.ndarray) -> int:
