@@ -7,7 +7,9 @@ when its state says so: ``g`` (green without priority) or ``o`` at a traffic lig
 ``=`` or ``w`` at a junction without one; ``G``, ``O`` and ``M`` have priority, and red or yellow
 is the signal's stop line (:mod:`aac_sumo.experiments.signals`). At an ``unregulated`` junction
 SUMO's drivers yield to no one, so a controlled car yields there to every connection whose way
-crosses or joins its own (nobody yields to it); such a junction counts no violation.
+crosses or joins its own (nobody yields to it); such a junction counts no violation. Two
+controlled cars whose links must yield to each other go in the order they reach their lines
+(:meth:`RightOfWay.giving_way`).
 
 A foe is a vehicle on a prohibiting link's incoming lane (unless its signal shows red) or inside
 the junction on that link's internal lanes. A car approaching a line that must yield sees it as a
