@@ -219,3 +219,23 @@ def test_a_slow_car_cutting_in_where_no_stop_keeps_the_margin_is_met_with_the_st
     assert accels[5] == pytest.approx(-6.0)
     assert min(gaps) > 0.0
 
+
+
+def test_a_nudge_away_from_a_car_standing_beside_sets_off_within_the_comfort_envelope():
+    """Two cars stand side by side 0.2 m apart (the highway's and the city's lock): the nudge
+    that moves the right one away from the left one sets off and steers within the planner's
+    comfort envelope (2 m/s^2, as every course a car drives when not braking for its life; it set
+    off at the car's 3 m/s^2 in the city), and it moves the car away from its neighbour."""
+    tasks = [PathReference([[-50.0, y], [800.0, y]], 10.0, stop_at_end=False) for y in (0.0, 2.0)]
+    config_ = MpcConfig(dt=DT, horizon=10, comfort_accel=2.0, comfort_lat=2.0)
+    aac = AacCoordinator(MpcPlanner(config_), tasks, params=AacParams(commit=True, safety_stop=False, make_room=False, cruise=4.0,
+                                                                      lookahead=10.0, tail_brake=1 / 3))  # tails at 2 m/s^2
+    world = WorldState(0.0, np.array([[0.0, 0.0, 0.0, 0.0], [0.0, 2.0, 0.0, 0.0]]), CARS, [])
+    aac.decide(world)
+    aac.nearest = (0.2, 1)
+    nudge = aac.nudged(world, 0, 1, np.zeros((0, 5)), None)
+    assert nudge is not None
+    assert np.all(np.abs(nudge.inputs[:, 0]) <= 2.0 + 1e-9)
+    lat = nudge.states[:-1, 3] ** 2 * np.abs(np.tan(nudge.inputs[:, 1])) / 2.6
+    assert np.all(lat <= 2.0 + 1e-9)
+    assert nudge.states[-1, 1] < 0.0 and nudge.states[-1, 0] > 0.0

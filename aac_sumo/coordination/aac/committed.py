@@ -371,13 +371,13 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
                 book.refuse(j, world.states[j], key, blocker, period, statics)
         return extended
 
-    def tracking_inputs(self, world: WorldState, j: int, steps: int, comfort: bool = False) -> np.ndarray:
-        """Inputs (steps, 2) of robot ``j`` following the tracking law from where it is, on its path moved by its keep-right
-        shift of now; with ``comfort``, within the planner's comfort envelope (a course it drives: it set off at 3 m/s^2)."""
+    def tracking_inputs(self, world: WorldState, j: int, steps: int, comfort: bool = False, shift: float | None = None) -> np.ndarray:
+        """Inputs (steps, 2) of robot ``j`` on the tracking law from where it is, on its path moved ``shift`` [m] right (its keep-right
+        shift of now by default); with ``comfort``, within the planner's comfort envelope (a course it drives: it set off at 3 m/s^2)."""
         cfg = self.planner.config
         up, lat = (cfg.comfort_accel if comfort and cfg.comfort_accel > 0.0 else None), (self.tracking_lat() if comfort else None)
-        return track_course(world.robots[j], world.states[j], self.path(j), self.params.lookahead, self.params.speed_gain,
-                            self.last_inputs[j, 1], cfg.dt, steps, self.keep_right_shift(world, j), a_lat=lat, a_up=up)
+        return track_course(world.robots[j], world.states[j], self.path(j), self.params.lookahead, self.params.speed_gain, self.last_inputs[j, 1],
+                            cfg.dt, steps, self.keep_right_shift(world, j) if shift is None else shift, a_lat=lat, a_up=up)
 
     def committed_safety_stop(self, world: WorldState, inputs: np.ndarray, records: list[RobotDecision], period: int,
                               statics: np.ndarray) -> int:

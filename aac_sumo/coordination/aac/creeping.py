@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from aac_sumo.coordination.make_room import STILL_SPEED
-from aac_sumo.coordination.tracking import creep_inputs, track_course
+from aac_sumo.coordination.tracking import creep_inputs
 from aac_sumo.world import WorldState
 
 #: Creeping (:meth:`Creeping.creep`): a standing authority whose plan leaves it standing
@@ -29,7 +29,8 @@ NUDGE_NEAR = 0.5
 
 class Creeping:
     """The creeping step of committed AAC (needs the coordinator's ``book``, ``room``,
-    ``fleet``, ``planner``, ``params``, ``last_inputs``, ``commitment``, ``path`` and ``nearest``)."""
+    ``fleet``, ``planner``, ``params``, ``last_inputs``, ``commitment``, ``path``, ``nearest`` and
+    ``tracking_inputs``)."""
 
     def nudged(self, world: WorldState, i: int, period: int, statics: np.ndarray, continuation):
         """Robot ``i``'s ``continuation`` (None: refused), or where it stands and that leaves it
@@ -38,7 +39,8 @@ class Creeping:
         two cars stopped side by side at the margin, one angled into the other's lane where its
         path goes, refused each other's every course, as the angled car's continuation stopped it
         behind the other (the highway, one authority a period, seed 4: from 216 s until the run
-        deadlocked). The nudge is the tracking law's course for the horizon on the robot's path
+        deadlocked). The nudge is the tracking law's course for the horizon, within the comfort
+        envelope (:meth:`tracking_inputs`; it set off at 3 m/s^2 in the city), on the robot's path
         moved to where it stands and ``NUDGE`` [m] further away from that robot, so that it first
         turns away from it (the angled car along the lane it stands in), then its stopping tail."""
         state, (gap, j) = world.states[i], self.nearest
@@ -51,8 +53,7 @@ class Creeping:
         right = (state[0] - x) * np.sin(heading) - (state[1] - y) * np.cos(heading)  # how far right of its path it stands [m]
         d = centres[j] - centres[i]
         left = np.cos(heading) * d[1] - np.sin(heading) * d[0] > 0.0  # the other robot lies to its left
-        head = track_course(world.robots[i], state, path, self.params.lookahead, self.params.speed_gain, self.last_inputs[i, 1], cfg.dt,
-                            cfg.horizon, right + (NUDGE if left else -NUDGE))
+        head = self.tracking_inputs(world, i, cfg.horizon, comfort=True, shift=right + (NUDGE if left else -NUDGE))
         candidate = self.commitment(world, i, period, head)
         return candidate if self.book.clearance(i, candidate, period, statics) >= self.book.margin else continuation
 
