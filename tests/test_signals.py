@@ -100,3 +100,21 @@ def test_a_car_the_yellow_rule_lets_through_reaches_the_line_before_the_yellow_e
     if not held and v * v <= 2.0 * 3.0 * d:  # let through by the gentle rule alone
         assert d / v < yellow - YELLOW_SPARE
         assert v * v > 2.0 * 2.0 * (d - 0.1 * v - 1.0)
+
+
+def test_the_links_of_one_lane_share_its_line_no_box_comes_down_on_a_car_of_another_link():
+    """Lane e_in_0 has two links at one line, 1 (right turn) and 2 (straight). Car 0 turns right
+    and has just crossed the line when both turn yellow; car 1, going straight, is far enough
+    back to stop. The boxes wait until car 0 has cleared the line, then hold car 1."""
+    right = Line("J1", 1, "e_in_0", LINE.point, 0.0)
+    s = Signals()
+
+    def period(state, d0, d1):
+        approach = {0: [(right, d0)], 1: [(LINE, d1)]}
+        return s.boxes({"J1": "r" + state + state + "r"}, approach, np.array([2.0, 10.0]), COMFORT, LENGTHS)
+
+    assert period("G", 0.1, 40.0) == []
+    assert period("y", -0.3, 38.0) == []  # car 0 is over the line: neither box comes down on it
+    held = period("y", -(LENGTHS[0] + BOX_LENGTH) - 0.1, 30.0)
+    assert {b.name for b in held} == {"signal J1 1 e_in_0", "signal J1 2 e_in_0"}
+    assert s.violations == 0

@@ -85,7 +85,10 @@ class Line:
 class Holds:
     """Boxes for stop lines that hold traffic, with the yellow rule: when a line starts to hold, the
     cars that can no longer stop before it at their comfort deceleration go on (``through``), and
-    its box appears once the last of them has passed it."""
+    its box appears once the last of them has passed it. The links of one lane share its line: a
+    box appears only once no car of any of them stands over it or has yet to pass it (the box of a
+    straight link that turned yellow came down on a right-turning car of the same lane that had
+    just crossed the line, which then braked at 5 m/s^2: the city's seed 3, aac.1)."""
 
     def __init__(self, yellow: YellowRule | None = None):
         self.yellow = yellow  # who else goes on at yellow (None: the comfort rule alone)
@@ -98,8 +101,10 @@ class Holds:
         the cars near it and their fronts' distances to it [m] (negative: beyond it); ``speeds``
         [m/s], ``comfort`` decelerations [m/s^2] and ``lengths`` [m] per car; ``amber``: the
         lines that show yellow, to which :attr:`yellow` applies."""
-        out = []
+        covered = set()  # lanes whose line a car stands over or a car let through has yet to pass, whichever link it takes
         for key, cars in seen.items():
+            if any(-(lengths[k] + BOX_LENGTH) < d < 0.0 for k, d in cars):  # a box there would overlap it
+                covered.add(key[2])
             if not holding[key]:
                 self.through.pop(key, None)
                 continue
@@ -107,11 +112,9 @@ class Holds:
                 gentle = self.yellow if key in amber else None
                 self.through[key] = {k for k, d in cars if d >= 0.0 and (speeds[k] ** 2 > 2.0 * comfort[k] * d or (
                     gentle is not None and gentle.goes_on(key[0], float(speeds[k]), d)))}
-            on_line = any(-(lengths[k] + BOX_LENGTH) < d < 0.0 for k, d in cars)  # a box there would overlap it
-            waiting = any(k in self.through[key] and d > -(lengths[k] + BOX_LENGTH) for k, d in cars)
-            if not on_line and not waiting:
-                out.append(self.lines[key].box())
-        return out
+            if any(k in self.through[key] and d > -(lengths[k] + BOX_LENGTH) for k, d in cars):
+                covered.add(key[2])
+        return [self.lines[key].box() for key in seen if holding[key] and key[2] not in covered]
 
 
 class Signals:
