@@ -92,6 +92,7 @@ JOBS = (
     Job("highway_work_zone_committed_seeds5-9", HIGHWAY_COMMITTED + HELD_OUT, SWEEP_OUTPUTS),
     Job("highway_work_zone_one_authority_seeds0-4", HIGHWAY_ONE_AUTHORITY, SWEEP_OUTPUTS),
     Job("city_seeds0-4", CITY, SWEEP_OUTPUTS),
+    Job("city_seeds5-9", CITY + HELD_OUT, SWEEP_OUTPUTS),
     Job("city_grid6_seeds0-4", CITY + ("--set", "sumo.config=../sumo_networks/grid6/grid6.sumocfg"), SWEEP_OUTPUTS),
     Job("bench_mpc", ("bench", "mpc"), (("bench.md", ".md"), ("bench.json", ".json")), parallel=False),
     Job("bench_lane_change_n10", ("bench", "aac", "--scenarios", "lane_change", "--horizons", "10"),
