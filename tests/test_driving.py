@@ -191,6 +191,31 @@ def test_with_brake_a_stop_seen_late_is_met_braking_harder_within_comfort(distan
         assert slowing[0] == pytest.approx(-comfort * DT)
 
 
+@settings(max_examples=60, deadline=None)
+@given(distance=st.floats(20.0, 80.0), speed=st.floats(8.0, 16.0), corner=st.floats(3.0, 7.0))
+def test_a_car_above_its_curve_speeds_comes_down_to_them_as_hard_as_it_needs_within_brake(distance, speed, corner):
+    """A car SUMO inserted at ``speed`` on a straight that ends ``distance`` m ahead in a corner
+    taken at ``corner`` m/s (the path's limits ramp down to it at 1.5 m/s^2, and the car is above
+    that ramp): with ``brake`` = 2 m/s^2 its reference slows at the constant rate that meets the
+    corner's speed (v^2 - corner^2) / 2 distance, at least the comfortable 1.5 and at most 2 m/s^2;
+    without ``brake`` at 1.5 m/s^2, as before. A car on the ramp slows along it."""
+    spacing = 0.5
+    points = np.column_stack([np.arange(0.0, 200.0 + spacing / 2, spacing), np.zeros(401)])
+    caps = np.where(points[:, 0] < distance, 13.89, corner)
+    limits = np.array(caps)
+    for k in range(len(limits) - 2, -1, -1):  # the path's ramp (curve_speeds' backward pass)
+        limits[k] = min(limits[k], np.sqrt(limits[k + 1] ** 2 + 2.0 * 1.5 * spacing))
+    task = PathReference(points, 13.89, stop_at_end=False, limits=limits)
+    for v0 in (speed, float(np.interp(0.0, points[:, 0], limits))):
+        world = WorldState(0.0, np.array([[0.0, 0.0, 0.0, v0]]), [CAR], [])
+        need = (v0**2 - corner**2) / (2.0 * points[caps == corner][0, 0])  # the corner's first point
+        for brake, rate in ((2.0, min(max(need, 1.5), 2.0)), (0.0, 1.5)):
+            speeds = anticipated_reference(world, 0, task, 10, DT, Anticipation(brake=brake))[:, 3]
+            if need > 1.5 + 0.01:  # above the ramp: down at the constant rate
+                np.testing.assert_allclose(np.diff(speeds), -rate * DT, rtol=1e-6)
+            assert np.all(np.diff(speeds) >= -rate * DT * (1.0 + 1e-9 if need > 1.5 + 0.01 else 1.02))  # on the ramp: its stage-by-stage lag
+
+
 def test_a_car_at_the_gap_it_keeps_behind_a_leader_at_its_speed_keeps_that_speed_over_the_horizon():
     """A car at 8 m/s exactly at its stop row (the 2 m standstill gap plus the 1 s time gap) behind a
     leader at 8 m/s: the leader goes on at its speed over the horizon, so the gap stays and the

@@ -23,18 +23,24 @@ def ramped_speeds(s0, v0, steps, dt, decel, accel, brake, stops, speed, path_s, 
     ``v_lead``, so that a gap that has closed opens again at ``decel``). A row that braking at ``decel``
     can no longer meet (seen late: a walker who stepped towards the path) is met braking as
     hard as it needs to come down to its ``v_lead`` within its room (the closing speed squared
-    over twice the room), up to ``brake`` [m/s^2] (``brake <= decel``: never harder than ``decel``)."""
+    over twice the room), up to ``brake`` [m/s^2] (``brake <= decel``: never harder than ``decel``).
+    So is a speed limit ahead that a robot above its path's ``limits`` can no longer meet at
+    ``decel`` (:func:`limit_rate`: a car SUMO inserted at speed shortly before a corner)."""
     s = np.empty(steps + 1)
     v = np.empty(steps + 1)
     s[0], v[0] = s0, max(v0, 0.0)
+    onto_limits = limit_rate(s0, v[0], decel, brake, path_s, limits)
     for k in range(steps + 1):
         if k:
             target = speed
+            rate = decel
             if limits.shape[0]:
-                target = min(target, np.interp(s[k], path_s, limits))
+                limit = np.interp(s[k], path_s, limits)
+                target = min(target, limit)
+                if v[k - 1] > limit:
+                    rate = onto_limits
             if stop_at_end:
                 target = min(target, math.sqrt(2.0 * path_decel * max(length - s[k], 0.0)))
-            rate = decel
             for r in range(stops.shape[0]):
                 ahead = stops[r, 0] + stops[r, 1] * k * dt - s[k]  # what moves goes on at its speed
                 room = max(ahead, 0.0)
@@ -48,6 +54,29 @@ def ramped_speeds(s0, v0, steps, dt, decel, accel, brake, stops, speed, path_s, 
         if k < steps:
             s[k + 1] = s[k] + v[k] * dt
     return s, v
+
+
+@numba.njit(cache=True)
+def limit_rate(s0, v0, decel, brake, path_s, limits):
+    """The constant deceleration [m/s^2] with which a robot at arc length ``s0`` [m] and speed
+    ``v0`` [m/s] comes down to every speed limit of ``limits`` over ``path_s`` ahead of it:
+    ``decel``, or where that is too gentle (the robot is above the ramps that lead down to
+    them), as hard as it needs up to ``brake``: the largest ``(v0^2 - limit^2) / 2 d`` over the
+    limits' low points (where they stop falling) ``d`` [m] ahead within its stopping distance
+    at ``decel``. (On a ramp it is above, the point nearest it would ask for more: it meets the
+    ramp further on, at its steeper rate.)"""
+    rate = decel
+    if brake <= decel or limits.shape[0] == 0:
+        return rate
+    reach = v0 * v0 / (2.0 * decel)
+    last = path_s.shape[0] - 1
+    for j in range(np.searchsorted(path_s, s0, side="right"), last + 1):
+        d = path_s[j] - s0
+        if d > reach:
+            break
+        if limits[j - 1] > limits[j] and (j == last or limits[j + 1] >= limits[j]):
+            rate = max(rate, min(brake, (v0 * v0 - limits[j] * limits[j]) / (2.0 * d)))
+    return rate
 
 
 #: A walker moving away from a robot's path faster than this [m/s] is not taken to step back towards it.
