@@ -306,27 +306,3 @@ def test_a_junction_whose_internal_lane_has_no_length_is_passed_as_the_lanes_mee
     assert_smooth(route.points)
     (span,) = [j for j in route.junctions if j.junction == "bottom1"]
     assert span.s_out - span.s_in < 1.0
-
-
-def test_a_corner_drawn_tighter_than_the_car_turns_is_eased_within_the_lanes():
-    """grid6's junctions are 5.6 m corners that the old netconvert drew in five points; the spline
-    through them turns at 2.9-3.2 m radius, tighter than a car with a 3.8 m smallest turn. With
-    that turn as ``max_curvature`` the path turns no tighter, its curvature rises no faster, it lies within 0.3 m
-    of the path without it (0.4 m of the lanes' shapes where those lie within 0.25 m of it), and
-    is the same path wherever it was not too tight."""
-    net = read(Path(sumo.__file__).parent / "tools" / "game" / "grid6" / "grid6.net.xml")
-    edges = ["right_in", "gneE25", "right0to2/0", "2/0to1/0", "1/0to1/1", "1/1to2/1", "2/1to2/0", "2/0tobottom2", "gneE30", "bottom_out"]
-    smallest = 3.8  # [m]
-    plain, eased = path(net, edges, s0=0.0), path(net, edges, s0=0.0, max_curvature=1.0 / smallest)
-    tight = np.abs(plain.curvature) > 1.0 / smallest
-    assert tight.any()
-    assert np.abs(eased.curvature).max() <= 1.0 / smallest
-    assert distance(eased.points, [plain.points]).max() < 0.3
-    on_lanes = distance(plain.points, followed(net, plain)) < 0.25  # not mid-change
-    assert distance(eased.points[on_lanes], followed(net, eased)).max() < 0.4
-    spacing = np.hypot(*np.diff(eased.points, axis=0).T)
-    assert np.abs(np.diff(headings(eased.points))).max() <= 1.05 * spacing.max() / smallest  # its points turn as its curvature says
-    assert np.abs(np.diff(eased.curvature)).max() <= np.abs(np.diff(plain.curvature)).max()  # no jump: it rises no faster than before
-    far = np.convolve(tight, np.ones(41), mode="same") == 0  # 10 m (20 points) either side of a tight point
-    np.testing.assert_array_equal(eased.points[far], plain.points[far])
-    np.testing.assert_array_equal(eased.curvature[far], plain.curvature[far])

@@ -125,7 +125,7 @@ class CityCars:
         start = int(np.argmin([shape.project(state[:2])[1] for shape in shapes]))
         s0 = shapes[start].project(state[:2])[0]
         try:
-            path = city_path(self.net, self.edges[k], start, s0, self.p, self.scenario)
+            path = city_path(self.net, self.edges[k], start, s0, self.p, self.scenario["robot.a_lat_max"])
         except ValueError as exc:
             raise ScenarioError(self.scenario.source, KEYS, f"routes a controlled car can drive ({robot.name}: {exc})") from None
         self.tasks[k] = PathReference(path.points, self.p.speed, stop_at_end=False, limits=path.limits)
@@ -182,17 +182,11 @@ class CityCars:
         return self.done.copy()
 
 
-def city_path(net, edges, start: int, s0: float, p: CityParams, scenario: Scenario):
+def city_path(net, edges, start: int, s0: float, p: CityParams, a_lat_max: float):
     """The way (:func:`~aac_sumo.experiments.junction_routes.route_path`) of a car on the route
-    ``edges`` from lane ``start`` of the first, ``s0`` [m] into it, as ``p`` asks, with corners no
-    tighter than the car turns where a looser fit allows; ValueError where there is none."""
-    return route_path(net, route_legs(net, list(edges), start), s0, min(p.curve_lat_accel, scenario["robot.a_lat_max"]), p.change_start,
-                      p.change_length, tightest_turn(scenario))
-
-
-def tightest_turn(scenario: Scenario) -> float:
-    """The curvature [1/m] of the controlled car's tightest turn: tan ``robot.steer_max`` / ``robot.wheelbase``."""
-    return float(np.tan(scenario["robot.steer_max"]) / scenario["robot.wheelbase"])
+    ``edges`` from lane ``start`` of the first, ``s0`` [m] into it, as ``p`` asks; ValueError where
+    there is none."""
+    return route_path(net, route_legs(net, list(edges), start), s0, min(p.curve_lat_accel, a_lat_max), p.change_start, p.change_length)
 
 
 def drivable(scenario: Scenario, net, vehicles: list) -> list:
@@ -205,14 +199,14 @@ def drivable(scenario: Scenario, net, vehicles: list) -> list:
     ``aac-sumo net trips``, may hold a turn too close behind the last, or a corner drawn sharper
     than a car can turn); an exit-2 error when none is left."""
     p, out, refused = from_section(CityParams, scenario, SECTION), [], []
-    tightest = tightest_turn(scenario)
+    tightest = float(np.tan(scenario["robot.steer_max"]) / scenario["robot.wheelbase"])  # [1/m]
     span = max(1, int(round(2.0 * scenario["robot.length"] / SAMPLE_STEP)))  # points over two car lengths
     for v in vehicles:
         edges = list(route_edges(scenario, net, v))
         reasons = []
         for start in range(len(network.car_lanes(net.getEdge(edges[0])))):
             try:
-                path = city_path(net, edges, start, 0.0, p, scenario)
+                path = city_path(net, edges, start, 0.0, p, scenario["robot.a_lat_max"])
             except ValueError as exc:
                 reasons.append(str(exc))
                 continue

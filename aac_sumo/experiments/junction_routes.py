@@ -31,10 +31,6 @@ from aac_sumo.references import curve_speeds, smooth_path
 #: of up to 0.5 rad) by at most 0.16 m on 90-degree turns of 10 m radius, 0.23 m on 4 m ones, and
 #: wanders up to 0.06 m off straight lanes; at 0.03 its curvature jumps at their corners.
 SMOOTH_TOLERANCE = 0.04
-#: A corner tighter than the car turns is eased within this many path points (of about
-#: ``SAMPLE_STEP``) of its tight points, for at most ``EASE_ROUNDS`` rounds (:func:`_ease`).
-EASE_SPAN = 4
-EASE_ROUNDS = 200
 #: Stop lines and junction borders are looked for this far either side of where the lanes'
 #: bookkeeping puts them on the path [m] (a route may cross itself at a junction it passes twice).
 PROJECTION_WINDOW = 5.0
@@ -230,57 +226,23 @@ def _project(points: np.ndarray, arc: np.ndarray, point: np.ndarray, near: float
     return float(arc[seg[k]] + t[k] * (arc[seg[k] + 1] - arc[seg[k]]))
 
 
-def _smooth(line: np.ndarray, max_curvature: float = np.inf) -> tuple[np.ndarray, np.ndarray, float]:
+def _smooth(line: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """The curvature-continuous path (N + 1, 2) [m] along polyline ``line`` (points at most
     ``SAMPLE_STEP`` apart), its curvature (N + 1,) [1/m], and its spacing [m], the N-th part of
     ``line``'s length: ``smooth_path`` of ``line`` fitted with ``SMOOTH_PAD`` of straight lead-in and
     run-on (a spline's free ends wander: 0.03 m and 1 degree off a straight lane 80 m before a
     turn), which are then dropped. The spline's parameter is the arc length along ``line``: point
-    k lies next to ``line``'s point k steps along it. Corners tighter than ``max_curvature``
-    [1/m] are then eased (:func:`_ease`)."""
+    k lies next to ``line``'s point k steps along it."""
     length = _arc(line)[-1]
     n = int(np.ceil(length / SAMPLE_STEP))
     step = length / n
     pad = np.arange(1, int(np.ceil(SMOOTH_PAD / step)) + 1)[:, None] * step
     first, last = ((b - a) / np.hypot(*(b - a)) for a, b in ((line[0], line[1]), (line[-2], line[-1])))
     points, curvature = smooth_path(np.vstack([line[0] - pad[::-1] * first, line, line[-1] + pad * last]), step, SMOOTH_TOLERANCE)
-    points, curvature = _ease(points, curvature, max_curvature)
     return points[len(pad): len(pad) + n + 1], curvature[len(pad): len(pad) + n + 1], step
 
 
-def _ease(points: np.ndarray, curvature: np.ndarray, max_curvature: float) -> tuple[np.ndarray, np.ndarray]:
-    """``points`` (K, 2) [m] of a path with ``curvature`` (K,) [1/m], eased where it turns tighter
-    than ``max_curvature`` (a car's smallest turn: netconvert draws a small junction's corner in a
-    few points, and the spline through them may turn tighter than the lane as a whole): within
-    ``EASE_SPAN`` points of each such point, each point moves halfway towards the midpoint of its
-    neighbours, round after round (at most ``EASE_ROUNDS``), which takes the corner wider where it
-    is tightest, a little inside the lane's shape; the curvature there is then the three-point
-    (Menger) curvature. Elsewhere the path and its curvature stay as they are."""
-    if not np.abs(curvature).max() > max_curvature:
-        return points, curvature
-    points, curvature = points.copy(), curvature.copy()
-    window = np.ones(2 * EASE_SPAN + 1)
-    for _ in range(EASE_ROUNDS):
-        over = np.abs(curvature) > max_curvature
-        if not over.any():
-            break
-        region = np.convolve(over, window, mode="same") > 0
-        region[[0, -1]] = False
-        idx = np.flatnonzero(region)
-        points[idx] += 0.5 * (0.5 * (points[idx - 1] + points[idx + 1]) - points[idx])
-        curvature[idx] = _menger(points[idx - 1], points[idx], points[idx + 1])
-    return points, curvature
-
-
-def _menger(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
-    """Signed curvature [1/m] of the circle through points ``a``, ``b``, ``c`` (K, 2) (positive: turning left)."""
-    ab, bc, ca = b - a, c - b, a - c
-    cross = ab[:, 0] * bc[:, 1] - ab[:, 1] * bc[:, 0]
-    return 2.0 * cross / np.maximum(np.hypot(*ab.T) * np.hypot(*bc.T) * np.hypot(*ca.T), 1e-12)
-
-
-def route_path(net, legs: list[Leg], s0: float, a_lat: float, change_start: float, change_length: float,
-               max_curvature: float = np.inf) -> RoutePath:
+def route_path(net, legs: list[Leg], s0: float, a_lat: float, change_start: float, change_length: float) -> RoutePath:
     """The path along ``legs`` from arc length ``s0`` [m] of the first leg's arrive lane (along its
     shape: SUMO's lane positions run along ``getLength()``, which may differ) to the end of the last
     edge's lane, through the junctions' internal lanes: ``smooth_path`` of the lanes' shapes sampled
@@ -288,8 +250,7 @@ def route_path(net, legs: list[Leg], s0: float, a_lat: float, change_start: floa
     its arrive lane onto its leave lane, beginning ``change_start`` [m] after the edge's start (after
     ``s0`` on the first edge), ``change_length`` [m] per lane crossed, cut short to end
     ``change_start`` before the edge's end. ``limits`` caps the speed at each lane's limit and at
-    ``a_lat`` [m/s^2] of lateral acceleration, lowered ahead of each cap at ``CURVE_DECEL``. Its
-    corners are no tighter than ``max_curvature`` [1/m] where a looser fit allows (:func:`_smooth`).
+    ``a_lat`` [m/s^2] of lateral acceleration, lowered ahead of each cap at ``CURVE_DECEL``.
     ``ValueError`` where ``s0`` does not lie on the first lane, or a change would be cut to less
     than half its length."""
     first = car_lanes(net.getEdge(legs[0].edge))[legs[0].arrive]
@@ -315,7 +276,7 @@ def route_path(net, legs: list[Leg], s0: float, a_lat: float, change_start: floa
     speed = np.concatenate([np.full(len(p.points), p.speed) for p in pieces])[keep]
     right, left = (np.vstack([getattr(p, side) for p in pieces])[keep] for side in ("right", "left"))
 
-    points, curvature, step = _smooth(line, max_curvature)
+    points, curvature, step = _smooth(line)
     s_raw = np.arange(len(points)) * step  # point k is the spline at the shapes' arc length k * step
     i = np.clip(np.searchsorted(arc, s_raw, side="right") - 1, 0, len(arc) - 2)
     t = np.clip((s_raw - arc[i]) / (arc[i + 1] - arc[i]), 0.0, 1.0)
