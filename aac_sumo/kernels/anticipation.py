@@ -70,7 +70,7 @@ def limit_rate(s0, v0, decel, brake, path_s, limits):
         return rate
     reach = v0 * v0 / (2.0 * decel)
     last = path_s.shape[0] - 1
-    for j in range(np.searchsorted(path_s, s0, side="right"), last + 1):
+    for j in range(max(np.searchsorted(path_s, s0, side="right"), 1), last + 1):
         d = path_s[j] - s0
         if d > reach:
             break
