@@ -202,9 +202,7 @@ def test_a_car_above_its_curve_speeds_comes_down_to_them_as_hard_as_it_needs_wit
     spacing = 0.5
     points = np.column_stack([np.arange(0.0, 200.0 + spacing / 2, spacing), np.zeros(401)])
     caps = np.where(points[:, 0] < distance, 13.89, corner)
-    limits = np.array(caps)
-    for k in range(len(limits) - 2, -1, -1):  # the path's ramp (curve_speeds' backward pass)
-        limits[k] = min(limits[k], np.sqrt(limits[k + 1] ** 2 + 2.0 * 1.5 * spacing))
+    limits = curve_speeds(np.zeros(len(points)), spacing, caps, 1.0, 1.5)  # straight: the caps, ramped down to at 1.5 m/s^2
     task = PathReference(points, 13.89, stop_at_end=False, limits=limits)
     for v0 in (speed, float(np.interp(0.0, points[:, 0], limits))):
         world = WorldState(0.0, np.array([[0.0, 0.0, 0.0, v0]]), [CAR], [])
