@@ -217,3 +217,40 @@ def test_a_stalled_robot_replans_only_when_the_standing_set_near_its_detour_chan
     run(30, 31)
     assert detours.path(0) is not first
     assert polyline_distance(detours.path(0).points, np.array([[*states[2, :2], 0.6, 0.4, np.pi]])) >= HARD - CELL
+
+
+@settings(max_examples=10, deadline=None)
+@given(seed=st.integers(0, 10_000), workers=st.integers(2, 4))
+def test_detours_planned_on_threads_are_those_planned_one_by_one(seed, workers):
+    """A period's detours are planned round what stood at its start, so threads change nothing."""
+    rng = np.random.default_rng(seed)
+    parked = rng.uniform(-2.0, 2.0, (4, 2))
+    tasks = [PathReference([[-4.0, y], [4.0, -y]], 1.0, approach=0.6) for y in np.linspace(-2.0, 2.0, 6)]
+    tasks += [PathReference([p + 3.0, p], 1.0, approach=0.6) for p in parked]
+    states = np.array([[*t.points[0], 0.0, 0.0] for t in tasks[:6]] + [[*p, 0.0, 0.0] for p in parked])
+    footprints = np.column_stack([states[:, :2], np.full(len(states), 0.6), np.full(len(states), 0.4), states[:, 2]])
+    done = np.arange(len(states)) >= 6
+    debris = random_rects(rng, 3)
+    plans = []
+    for count in (1, workers):
+        detours = Detours(tasks, stall_periods=10, check_periods=10, hard=HARD, clearance=CLEARANCE, cell=CELL, workers=count)
+        detours.update(states, footprints, done, done, debris, period=0)
+        plans.append([None if r is None else r.points for r in detours.routes])
+    assert sum(p is not None for p in plans[0]) >= 1
+    for one, many in zip(*plans):
+        assert (one is None) == (many is None)
+        if one is not None:
+            np.testing.assert_array_equal(one, many)
+
+
+def test_one_and_two_workers_drive_the_random_crossing_alike(monkeypatch):
+    """controller.workers changes how fast a period is decided, not what is decided."""
+    import aac_sumo.coordination.detour as detour
+
+    calls = []
+    plan = detour.plan_detour
+    monkeypatch.setattr(detour, "plan_detour", lambda *args: calls.append(1) or plan(*args))
+    runs = [runner.run(config.load("random_crossing", ["scenario.duration=10", f"controller.workers={w}"])) for w in (1, 2)]
+    assert len(calls) >= 20  # both runs planned detours
+    first, second = (r.trajectories for r in runs)
+    assert first.equals(second)

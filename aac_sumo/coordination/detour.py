@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from aac_sumo.coordination.threads import thread_map
 from aac_sumo.geometry import rect_distances
 from aac_sumo.kernels.detours import band_costs, distance_field, grid_path, rects_within, shortcut
 from aac_sumo.references import PathReference
@@ -90,11 +91,13 @@ class Detours:
     goal, a robot on a detour whose straight segment (rear axle to goal) keeps ``hard`` from
     every standing footprint goes straight there instead. A robot that has finished drops its
     detour. A detour keeps its task's speed, braking, goal approach and
-    turning radius."""
+    turning radius. A period's detours are planned on up to ``workers`` threads (0: one per
+    core), each round what stood at the period's start: the same detours on any count."""
 
     def __init__(self, tasks: list[PathReference], stall_periods: int, check_periods: int, hard: float, clearance: float,
-                 cell: float):
+                 cell: float, workers: int = 1):
         self.tasks = tasks
+        self.workers = workers
         self.stall_periods, self.check_periods = stall_periods, check_periods
         self.hard, self.clearance, self.cell = hard, clearance, cell
         self.routes: list[PathReference | None] = [None] * len(tasks)
@@ -129,6 +132,7 @@ class Detours:
         on_detour = np.array([route is not None for route in self.routes], dtype=bool) & ~self.final
         stalled_now = (self.still >= self.stall_periods) & (self.still % self.stall_periods == 0)
         due = (on_detour & (gap <= FINAL)) | stalled_now | (period >= self.next_check)  # the others have nothing to do
+        jobs = []  # (robot, its standing footprints) to plan, each from what stood at this period's start
         for i in np.flatnonzero(~done & ~parked & due):
             if on_detour[i] and gap[i] <= FINAL:
                 rects = standing_but(i)
@@ -145,7 +149,10 @@ class Detours:
             rects = standing_but(i)
             if self.keeps(i, states[i], footprints[i, :2], rects[self.near(i, states[i], rects)], stalled):
                 continue
-            waypoints = plan_detour(footprints[i, :2], self.goals[i], rects, self.hard, self.clearance, self.cell)
+            jobs.append((i, rects))
+        plans = thread_map(lambda job: plan_detour(footprints[job[0], :2], self.goals[job[0]], job[1], self.hard, self.clearance,
+                                                   self.cell), jobs, self.workers)
+        for (i, rects), waypoints in zip(jobs, plans):
             if waypoints is not None and len(waypoints) >= 2:
                 self.routes[i], self.final[i] = self.route(i, waypoints), False
                 self.basis[i] = (footprints[i, :2].copy(), rects)

@@ -1,5 +1,6 @@
 """Compiled loops of the detour planner (:mod:`aac_sumo.coordination.detour`): the distance field, its
-costs, the cheapest grid path (A*) and its shortcut.
+costs, the cheapest grid path (A*) and its shortcut. They release Python's lock (``nogil``), so that
+the detours of one period are planned on several threads.
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import numpy as np
 from aac_sumo.kernels.geometry import point_rect_distance
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def grid_path(cost, start, goal):
     """Cheapest 8-connected path of cells from ``start`` to ``goal`` (row, column) over the cell
     costs ``cost`` (rows, columns) [per cell side], each at least 1 (inf: blocked); a step's
@@ -75,7 +76,7 @@ def _rect_distance(px, py, rect, c, s):
     return max(point_rect_distance(px, py, rect[0], rect[1], c, s, rect[2], rect[3]), 0.0)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def distance_field(lo, cell, rows, cols, rects, reach):
     """Distance [m] from the centre of each cell (``rows``, ``cols``) of the grid whose first cell
     centre is ``lo`` (2,) [m] and whose side is ``cell`` [m] to the nearest of ``rects`` (m, 5),
@@ -101,7 +102,7 @@ def distance_field(lo, cell, rows, cols, rects, reach):
     return dist
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def band_costs(dist, hard, clearance, penalty):
     """Cell costs (rows, cols) from the distances ``dist`` [m] to the nearest footprint: 1 at
     ``clearance`` or beyond, rising linearly to ``1 + penalty`` at ``hard``, inf (blocked) below
@@ -115,7 +116,7 @@ def band_costs(dist, hard, clearance, penalty):
     return out
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def shortcut(path, kept, rects, hard, cell, samples):
     """Indices (J,) of the corners of ``path`` (K, 2) [m] it needs: from each kept point on, the
     farthest later point up to which the straight segment, sampled ``samples`` times per ``cell``

@@ -83,6 +83,8 @@ class MpcConfig:
     terminal_scale: float = param(5.0, "terminal weight P = terminal_scale * Q", **NN)
     max_iter: int = param(100, "iteration cap per solve", check=lambda n: 1 <= n <= 100_000, expect="in 1..100000")
     max_cpu_time: float = param(60.0, "CPU-time cap per ipopt solve [s]; keep it above what max_iter allows, or results depend on machine speed", **P)
+    workers: int = param(0, "threads for the coordinator's work that runs without Python's lock (committed plans' detours); "
+                         "0 = one per core; the decisions are the same for any count", check=lambda n: n >= 0, expect="at least 0")
     dt: float = param(0.1, "control period [s]", key="scenario.dt")
     band: bool = param(False, "build the problem with the lateral-band rows a LateralBand corridor needs", internal=True)
 

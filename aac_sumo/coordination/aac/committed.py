@@ -114,7 +114,7 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
             if self.detours is None:
                 hard = 0.5 * float(np.max(fleet.width)) + self.params.commit_margin
                 self.detours = Detours(self.tasks, int(round(self.params.stall_time / cfg.dt)), int(round(DETOUR_CHECK / cfg.dt)),
-                                       hard, max(self.params.detour_clearance, hard), DETOUR_CELL)
+                                       hard, max(self.params.detour_clearance, hard), DETOUR_CELL, cfg.workers)
             self.detours.update(world.states, world.robot_footprints(), done, parked, statics, period)
         if self.params.keep_right > 0.0:
             slow = np.abs(world.states[:, 3]) < SLOW_SHARE * np.array([t.speed for t in self.tasks])
