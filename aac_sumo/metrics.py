@@ -11,6 +11,7 @@ from aac_sumo.config.keys import NN, P
 from aac_sumo.config.schema import param, section
 from aac_sumo.geometry import pairwise_rect_clearance, rect_corners
 from aac_sumo.kernels.metrics import times_to_collision
+from aac_sumo.neighbours import nearest_distances
 from aac_sumo.world import WorldState
 
 @section("metrics")
@@ -68,10 +69,7 @@ def nearest_robot_distance(world: WorldState) -> np.ndarray:
     scripted robot such as the braking lead), inf if there is none."""
     centres = world.robot_centres()
     others = [o.centre for o in world.obstacles if o.kind in ROBOT_KINDS]
-    pts = np.vstack([centres] + ([np.array(others)] if others else []))
-    d = np.hypot(*(centres[:, None, :] - pts[None, :, :]).transpose(2, 0, 1))
-    d[np.arange(len(centres)), np.arange(len(centres))] = np.inf
-    return d.min(axis=1) if d.size else np.full(len(centres), np.inf)
+    return nearest_distances(centres, np.vstack([centres] + ([np.array(others)] if others else [])))
 
 
 def pedestrian_clearance(world: WorldState) -> np.ndarray:

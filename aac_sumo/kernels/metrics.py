@@ -50,6 +50,35 @@ def sweep_gap(a, b, dx, dy):
 
 
 @numba.njit(cache=True)
+def _pair_time(rows, velocity, radius, i, j, hx, hy):
+    """The time to collision [s] of robot ``i`` (heading cosine and sine ``hx``, ``hy``) with
+    ``j`` as :func:`times_to_collision` counts it (inf when it does not count); ``radius``: each
+    row's half diagonal [m]."""
+    wx, wy = velocity[i, 0] - velocity[j, 0], velocity[i, 1] - velocity[j, 1]
+    if wx * hx + wy * hy <= 1e-6:
+        return np.inf
+    closing = math.hypot(wx, wy)
+    if closing <= 1e-6:
+        return np.inf
+    ux, uy = wx / closing, wy / closing
+    # each footprint lies within its half diagonal of its centre: farther off the line of the
+    # sweep, or behind it, the two never touch
+    dx, dy = rows[j, 0] - rows[i, 0], rows[j, 1] - rows[i, 1]
+    reach = radius[i] + radius[j] + 1e-9
+    if abs(dx * uy - dy * ux) > reach or dx * ux + dy * uy < -reach:
+        return np.inf
+    return sweep_gap(rows[i], rows[j], ux, uy) / closing
+
+
+@numba.njit(cache=True)
+def _half_diagonals(rows):
+    out = np.empty(rows.shape[0])
+    for k in range(rows.shape[0]):
+        out[k] = 0.5 * math.hypot(rows[k, 2], rows[k, 3])
+    return out
+
+
+@numba.njit(cache=True, parallel=True)
 def times_to_collision(rows, velocity, n):
     """Per robot i < n, the least time to collision [s] with the others: footprint rows ``rows``
     (M, 5) ``[cx, cy, length, width, heading]`` and velocities ``velocity`` (M, 2) [m/s] of
@@ -57,17 +86,12 @@ def times_to_collision(rows, velocity, n):
     velocity is ``w = velocity[i] - velocity[j]``; j counts when ``w`` points ahead of robot i
     (positive along its heading, so i is the one driving into j) and i's footprint, translated
     along ``w``, touches j's: TTC = :func:`sweep_gap` along ``w`` / ``|w|``. inf when nothing
-    counts."""
-    m = rows.shape[0]
+    counts. The robots are shared out among numba's threads (each value is its own loop's)."""
+    radius = _half_diagonals(rows)
     out = np.full(n, np.inf)
-    for i in range(n):
+    for i in numba.prange(n):
         hx, hy = math.cos(rows[i, 4]), math.sin(rows[i, 4])
-        for j in range(m):
-            if j == i:
-                continue
-            wx, wy = velocity[i, 0] - velocity[j, 0], velocity[i, 1] - velocity[j, 1]
-            closing = math.hypot(wx, wy)
-            if closing <= 1e-6 or wx * hx + wy * hy <= 1e-6:
-                continue
-            out[i] = min(out[i], sweep_gap(rows[i], rows[j], wx / closing, wy / closing) / closing)
+        for j in range(rows.shape[0]):
+            if j != i:
+                out[i] = min(out[i], _pair_time(rows, velocity, radius, i, j, hx, hy))
     return out

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from aac_sumo.geometry import pairwise_rect_clearance
+from aac_sumo.neighbours import least_clearances
 from aac_sumo.world import Crossing, WorldState
 
 
@@ -34,16 +34,15 @@ class ContactReport:
 
 
 def footprint_contacts(world: WorldState) -> ContactReport:
-    """Exact footprint clearances of controlled robots against robots and obstacles."""
+    """Exact footprint clearances of controlled robots against robots and obstacles (every pair
+    that could be the nearest or overlap: :func:`~aac_sumo.neighbours.least_clearances`)."""
     robots = world.robot_footprints()
     names = [r.name for r in world.robots]
     others = np.vstack([robots] + [o.footprint()[None, :] for o in world.obstacles])
     other_names = names + [o.name for o in world.obstacles]
-    gaps = pairwise_rect_clearance(robots, others)
-    n = len(names)
-    gaps[np.arange(n), np.arange(n)] = np.inf
-    overlaps = {tuple(sorted((names[i], other_names[j]))) for i, j in zip(*np.nonzero(gaps < 0))}
-    return ContactReport(gaps.min(axis=1) if gaps.shape[1] else np.full(n, np.inf), overlaps)
+    least, pairs = least_clearances(robots, others)
+    overlaps = {tuple(sorted((names[i], other_names[j]))) for i, j in pairs}
+    return ContactReport(least, overlaps)
 
 
 def agent_rows(world: WorldState) -> list[dict]:
