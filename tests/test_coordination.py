@@ -184,6 +184,24 @@ def test_compiled_trees_grow_as_the_nearest_node_rule_says(seed, step):
     np.testing.assert_allclose(cost, want_cost, rtol=1e-12, atol=1e-12)
 
 
+
+@settings(max_examples=30, deadline=None)
+@given(seed=st.integers(0, 100_000))
+def test_blockers_out_of_every_trees_reach_change_no_cost_to_the_bit(seed):
+    """A blocker farther than its radius from every point a tree can grow to adds nothing: the
+    trees and their costs are those grown without it, exactly."""
+    from aac_sumo.kernels.proximity import grow_trees
+
+    rng = np.random.default_rng(seed)
+    starts, samples = rng.uniform(-5, 5, (3, 2)), rng.uniform(-8, 8, (3, 25, 2))
+    blockers, radius = rng.uniform(-5, 5, (7, 2)), rng.uniform(0.5, 3.0, 7)
+    far = np.column_stack([rng.uniform(12, 40, 20) * rng.choice([-1, 1], 20), rng.uniform(-40, 40, 20)])
+    foreign = rng.random((3, 27)) < 0.7
+    near = grow_trees(starts, samples, blockers, radius, foreign[:, :7], 0.7)
+    both = grow_trees(starts, samples, np.vstack([blockers, far]), np.r_[radius, np.full(20, 3.0)], foreign, 0.7)
+    np.testing.assert_array_equal(near[0], both[0])
+    np.testing.assert_array_equal(near[1], both[1])
+
 # --- AAC: round robin, candidates, safety stop ------------------------------------------------
 
 

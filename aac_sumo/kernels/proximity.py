@@ -21,8 +21,19 @@ def grow_trees(starts, samples, blockers, blocker_radius, foreign, step):
     r_count, k_count = samples.shape[0], samples.shape[1]
     nodes = np.empty((r_count, k_count + 1, 2))
     path_cost = np.zeros((r_count, k_count + 1))
+    near_blockers = np.empty(blockers.shape[0], dtype=np.int64)
     for r in range(r_count):
         nodes[r, 0, 0], nodes[r, 0, 1] = starts[r, 0], starts[r, 1]
+        # every node lies between the root and a sample, so in their box: a blocker farther from
+        # the box than its radius adds 0 to every node's cost, and is left out of the sums
+        x_lo, x_hi = min(starts[r, 0], samples[r, :, 0].min()), max(starts[r, 0], samples[r, :, 0].max())
+        y_lo, y_hi = min(starts[r, 1], samples[r, :, 1].min()), max(starts[r, 1], samples[r, :, 1].max())
+        count = 0
+        for b in range(blockers.shape[0]):
+            gap = math.hypot(max(x_lo - blockers[b, 0], blockers[b, 0] - x_hi, 0.0), max(y_lo - blockers[b, 1], blockers[b, 1] - y_hi, 0.0))
+            if foreign[r, b] and gap < blocker_radius[b] + 1e-9:
+                near_blockers[count] = b
+                count += 1
         for it in range(k_count):
             sx, sy = samples[r, it, 0], samples[r, it, 1]
             near, best = 0, np.inf
@@ -37,10 +48,10 @@ def grow_trees(starts, samples, blockers, blocker_radius, foreign, step):
             scale = step / max(length, 1e-12) if length > step else 1.0
             nx, ny = qx + scale * dx, qy + scale * dy
             cost = 0.0
-            for b in range(blockers.shape[0]):
-                if foreign[r, b]:
-                    closeness = max(1.0 - math.hypot(nx - blockers[b, 0], ny - blockers[b, 1]) / blocker_radius[b], 0.0)
-                    cost += closeness * closeness
+            for e in range(count):
+                b = near_blockers[e]
+                closeness = max(1.0 - math.hypot(nx - blockers[b, 0], ny - blockers[b, 1]) / blocker_radius[b], 0.0)
+                cost += closeness * closeness
             nodes[r, it + 1, 0], nodes[r, it + 1, 1] = nx, ny
             path_cost[r, it + 1] = path_cost[r, near] + cost
     return nodes, path_cost
