@@ -132,7 +132,7 @@ class Detours:
         on_detour = np.array([route is not None for route in self.routes], dtype=bool) & ~self.final
         stalled_now = (self.still >= self.stall_periods) & (self.still % self.stall_periods == 0)
         due = (on_detour & (gap <= FINAL)) | stalled_now | (period >= self.next_check)  # the others have nothing to do
-        jobs = []  # (robot, its standing footprints) to plan, each from what stood at this period's start
+        checks = []  # (robot, its standing footprints, whether it stalled now) whose reference is checked
         for i in np.flatnonzero(~done & ~parked & due):
             if on_detour[i] and gap[i] <= FINAL:
                 rects = standing_but(i)
@@ -146,10 +146,10 @@ class Detours:
             if not stalled and period < self.next_check[i]:
                 continue
             self.next_check[i] = period + self.check_periods
-            rects = standing_but(i)
-            if self.keeps(i, states[i], footprints[i, :2], rects[self.near(i, states[i], rects)], stalled):
-                continue
-            jobs.append((i, rects))
+            checks.append((i, standing_but(i), stalled))
+        nears = thread_map(lambda check: self.near(check[0], states[check[0]], check[1]), checks, self.workers)
+        jobs = [(i, rects) for (i, rects, stalled), near in zip(checks, nears)  # to plan, each round what stood at the period's start
+                if not self.keeps(i, states[i], footprints[i, :2], rects[near], stalled)]
         plans = thread_map(lambda job: plan_detour(footprints[job[0], :2], self.goals[job[0]], job[1], self.hard, self.clearance,
                                                    self.cell), jobs, self.workers)
         for (i, rects), waypoints in zip(jobs, plans):

@@ -168,7 +168,7 @@ def shortcut(path, kept, rects, hard, cell, samples):
     return np.array(out)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def rects_within(points, rects, reach):
     """Whether each of ``rects`` (m, 5) comes closer than ``reach`` [m] to one of ``points`` (k,
     2) [m] (by :func:`aac_sumo.geometry.rect_distances`), (m,)."""
