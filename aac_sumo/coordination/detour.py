@@ -43,6 +43,8 @@ SAMPLES = 3
 STILL_SPEED = 0.05
 #: Spacing [m] of the samples along a reference that is checked for standing footprints.
 CHECK_SPACING = 0.1
+#: Fewest reference checks in a period worth sharing out among threads (each is mostly Python).
+NEAR_THREADS = 16
 #: Within this distance [m] of its goal, a robot on a detour whose straight way to the goal is
 #: free goes straight there: a detour's last corner near the goal is a hook a car cannot follow.
 FINAL = 1.5
@@ -147,7 +149,7 @@ class Detours:
                 continue
             self.next_check[i] = period + self.check_periods
             checks.append((i, standing_but(i), stalled))
-        nears = thread_map(lambda check: self.near(check[0], states[check[0]], check[1]), checks, self.workers)
+        nears = thread_map(lambda check: self.near(check[0], states[check[0]], check[1]), checks, self.workers, NEAR_THREADS)
         jobs = [(i, rects) for (i, rects, stalled), near in zip(checks, nears)  # to plan, each round what stood at the period's start
                 if not self.keeps(i, states[i], footprints[i, :2], rects[near], stalled)]
         plans = thread_map(lambda job: plan_detour(footprints[job[0], :2], self.goals[job[0]], job[1], self.hard, self.clearance,

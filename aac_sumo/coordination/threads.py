@@ -18,12 +18,13 @@ def cores() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else max(os.cpu_count() or 1, 1)
 
 
-def thread_map(fn: Callable[[T], R], items: Iterable[T], workers: int) -> list[R]:
-    """``[fn(x) for x in items]``, on up to ``workers`` threads (0: one per core). ``fn`` must not
-    depend on the order of the calls (each call reads only what the caller gave it)."""
+def thread_map(fn: Callable[[T], R], items: Iterable[T], workers: int, least: int = 2) -> list[R]:
+    """``[fn(x) for x in items]``, on up to ``workers`` threads (0: one per core) when there are at
+    least ``least`` items (below that, the threads' hand-over costs more than it saves). ``fn``
+    must not depend on the order of the calls (each call reads only what the caller gave it)."""
     items = list(items)
     threads = min(workers if workers > 0 else cores(), len(items))
-    if threads <= 1:
+    if threads <= 1 or len(items) < least:
         return [fn(x) for x in items]
     pool = _POOLS.get(threads)
     if pool is None:

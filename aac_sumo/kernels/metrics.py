@@ -78,7 +78,7 @@ def _half_diagonals(rows):
     return out
 
 
-@numba.njit(cache=True, parallel=True)
+@numba.njit(cache=True)
 def times_to_collision(rows, velocity, n):
     """Per robot i < n, the least time to collision [s] with the others: footprint rows ``rows``
     (M, 5) ``[cx, cy, length, width, heading]`` and velocities ``velocity`` (M, 2) [m/s] of
@@ -86,10 +86,10 @@ def times_to_collision(rows, velocity, n):
     velocity is ``w = velocity[i] - velocity[j]``; j counts when ``w`` points ahead of robot i
     (positive along its heading, so i is the one driving into j) and i's footprint, translated
     along ``w``, touches j's: TTC = :func:`sweep_gap` along ``w`` / ``|w|``. inf when nothing
-    counts. The robots are shared out among numba's threads (each value is its own loop's)."""
+    counts."""
     radius = _half_diagonals(rows)
     out = np.full(n, np.inf)
-    for i in numba.prange(n):
+    for i in range(n):
         hx, hy = math.cos(rows[i, 4]), math.sin(rows[i, 4])
         for j in range(rows.shape[0]):
             if j != i:
