@@ -18,8 +18,9 @@ from scipy.spatial import cKDTree
 
 from aac_sumo.kernels.geometry import paired_clearance, pairwise_clearance
 
-#: Below this many pairs the all-pairs loops are used.
-DENSE_PAIRS = 50_000
+#: Up to this many pairs the all-pairs loops are used (faster there: 30 robots among 40 rows take
+#: 0.23 ms either way on this machine, 100 among 130 3.2 ms all-pairs and 1.0 ms with the tree).
+DENSE_PAIRS = 2_000
 #: Neighbours each robot's first bound is taken from.
 FIRST = 8
 #: Slack [m] on every search radius, for the rounding of the tree's distances.
