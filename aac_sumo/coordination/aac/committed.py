@@ -8,8 +8,8 @@ cluster of robots that can meet within the horizon
 and round robin pick it within its group, with the conflict-resolution rules of
 :meth:`~aac_sumo.coordination.aac.authority.AacCoordinator.choose_in_group` and
 :mod:`~aac_sumo.coordination.make_room`. A standing authority whose plan leaves it standing
-may creep; robots whose plan runs out extend their commitment on the tracking law where the
-exact check allows; detours route robots round standing footprints.
+may creep, and one that has stood long may manoeuvre; robots whose plan runs out extend their
+commitment on the tracking law where the exact check allows; detours route robots round standing footprints.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ import numpy as np
 
 from aac_sumo.coordination.aac.authority import SHIFT_DECAY, SHIFT_GROWTH, SLOW_SHARE, AacCoordinator
 from aac_sumo.coordination.aac.creeping import Creeping
+from aac_sumo.coordination.aac.manoeuvring import Manoeuvring
 from aac_sumo.coordination.aac.queueing import Queueing
 from aac_sumo.coordination.aac.traffic import TrafficBraking
 from aac_sumo.coordination.base import Decision, RobotDecision
@@ -37,8 +38,7 @@ EXTENSION_RETRY = 3
 #: With ``cruise`` (a road), a robot without authority renews its continuation every
 #: RENEW_EVERY periods where the new one passes the exact check and takes it further along its path than its
 #: commitment (:data:`~aac_sumo.coordination.aac.queueing.RENEW_GAIN`): a car whose queue has set off follows it at once.
-#: A car slower than its path's speed by more than RENEW_SLOW [m/s] renews every period (a queue
-#: setting off: each car renews after the one ahead of it, front first, in the same period).
+#: A car slower than its path's speed by more than RENEW_SLOW [m/s] renews every period (a queue setting off: each car renews after the one ahead of it, front first, in the same period).
 RENEW_EVERY = 5
 RENEW_SLOW = 1.0
 #: A continuation aims at the anticipation's speed cap where the car will be CONTINUATION_LAG [s]
@@ -56,7 +56,7 @@ DETOUR_CELL = 0.1
 DETOUR_CHECK = 1.0
 
 
-class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
+class CommittedAac(Manoeuvring, Creeping, Queueing, TrafficBraking, AacCoordinator):
     """AAC with committed plans (see the module)."""
 
     commit = True
@@ -126,7 +126,7 @@ class CommittedAac(Creeping, Queueing, TrafficBraking, AacCoordinator):
             while candidates.size:
                 i, reason = self.choose_in_group(world, members, candidates, records, period)
                 others = members[members != i]
-                decided, cut, keep = self.plan_committed(world, i, others, reason, period, statics)
+                decided, cut, keep = self.take_turn(world, i, others, reason, period, statics)
                 decided.score, decided.progress = records[i].score, records[i].progress
                 records[i] = decided
                 holders.append(world.robots[i].name)

@@ -128,6 +128,11 @@ class AacParams:
                          "to its goal instead")
     detour_clearance: float = param(0.5, "gap a detour keeps from standing footprints where there is room; it squeezes closer "
                                     "(down to half the robot width + commit_margin) where there is not [m]", **P)
+    manoeuvre: bool = param(False, "manoeuvres (with commit): a robot that has stood for manoeuvre_time and whose plan leaves it "
+                            "standing searches a way to its goal on exact footprints (short arcs from standstill to standstill, "
+                            "forwards and, where it may reverse, backwards), and drives it when it passes the exact check; no "
+                            "walkers or uncontrolled vehicles about")
+    manoeuvre_time: float = param(3.0, "standing time after which a robot may manoeuvre [s]", **P)
 
     def __post_init__(self):
         check_safety_options(self.safety_stop, self.fallback, self.ignore_followers, self.commit, self.detour)

@@ -1,0 +1,100 @@
+"""Manoeuvring: a robot that has stalled for ``manoeuvre_time`` takes, when it holds authority and
+its plan and creeping leave it standing, a manoeuvre to its goal planned on exact footprints
+(:mod:`~aac_sumo.coordination.manoeuvre`), and drives it to its end without replanning (a mixin of
+:class:`~aac_sumo.coordination.aac.committed.CommittedAac`).
+
+Frames and units: world frame [m], speeds [m/s], periods of ``dt`` [s].
+"""
+
+from __future__ import annotations
+
+from collections import deque
+
+import numpy as np
+
+from aac_sumo.coordination.base import RobotDecision
+from aac_sumo.coordination.make_room import STILL_SPEED
+from aac_sumo.coordination.manoeuvre import ManoeuvrePlanner
+from aac_sumo.world import WorldState
+
+#: Periods a robot whose manoeuvre search found no way (or whose manoeuvre the check refused)
+#: waits before it searches again.
+RETRY = 20
+#: A robot that got no further than this [m] in ``manoeuvre_time`` has stalled.
+STALL = 0.2
+#: A commitment that takes a standing robot less far than this [m] leaves it standing.
+STAYS = 0.1
+#: The manoeuvre ends this far [m] inside the goal's arrival radius.
+INSIDE = 0.05
+
+
+class Manoeuvring:
+    """The manoeuvring step of committed AAC (needs the coordinator's ``book``, ``fleet``,
+    ``planner``, ``params``, ``tasks``, ``last_inputs``, ``commitment`` and
+    ``plan_committed``)."""
+
+    def take_turn(self, world: WorldState, i: int, others: np.ndarray, reason: str, period: int,
+                  statics: np.ndarray) -> tuple[RobotDecision, int, int]:
+        """Robot ``i``'s turn of authority: on a manoeuvre, it drives on with it; else it plans
+        (:meth:`plan_committed`), and when that leaves it standing after it has stalled
+        (:meth:`stalled`), it manoeuvres where a way is found and passes the exact check.
+        Returns its record, whether its plan was cut (or replaced), and whether its commitment
+        was kept, as :meth:`plan_committed`."""
+        if not self.params.manoeuvre:
+            return self.plan_committed(world, i, others, reason, period, statics)
+        self._count_standing(world, period)
+        if self.manoeuvre_end[i] > period:
+            return RobotDecision(True, reason=reason, mode="manoeuvre"), 0, 1
+        record, cut, kept = self.plan_committed(world, i, others, reason, period, statics)
+        stays = np.hypot(*(self.book.items[i].states[-1, :2] - world.states[i, :2])) < STAYS
+        if abs(world.states[i, 3]) < STILL_SPEED and stays and record.mode != "creep" and self.manoeuvre(world, i, period, statics):
+            record.mode = "manoeuvre"
+            return record, 1, 0
+        return record, cut, kept
+
+    def _count_standing(self, world: WorldState, period: int) -> None:
+        """Once a period: remember where each robot stands (``manoeuvre_time`` back)."""
+        n = len(world.robots)
+        if getattr(self, "trail", None) is None:
+            self.trail = deque(maxlen=int(round(self.params.manoeuvre_time / self.planner.config.dt)) + 1)
+            self.manoeuvre_end, self.next_manoeuvre = np.zeros(n, dtype=int), np.zeros(n, dtype=int)
+            self.manoeuvres = [ManoeuvrePlanner(self.fleet.wheelbase[j], self.fleet.steer_limits[j], self.fleet.v_min[j], self.fleet.v_max[j],
+                                                self.fleet.a_min[j], self.fleet.a_max[j], self.fleet.length[j], self.fleet.width[j],
+                                                self.fleet.offset[j], self.planner.config.dt) for j in range(n)]
+            self._counted = self._searched = -1
+        if self._counted != period:
+            self._counted = period
+            self.trail.append(world.states[:, :2].copy())
+
+    def stalled(self, i: int) -> bool:
+        """Whether robot ``i`` got no further than ``STALL`` [m] from where it stood
+        ``manoeuvre_time`` ago, at any period since (a robot rocking on the spot stalls too)."""
+        if len(self.trail) < self.trail.maxlen:
+            return False
+        path = np.array([p[i] for p in self.trail])
+        return bool(np.hypot(*(path - path[0]).T).max() <= STALL)
+
+    def manoeuvre(self, world: WorldState, i: int, period: int, statics: np.ndarray) -> bool:
+        """Robot ``i``, stalled (:meth:`stalled`), searches a manoeuvre to its
+        goal round every standing obstacle and every other robot's footprints along the rest of
+        its commitment (held as standing), and commits to it when it passes the exact check.
+        Not with uncontrolled moving agents about (the check does not hold them), and one search
+        a period at most. Returns whether it committed."""
+        if period < self.next_manoeuvre[i] or self._searched == period or not self.stalled(i):
+            return False
+        if any(o.kind not in ("static", "cone") for o in world.obstacles):
+            return False
+        task, book = self.tasks[i], self.book
+        others = [book.footprints(j, c, period) for j, c in enumerate(book.items) if j != i]
+        obstacles = np.vstack([np.asarray(statics, dtype=float).reshape(-1, 5), *others])
+        inputs = self.manoeuvres[i].plan(world.states[i], float(self.last_inputs[i, 1]), task.points[-1], task.arrive - INSIDE,
+                                         obstacles, book.margin)
+        self.next_manoeuvre[i], self._searched = period + RETRY, period
+        if inputs is None or not len(inputs):
+            return False
+        candidate = self.commitment(world, i, period, inputs)
+        if book.clearance(i, candidate, period, statics) < book.margin:
+            return False
+        book.replace(i, candidate, period)
+        self.manoeuvre_end[i] = period + len(inputs)
+        return True

@@ -1,0 +1,113 @@
+"""Manoeuvres, the last resort of committed-plan AAC: primitives start and end at rest within
+the robot's limits, a found manoeuvre keeps the margin from every obstacle at every period of
+its rollout with the simulator's own Euler step and ends within the goal's radius, a walled-in
+goal has none, and the circle swap that deadlocked completes with them."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from aac_sumo import config
+from aac_sumo.coordination.manoeuvre import SPARE, ManoeuvrePlanner, speed_profile
+from aac_sumo.geometry import rect_clearance_rows
+from aac_sumo.kernels.motion import footprint_rows, rollouts
+from aac_sumo.runs import runner
+
+DT, WHEELBASE, LENGTH, WIDTH, OFFSET = 0.1, 0.45, 0.6, 0.4, 0.3
+LIMITS = np.array([0.6, 3.0, 2.0])  # steer_max [rad], a_lat_max [m/s^2], steer_rate_max [rad/s]
+MARGIN = 0.05
+
+
+def planner(v_min: float = -1.5) -> ManoeuvrePlanner:
+    return ManoeuvrePlanner(WHEELBASE, LIMITS, v_min, 1.5, -2.0, 1.0, LENGTH, WIDTH, OFFSET, DT)
+
+
+def course(state: np.ndarray, inputs: np.ndarray, v_min: float = -1.5) -> np.ndarray:
+    """Rear-axle states (K+1, 4) of ``inputs`` from ``state``, as the simulator steps them."""
+    return rollouts(state[None], inputs[None], DT, np.array([WHEELBASE]), np.array([v_min]), np.array([1.5]))[0]
+
+
+def least_clearance(states: np.ndarray, obstacles: np.ndarray) -> float:
+    rows = footprint_rows(states[None], np.array([OFFSET]), np.array([LENGTH]), np.array([WIDTH]))[0]
+    return min(float(rect_clearance_rows(np.repeat(row[None], len(obstacles), axis=0), obstacles).min()) for row in rows)
+
+
+@pytest.mark.parametrize("length", [0.3, 0.9, 2.0])
+def test_a_speed_profile_goes_from_rest_to_rest_within_its_bounds(length):
+    accels = speed_profile(length, 0.4, 1.0, 1.0, DT)
+    speeds = np.concatenate([[0.0], np.cumsum(accels * DT)])
+    assert speeds[-1] == pytest.approx(0.0, abs=1e-12) and np.all(speeds >= -1e-12) and speeds.max() <= 0.4 + 1e-12
+    assert np.all(np.abs(accels) <= 1.0 + 1e-12)
+    # Euler moves each period at the speed it starts with; the cruise is rounded to whole periods
+    assert abs(np.sum(speeds[:-1]) * DT - length) <= 0.5 * 0.4 * DT + 1e-9
+
+
+def test_primitives_turn_the_wheels_at_the_steering_rate_before_they_move():
+    rows, lengths, costs = planner().primitives(0.0)
+    for inputs in rows:
+        steer = np.concatenate([[0.0], inputs[:, 1]])
+        assert np.all(np.abs(np.diff(steer)) <= LIMITS[2] * DT + 1e-12)
+        speeds = np.cumsum(inputs[:, 0] * DT)
+        moving = np.flatnonzero(np.abs(speeds) > 1e-12)
+        assert np.all(np.diff(steer[1:][moving[0]:]) == 0.0)  # one arc: the wheels stand still while it drives
+    assert np.all(costs >= lengths * DT - 1e-12)
+
+
+def test_a_robot_between_parked_neighbours_manoeuvres_to_its_goal():
+    """The 24-robot circle swap's seed 3 (r = 4 m): the last robot stood 1.2 m short of its goal,
+    its MPC infeasible for the ellipses round its neighbours, which the rectangles leave room."""
+    state = np.array([-0.475, -3.5466, 6.1527, 0.0])
+    goal = np.array([0.733, -3.761])
+    parked = np.array([[-0.038, -4.343, 0.6, 0.4, 3.800], [2.139, -3.564, 0.6, 0.4, 4.827],
+                       [-0.929, -3.889, 0.6, 0.4, 5.060], [2.911, -2.929, 0.6, 0.4, 5.423]])
+    inputs = planner().plan(state, 0.0, goal, 0.25, parked, MARGIN)
+    assert inputs is not None
+    states = course(state, inputs)
+    assert np.hypot(*(states[-1, :2] - goal)) <= 0.25 and states[-1, 3] == pytest.approx(0.0, abs=1e-9)
+    assert least_clearance(states, parked) >= MARGIN + SPARE - 1e-9
+
+
+def test_no_manoeuvre_to_a_walled_in_goal():
+    wall = np.array([[1.0, 1.0, 2.0, 0.2, 0.0], [1.0, -1.0, 2.0, 0.2, 0.0], [2.0, 0.0, 0.2, 2.0, 0.0], [0.0, 0.0, 0.2, 2.0, 0.0]])
+    assert planner().plan(np.array([-2.0, 0.0, 0.0, 0.0]), 0.0, np.array([1.0, 0.0]), 0.2, wall, MARGIN) is None
+
+
+def test_a_robot_that_cannot_reverse_only_drives_forwards():
+    """A goal straight behind: without reverse it turns round on forward arcs."""
+    state = np.array([0.0, 0.0, 0.0, 0.0])
+    inputs = planner(v_min=0.0).plan(state, 0.0, np.array([-1.0, 0.0]), 0.25, np.zeros((0, 5)), MARGIN)
+    assert inputs is not None
+    assert np.all(course(state, inputs, v_min=0.0)[:, 3] >= 0.0)
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 10_000), m=st.integers(1, 8))
+def test_a_manoeuvre_keeps_the_margin_at_every_period_and_ends_at_its_goal(seed, m):
+    rng = np.random.default_rng(seed)
+    state = np.array([-2.0, rng.uniform(-0.5, 0.5), rng.uniform(-np.pi, np.pi), 0.0])
+    goal = np.array([2.0, rng.uniform(-1.0, 1.0)])
+    obstacles = np.column_stack([rng.uniform(-1.5, 1.5, (m, 2)) * [1.0, 1.5], rng.uniform(0.3, 0.8, (m, 2)), rng.uniform(0, np.pi, m)])
+    # obstacles never cover start or goal: a robot stands clear where it starts, and its goal is free
+    keep = np.array([least_clearance(state[None], o[None]) > MARGIN + SPARE for o in obstacles])
+    obstacles = obstacles[keep & (np.hypot(*(obstacles[:, :2] - goal).T) > 0.9)]
+    inputs = planner().plan(state, 0.0, goal, 0.25, obstacles, MARGIN)
+    if inputs is None:
+        return  # walled in, or beyond the search's budget
+    states = course(state, inputs)
+    assert np.hypot(*(states[-1, :2] - goal)) <= 0.25
+    if len(obstacles):
+        assert least_clearance(states, obstacles) >= MARGIN + SPARE - 1e-9
+
+
+@pytest.mark.slow
+def test_the_circle_swap_that_deadlocked_completes_with_manoeuvres():
+    """24 robots on r = 4 m, seed 3: a deadlock at 49.4 s without manoeuvres (commit 5c3b9e6),
+    the last robot between parked neighbours 1.2 m short of its goal."""
+    scenario = config.load("circle_swap", ["scenario.seed=3", "circle_swap.n_robots=24", "circle_swap.radius=4"])
+    assert scenario["aac.manoeuvre"]
+    metrics = runner.run(scenario).metrics
+    assert metrics["completed"] and metrics["collisions"] == 0
+    assert metrics["min_clearance_m"] >= scenario["aac.commit_margin"] - 1e-9
