@@ -17,6 +17,7 @@ is pinned to its numpy form in ``tests/test_stop_points.py``.
 - :mod:`~aac_sumo.kernels.commitments`: stopping courses and course-against-courses checks.
 - :mod:`~aac_sumo.kernels.anticipation`: stop rows and ramped reference speeds.
 - :mod:`~aac_sumo.kernels.detours`: distance field, grid path (A*) and shortcut of a detour.
+- :mod:`~aac_sumo.kernels.manoeuvres`: a manoeuvre's hybrid A* over motion primitives on exact footprints.
 - :mod:`~aac_sumo.kernels.walkers`: the walkers' and crossing strips' slack of the exact check.
 - :mod:`~aac_sumo.kernels.metrics`: the time to collision.
 - :mod:`~aac_sumo.kernels.proximity`: the proximity decision's sampled trees.

@@ -15,6 +15,7 @@ import numpy as np
 from aac_sumo.coordination.base import RobotDecision
 from aac_sumo.coordination.make_room import STILL_SPEED
 from aac_sumo.coordination.manoeuvre import ManoeuvrePlanner
+from aac_sumo.coordination.regions import Fleet
 from aac_sumo.world import WorldState
 
 #: Periods a robot whose manoeuvre search found no way (or whose manoeuvre the check refused)
@@ -32,6 +33,15 @@ class Manoeuvring:
     """The manoeuvring step of committed AAC (needs the coordinator's ``book``, ``fleet``,
     ``planner``, ``params``, ``tasks``, ``last_inputs``, ``commitment`` and
     ``plan_committed``)."""
+
+    def warm_up(self, world: WorldState) -> None:
+        """A manoeuvre's compiled search, which the first period does not need, on a tiny instance."""
+        super().warm_up(world)
+        if self.params.manoeuvre:
+            f = self.fleet if self.fleet is not None else Fleet(world.robots)
+            ManoeuvrePlanner(f.wheelbase[0], f.steer_limits[0], f.v_min[0], f.v_max[0], f.a_min[0], f.a_max[0], f.length[0], f.width[0],
+                             f.offset[0], self.planner.config.dt).plan(np.zeros(4), 0.0, np.array([0.5, 0.0]), 0.3,
+                                                                       np.array([[0.0, 1.5, 0.2, 0.2, 0.0]]), 0.05)
 
     def take_turn(self, world: WorldState, i: int, others: np.ndarray, reason: str, period: int,
                   statics: np.ndarray) -> tuple[RobotDecision, int, int]:
