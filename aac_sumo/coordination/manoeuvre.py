@@ -26,6 +26,7 @@ import numpy as np
 
 from aac_sumo.kernels.geometry import pairwise_clearance
 from aac_sumo.kernels.manoeuvres import lattice_search
+from aac_sumo.kernels.motion import limited_steer
 
 #: Driving speed [m/s] of a primitive and the acceleration [m/s^2] it sets off and stops with
 #: (each within the robot's limits).
@@ -44,6 +45,8 @@ BORDER = 1.5
 WEIGHT = 1.5
 #: A backward primitive costs this many times its time (a robot turns round rather than back far).
 BACKWARD_COST = 1.5
+#: A smoothed manoeuvre turns its wheels towards the next leg's angle this long [s] before it begins.
+LEAD = 0.15
 #: Every state of a primitive keeps this much more than the margin [m] (or, where the robot stands
 #: closer now, as much as it keeps now).
 SPARE = 0.02
@@ -75,21 +78,19 @@ class ManoeuvrePlanner:
         self.reach = float(np.hypot(offset + 0.5 * length, 0.5 * width))  # rear axle to the footprint's farthest corner
         speed = self.speed = min(SPEED, v_max)
         limit = min(float(steer_limits[0]), math.atan(float(steer_limits[1]) * wheelbase / speed ** 2))
-        self.rate = float(steer_limits[2]) * dt
+        self.rate, self.steer_limits = float(steer_limits[2]) * dt, np.asarray(steer_limits, dtype=float)
+        self.accel, self.decel = min(ACCEL, a_max), min(ACCEL, -a_min)
         self.steers = np.array(STEERS) * limit
-        self.drives = [(d, d * speed_profile(length_, speed, min(ACCEL, a_max), min(ACCEL, -a_min), dt))
+        self.drives = [(d, d * speed_profile(length_, speed, self.accel, self.decel, dt))
                        for d in ((1.0, -1.0) if v_min < 0.0 else (1.0,)) for length_ in LENGTHS]
+        self.distances = [abs(float(np.sum(np.cumsum(a)[:-1]))) * dt * dt for _, a in self.drives]  # Euler: the speed each period starts with
 
-    def primitives(self, steer: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Every primitive from standstill with the wheels at ``steer`` [rad]: inputs (P, K, 2)
-        padded with standing periods, their lengths (P,), and their costs [s] (P,): their time,
-        ``BACKWARD_COST`` times it backwards."""
+    def primitives(self, steer: float) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:
+        """Every primitive from standstill with the wheels at ``steer`` [rad]: its inputs (K_p, 2),
+        their lengths (P,), and their costs [s] (P,): their time, ``BACKWARD_COST`` times it backwards."""
         rows, costs = [], []
         for target in self.steers:
-            ramp, s = [], steer
-            while abs(target - s) > 1e-12:
-                s = min(max(target, s - self.rate), s + self.rate)
-                ramp.append(s)
+            ramp = self._ramp(steer, target)
             for direction, accels in self.drives:
                 head = np.column_stack([np.zeros(len(ramp)), ramp]).reshape(-1, 2)
                 rows.append(np.vstack([head, np.column_stack([accels, np.full(len(accels), target)])]))
@@ -98,11 +99,19 @@ class ManoeuvrePlanner:
 
     def plan(self, state: np.ndarray, steer: float, goal: np.ndarray, tolerance: float, obstacles: np.ndarray,
              margin: float) -> np.ndarray | None:
-        """Inputs (K, 2) ``[accel, steer]`` from rear-axle ``state`` (4,) at rest with the wheels at
-        ``steer`` to a standstill whose rear axle lies within ``tolerance`` [m] of ``goal`` (2,),
-        every footprint on the way ``margin`` [m] clear of ``obstacles`` (m, 5) rows
-        ``[cx, cy, length, width, heading]`` (or, where it stands closer now, no closer than
-        that); None when the search (:func:`~aac_sumo.kernels.manoeuvres.lattice_search`) finds no way."""
+        """The inputs (K, 2) of :meth:`stop_and_go` along the legs :meth:`search` finds; None
+        when it finds none."""
+        legs = self.search(state, steer, goal, tolerance, obstacles, margin)
+        return None if legs is None else self.stop_and_go(legs, steer)
+
+    def search(self, state: np.ndarray, steer: float, goal: np.ndarray, tolerance: float, obstacles: np.ndarray,
+               margin: float) -> list[tuple[int, float]] | None:
+        """The legs ``(drive, steer)`` (an index into the drives, and the wheels' angle [rad]) from
+        rear-axle ``state`` (4,) at rest with the wheels at ``steer`` to a standstill whose rear
+        axle lies within ``tolerance`` [m] of ``goal`` (2,), every footprint on the way ``margin``
+        [m] clear of ``obstacles`` (m, 5) rows ``[cx, cy, length, width, heading]`` (or, where it
+        stands closer now, no closer than that); None when the search
+        (:func:`~aac_sumo.kernels.manoeuvres.lattice_search`) finds no way."""
         start, goal = np.asarray(state, dtype=float).copy(), np.asarray(goal, dtype=float)
         start[3] = 0.0
         lo, hi = np.minimum(start[:2], goal) - BORDER, np.maximum(start[:2], goal) + BORDER
@@ -126,5 +135,49 @@ class ManoeuvrePlanner:
                                lo, hi, CELL, HEADINGS, MAX_EXPANSIONS, WEIGHT, self.speed, self.dt, self.wheelbase, self.v_min, self.v_max,
                                offset, length, width_)
         if not len(chain):
-            return None if np.hypot(*(start[:2] - goal)) > tolerance else np.zeros((0, 2))
-        return np.vstack([sets[w][0][p] for w, p in chain])
+            return None if np.hypot(*(start[:2] - goal)) > tolerance else []
+        return [(int(p) % len(self.drives), float(self.steers[int(p) // len(self.drives)])) for _, p in chain]
+
+    def _ramp(self, steer: float, target: float) -> list[float]:
+        """The wheels' angles [rad], period by period, from ``steer`` to ``target`` at the steering rate."""
+        out = []
+        while abs(target - steer) > 1e-12:
+            steer = min(max(target, steer - self.rate), steer + self.rate)
+            out.append(steer)
+        return out
+
+    def stop_and_go(self, legs: list[tuple[int, float]], steer: float) -> np.ndarray:
+        """Inputs (K, 2) of ``legs`` as searched: before each, the wheels turn where the robot
+        stands (from ``steer`` [rad] at first); each drives its arc and stops."""
+        rows = [np.zeros((0, 2))]
+        for drive, target in legs:
+            ramp = self._ramp(steer, target)
+            accels = self.drives[drive][1]
+            rows += [np.column_stack([np.zeros(len(ramp)), ramp]).reshape(-1, 2), np.column_stack([accels, np.full(len(accels), target)])]
+            steer = target
+        return np.vstack(rows)
+
+    def smooth(self, legs: list[tuple[int, float]], steer: float, speed: float) -> np.ndarray:
+        """Inputs (K, 2) along ``legs`` without the stops between legs of one direction: each run
+        of them is driven at up to ``speed`` [m/s], the wheels turning towards the next leg's angle
+        at the steering rate ``LEAD`` [s] of driving before it begins. Its course leaves the
+        searched one where the wheels turn, so it is a candidate only (the exact check decides)."""
+        rows, k = [np.zeros((0, 2))], 0
+        while k < len(legs):
+            run = [legs[k]]
+            while k + len(run) < len(legs) and self.drives[legs[k + len(run)][0]][0] == self.drives[legs[k][0]][0]:
+                run.append(legs[k + len(run)])
+            k += len(run)
+            direction = self.drives[run[0][0]][0]
+            ramp = self._ramp(steer, run[0][1])
+            ends = np.cumsum([self.distances[d] for d, _ in run])
+            accels = direction * speed_profile(float(ends[-1]), speed, self.accel, self.decel, self.dt)
+            v, s, out = 0.0, 0.0, []
+            steer = run[0][1]
+            for a in accels:
+                target = run[min(int(np.searchsorted(ends, s + abs(v) * LEAD, side="right")), len(run) - 1)][1]
+                steer = limited_steer(target, v, a, steer, self.wheelbase, self.steer_limits, self.dt)
+                out.append((a, steer))
+                s, v = s + abs(v) * self.dt, v + a * self.dt
+            rows += [np.column_stack([np.zeros(len(ramp)), ramp]).reshape(-1, 2), np.array(out).reshape(-1, 2)]
+        return np.vstack(rows)

@@ -23,8 +23,13 @@ from aac_sumo.world import WorldState
 RETRY = 20
 #: A robot that got no further than this [m] in ``manoeuvre_time`` has stalled.
 STALL = 0.2
+#: Robots whose centres lie this close [m] stall together (:meth:`Manoeuvring.stalled`).
+JAM_RADIUS = 2.0
 #: A commitment that takes a standing robot less far than this [m] leaves it standing.
 STAYS = 0.1
+#: A manoeuvre is driven without the stops between legs of one direction, at these shares of the
+#: robot's cruise speed, where that course passes the check and still ends at its goal; else as searched.
+SMOOTH = (1.0, 0.5)
 #: The manoeuvre ends this far [m] inside the goal's arrival radius.
 INSIDE = 0.05
 
@@ -63,7 +68,7 @@ class Manoeuvring:
         return record, cut, kept
 
     def _count_standing(self, world: WorldState, period: int) -> None:
-        """Once a period: remember where each robot stands (``manoeuvre_time`` back)."""
+        """Once a period: remember where each robot stands, and which have stalled (:meth:`stalled`)."""
         n = len(world.robots)
         if getattr(self, "trail", None) is None:
             self.trail = deque(maxlen=int(round(self.params.manoeuvre_time / self.planner.config.dt)) + 1)
@@ -72,22 +77,30 @@ class Manoeuvring:
                                                 self.fleet.a_min[j], self.fleet.a_max[j], self.fleet.length[j], self.fleet.width[j],
                                                 self.fleet.offset[j], self.planner.config.dt) for j in range(n)]
             self._counted = self._searched = -1
-        if self._counted != period:
-            self._counted = period
-            self.trail.append(world.states[:, :2].copy())
+        if self._counted == period:
+            return
+        self._counted = period
+        self.trail.append(world.states[:, :2].copy())
+        self.jammed = np.zeros(n, dtype=bool)
+        if len(self.trail) == self.trail.maxlen:
+            path = np.asarray(self.trail)
+            still = (np.hypot(*(path - path[0]).transpose(2, 0, 1)).max(axis=0) <= STALL) | np.asarray(self.finished(world), dtype=bool)
+            centres = world.robot_centres()
+            near = np.hypot(*(centres[:, None] - centres[None]).transpose(2, 0, 1)) <= JAM_RADIUS
+            self.jammed = still & np.all(still[None] | ~near, axis=1)
 
     def stalled(self, i: int) -> bool:
-        """Whether robot ``i`` got no further than ``STALL`` [m] from where it stood
-        ``manoeuvre_time`` ago, at any period since (a robot rocking on the spot stalls too)."""
-        if len(self.trail) < self.trail.maxlen:
-            return False
-        path = np.array([p[i] for p in self.trail])
-        return bool(np.hypot(*(path - path[0]).T).max() <= STALL)
+        """Whether robot ``i`` is in a jam: neither it nor any unfinished robot whose centre lies
+        within ``JAM_RADIUS`` of its own got further than ``STALL`` [m] from where it stood
+        ``manoeuvre_time`` ago, at any period since (a robot rocking on the spot stalls too; one
+        that waits while its neighbours move does not)."""
+        return bool(self.jammed[i])
 
     def manoeuvre(self, world: WorldState, i: int, period: int, statics: np.ndarray) -> bool:
         """Robot ``i``, stalled (:meth:`stalled`), searches a manoeuvre to its
         goal round every standing obstacle and every other robot's footprints along the rest of
-        its commitment (held as standing), and commits to it when it passes the exact check.
+        its commitment (held as standing), and commits to it, smoothed where it can be
+        (``SMOOTH``), when it passes the exact check.
         Not with uncontrolled moving agents about (the check does not hold them), and one search
         a period at most. Returns whether it committed."""
         if period < self.next_manoeuvre[i] or self._searched == period or not self.stalled(i):
@@ -97,13 +110,16 @@ class Manoeuvring:
         task, book = self.tasks[i], self.book
         others = [book.footprints(j, c, period) for j, c in enumerate(book.items) if j != i]
         obstacles = np.vstack([np.asarray(statics, dtype=float).reshape(-1, 5), *others])
-        inputs = self.manoeuvres[i].plan(world.states[i], float(self.last_inputs[i, 1]), task.points[-1], task.arrive - INSIDE,
-                                         obstacles, book.margin)
+        planner, steer, goal = self.manoeuvres[i], float(self.last_inputs[i, 1]), task.points[-1]
+        legs = planner.search(world.states[i], steer, goal, task.arrive - INSIDE, obstacles, book.margin)
         self.next_manoeuvre[i], self._searched = period + RETRY, period
-        if inputs is None or not len(inputs):
+        if not legs:
             return False
-        candidate = self.commitment(world, i, period, inputs)
-        if book.clearance(i, candidate, period, statics) < book.margin:
+        for inputs in [planner.smooth(legs, steer, share * task.speed) for share in SMOOTH] + [planner.stop_and_go(legs, steer)]:
+            candidate = self.commitment(world, i, period, inputs)
+            if np.hypot(*(candidate.states[-1, :2] - goal)) <= task.arrive and book.clearance(i, candidate, period, statics) >= book.margin:
+                break
+        else:
             return False
         book.replace(i, candidate, period)
         self.manoeuvre_end[i] = period + len(inputs)
