@@ -55,6 +55,8 @@ CIRCLE_FULL = ("sweep", "circle_swap", "--grid", "circle_swap.n_robots=8,16,24",
 #: AAC on 20 robots of the random crossing over densities (robots per 100 m^2): from sparse to the densest the draw places.
 CROSSING_DENSITY = ("sweep", "random_crossing", "--grid", "random_crossing.density=8,10,12.5,16.7,20", "--set",
                     "random_crossing.n_robots=20", "--seeds", "10")
+#: AAC on the random crossing as bundled (20 robots), every emergency layer off, 50 seeds a block.
+CROSSING_20 = ("sweep", "random_crossing", "--grid", "controller.coordinator=aac", "--seeds", "50")
 #: AAC on the highway with committed plans and no emergency layer, held reactively to its strongest braking
 #: against SUMO's cars, SUMO told that they brake at 2 m/s^2, their comfort bound: the scenario's own settings since
 #: 2026-12-05, spelled out so that the command says what it ran (docs/highway_work_zone.md).
@@ -84,6 +86,8 @@ JOBS = (
     Job("circle_swap_seeds0-4", ("table", "circle-swap", "--seeds", "5", "--baselines")),
     Job("circle_swap_full_seeds0-4", CIRCLE_FULL, SWEEP_OUTPUTS),
     Job("circle_swap_full_seeds5-9", CIRCLE_FULL + HELD_OUT, SWEEP_OUTPUTS),
+    Job("random_crossing_seeds0-49", CROSSING_20, SWEEP_OUTPUTS),
+    Job("random_crossing_seeds50-99", CROSSING_20 + ("--set", "scenario.seed=50"), SWEEP_OUTPUTS),
     Job("random_crossing_density_seeds0-9", CROSSING_DENSITY, SWEEP_OUTPUTS),
     Job("random_crossing_density_seeds10-19", CROSSING_DENSITY + ("--set", "scenario.seed=10"), SWEEP_OUTPUTS),
     Job("ablation_seeds0-4", ("table", "ablation", "--seeds", "5")),
