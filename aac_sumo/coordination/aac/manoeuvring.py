@@ -30,6 +30,10 @@ STAYS = 0.1
 #: A manoeuvre is driven without the stops between legs of one direction, at these shares of the
 #: robot's cruise speed, where that course passes the check and still ends at its goal; else as searched.
 SMOOTH = (1.0, 0.5)
+#: A robot drives the legs of its manoeuvre up to ESCAPE [m] of driving (at least one), then plans
+#: again; a smoothed course of a cut manoeuvre ends within ESCAPE_END [m] of where the legs end.
+ESCAPE = 1.5
+ESCAPE_END = 0.2
 #: The manoeuvre ends this far [m] inside the goal's arrival radius.
 INSIDE = 0.05
 
@@ -99,8 +103,8 @@ class Manoeuvring:
     def manoeuvre(self, world: WorldState, i: int, period: int, statics: np.ndarray) -> bool:
         """Robot ``i``, stalled (:meth:`stalled`), searches a manoeuvre to its
         goal round every standing obstacle and every other robot's footprints along the rest of
-        its commitment (held as standing), and commits to it, smoothed where it can be
-        (``SMOOTH``), when it passes the exact check.
+        its commitment (held as standing), and commits to its first ``ESCAPE`` [m], smoothed
+        where it can be (``SMOOTH``), when that passes the exact check.
         Not with uncontrolled moving agents about (the check does not hold them), and one search
         a period at most. Returns whether it committed."""
         if period < self.next_manoeuvre[i] or self._searched == period or not self.stalled(i):
@@ -115,9 +119,13 @@ class Manoeuvring:
         self.next_manoeuvre[i], self._searched = period + RETRY, period
         if not legs:
             return False
-        for inputs in [planner.smooth(legs, steer, share * task.speed) for share in SMOOTH] + [planner.stop_and_go(legs, steer)]:
+        reach = np.cumsum([planner.distances[d] for d, _ in legs])
+        legs = legs[: max(int(np.searchsorted(reach, ESCAPE, side="right")), 1)]  # the way out; then its MPC again
+        searched = planner.stop_and_go(legs, steer)
+        end, near = (goal, task.arrive) if len(legs) == len(reach) else (self.commitment(world, i, period, searched).states[-1, :2], ESCAPE_END)
+        for inputs in [planner.smooth(legs, steer, share * task.speed) for share in SMOOTH] + [searched]:
             candidate = self.commitment(world, i, period, inputs)
-            if np.hypot(*(candidate.states[-1, :2] - goal)) <= task.arrive and book.clearance(i, candidate, period, statics) >= book.margin:
+            if np.hypot(*(candidate.states[-1, :2] - end)) <= near and book.clearance(i, candidate, period, statics) >= book.margin:
                 break
         else:
             return False
