@@ -18,6 +18,7 @@ def test_every_variant_is_a_valid_set_of_keys_on_every_case_and_the_paper_rows_h
             loaded = config.load(scenario, list(overrides))
             if name in ("aac_paper", "aac_committed"):
                 assert not loaded["aac.safety_stop"] and not loaded["aac.make_room"] and not loaded["aac.detour"]
+                assert not loaded["aac.manoeuvre"]
                 assert loaded["aac.commit"] is (name == "aac_committed")
             if name == "lfc_paper":
                 assert not loaded["lfc.commit"] and not loaded["lfc.safety_stop"]

@@ -171,6 +171,7 @@ def test_a_set_key_reaches_its_field_and_nested_fields():
     (["aac.fallback=tracking"], "aac.fallback", "expected brake unless aac.safety_stop is true, got 'tracking'"),
     (["lfc.ignore_followers=true"], "lfc.ignore_followers", "expected false unless lfc.safety_stop is true, got True"),
     (["aac.commit=false", "aac.detour=true"], "aac.detour", "expected false unless aac.commit is true, got True"),
+    (["aac.commit=false", "aac.manoeuvre=true"], "aac.manoeuvre", "expected false unless aac.commit is true, got True"),
 ])
 def test_the_safety_rules_name_the_scenario_key(sets, key, text):
     scenario = config.load("swarm_rescue", sets)

@@ -121,6 +121,7 @@ def lfc_coordinator(scenario, planner: MpcPlanner, tasks, corridors, finished) -
     if lfc.commit:
         params = from_section(AacParams, scenario, "aac", commit=True, safety_stop=lfc.safety_stop, safety_margin=lfc.safety_margin,
                               fallback=lfc.fallback, lookahead=lfc.lookahead, speed_gain=lfc.speed_gain,
-                              ignore_followers=lfc.ignore_followers, detour=scenario["aac.detour"] and scenario["aac.commit"])
+                              ignore_followers=lfc.ignore_followers, detour=scenario["aac.detour"] and scenario["aac.commit"],
+                              manoeuvre=scenario["aac.manoeuvre"] and scenario["aac.commit"])
         return PrioritizedLfc(planner, tasks, corridors, finished, params=params)
     return LfcCoordinator(planner, tasks, corridors, finished, params=lfc)

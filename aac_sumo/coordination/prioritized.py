@@ -7,7 +7,7 @@ its plan only when the plan with its stopping tail passes the exact footprint ch
 other commitment (:mod:`~aac_sumo.coordination.commitments`), as AAC's committed authorities do,
 and so this variant is collision-free by construction too. It shares AAC's committed-plan machinery
 and the deadlock rules that apply without authority rotation: creeping, tracking extensions,
-make-room references and detours (their settings come from ``[aac]``, so both run with the same
+make-room references, detours and manoeuvres (their settings come from ``[aac]``, so both run with the same
 rules); the safety-stop options come from ``[lfc]``. Each period costs one solve per active robot,
 as the paper's LFC; AAC's own variant solves one per group.
 """

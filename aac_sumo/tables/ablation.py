@@ -25,7 +25,7 @@ from aac_sumo.tables.common import COORDINATOR_LABELS, _fmt, _num, baselines_for
 
 #: Keys that switch AAC's extensions and emergency layer off (the paper's plain settings).
 AAC_PLAIN = ("aac.safety_stop=false", "aac.fallback=brake", "aac.ignore_followers=false", "aac.make_room=false",
-             "aac.keep_right=0", "aac.detour=false", "aac.authorities=1", "aac.cruise=0")
+             "aac.keep_right=0", "aac.detour=false", "aac.manoeuvre=false", "aac.authorities=1", "aac.cruise=0")
 #: ``(name, label, overrides)`` of the AAC and LFC variants, in the table's order.
 VARIANTS = (
     ("aac_paper", "AAC as in the paper (stored plans)", ("controller.coordinator=aac", "aac.commit=false") + AAC_PLAIN),

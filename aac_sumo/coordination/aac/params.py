@@ -138,5 +138,7 @@ class AacParams:
         check_safety_options(self.safety_stop, self.fallback, self.ignore_followers, self.commit, self.detour)
         if not isinstance(self.authorities, Authorities):
             raise ValueError("authorities must be an Authorities (Authorities.parse(1 | k | 'clusters' | 'spread'))")
+        if self.manoeuvre and not self.commit:
+            raise ParamError("manoeuvre", "false unless {section}.commit is true", True)
         if self.authorities.spread and not self.commit:
             raise ParamError("authorities", "\"clusters\" or an integer unless {section}.commit is true", "spread")
