@@ -57,6 +57,8 @@ CROSSING_DENSITY = ("sweep", "random_crossing", "--grid", "random_crossing.densi
                     "random_crossing.n_robots=20", "--seeds", "10")
 #: AAC on the random crossing as bundled (20 robots), every emergency layer off, 50 seeds a block.
 CROSSING_20 = ("sweep", "random_crossing", "--grid", "controller.coordinator=aac", "--seeds", "50")
+#: The same with 100 robots, 5 seeds a block (issue 35's blocks start at seeds 0, 20 and 40).
+CROSSING_100 = ("sweep", "random_crossing", "--grid", "controller.coordinator=aac", "--set", "random_crossing.n_robots=100", "--seeds", "5")
 #: AAC on the highway with committed plans and no emergency layer, held reactively to its strongest braking
 #: against SUMO's cars, SUMO told that they brake at 2 m/s^2, their comfort bound: the scenario's own settings since
 #: 2026-12-05, spelled out so that the command says what it ran (docs/highway_work_zone.md).
@@ -88,6 +90,7 @@ JOBS = (
     Job("circle_swap_full_seeds5-9", CIRCLE_FULL + HELD_OUT, SWEEP_OUTPUTS),
     Job("random_crossing_seeds0-49", CROSSING_20, SWEEP_OUTPUTS),
     Job("random_crossing_seeds50-99", CROSSING_20 + ("--set", "scenario.seed=50"), SWEEP_OUTPUTS),
+    *(Job(f"random_crossing_100_seeds{b}-{b + 4}", CROSSING_100 + ("--set", f"scenario.seed={b}"), SWEEP_OUTPUTS) for b in (0, 20, 40)),
     Job("random_crossing_density_seeds0-9", CROSSING_DENSITY, SWEEP_OUTPUTS),
     Job("random_crossing_density_seeds10-19", CROSSING_DENSITY + ("--set", "scenario.seed=10"), SWEEP_OUTPUTS),
     Job("ablation_seeds0-4", ("table", "ablation", "--seeds", "5")),
