@@ -1,7 +1,7 @@
-"""Manoeuvring: a robot that has stalled for ``manoeuvre_time`` takes, when it holds authority and
-its plan and creeping leave it standing, a manoeuvre to its goal planned on exact footprints
-(:mod:`~aac_sumo.coordination.manoeuvre`), and drives it to its end without replanning (a mixin of
-:class:`~aac_sumo.coordination.aac.committed.CommittedAac`).
+"""Manoeuvring: a robot in a jam for ``manoeuvre_time`` takes, when it holds authority and its plan
+and creeping leave it standing, the first ``ESCAPE`` metres of a way to its goal planned on exact
+footprints (:mod:`~aac_sumo.coordination.manoeuvre`), and drives them without replanning (a mixin
+of :class:`~aac_sumo.coordination.aac.committed.CommittedAac`).
 
 Frames and units: world frame [m], speeds [m/s], periods of ``dt`` [s].
 """
@@ -28,7 +28,7 @@ JAM_RADIUS = 2.0
 #: A commitment that takes a standing robot less far than this [m] leaves it standing.
 STAYS = 0.1
 #: A manoeuvre is driven without the stops between legs of one direction, at these shares of the
-#: robot's cruise speed, where that course passes the check and still ends at its goal; else as searched.
+#: robot's cruise speed, where that course passes the check and still ends where the legs do; else as searched.
 SMOOTH = (1.0, 0.5)
 #: A robot drives the legs of its manoeuvre up to ESCAPE [m] of driving (at least one), then plans
 #: again; a smoothed course of a cut manoeuvre ends within ESCAPE_END [m] of where the legs end.
@@ -40,7 +40,7 @@ INSIDE = 0.05
 
 class Manoeuvring:
     """The manoeuvring step of committed AAC (needs the coordinator's ``book``, ``fleet``,
-    ``planner``, ``params``, ``tasks``, ``last_inputs``, ``commitment`` and
+    ``planner``, ``params``, ``tasks``, ``last_inputs``, ``commitment``, ``finished`` and
     ``plan_committed``)."""
 
     def warm_up(self, world: WorldState) -> None:
