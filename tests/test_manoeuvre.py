@@ -70,6 +70,21 @@ def test_a_robot_between_parked_neighbours_manoeuvres_to_its_goal():
     assert least_clearance(states, parked) >= MARGIN + SPARE - 1e-9
 
 
+def test_a_smoothed_manoeuvre_drives_the_same_legs_without_the_stops():
+    """Legs of one direction run into each other: the course ends near where the searched legs
+    end, sooner, never standing between them, its wheels within the steering rate."""
+    p = planner()
+    legs = [(1, 0.0), (0, p.steers[-1]), (1, 0.0)]  # 0.9 m straight, a 0.3 m full-left arc, 0.9 m straight
+    state = np.zeros(4)
+    searched, smoothed = p.stop_and_go(legs, 0.0), p.smooth(legs, 0.0, 1.0)
+    a, b = course(state, searched), course(state, smoothed)
+    assert len(smoothed) < len(searched)
+    assert np.hypot(*(a[-1, :2] - b[-1, :2])) < 0.2 and abs(b[-1, 3]) < 1e-9
+    assert np.all(np.abs(b[1:-1, 3]) > 0.0)  # it stands only at the ends
+    steer = np.concatenate([[0.0], smoothed[:, 1]])
+    assert np.all(np.abs(np.diff(steer)) <= LIMITS[2] * DT + 1e-12) and np.all(np.abs(steer) <= LIMITS[0] + 1e-12)
+
+
 def test_no_manoeuvre_to_a_walled_in_goal():
     wall = np.array([[1.0, 1.0, 2.0, 0.2, 0.0], [1.0, -1.0, 2.0, 0.2, 0.0], [2.0, 0.0, 0.2, 2.0, 0.0], [0.0, 0.0, 0.2, 2.0, 0.0]])
     assert planner().plan(np.array([-2.0, 0.0, 0.0, 0.0]), 0.0, np.array([1.0, 0.0]), 0.2, wall, MARGIN) is None
