@@ -276,3 +276,25 @@ def test_a_ctrl_c_before_a_run_begins_says_it_was_starting(monkeypatch, capsys, 
     argv = ["run", "lane_change"] if command == "run" else ["sweep", "lane_change", "--grid", "controller.horizon=5"]
     assert app.main(argv) == 130
     assert capsys.readouterr().err.splitlines() == [said]
+
+
+def test_a_ctrl_c_that_python_swallowed_while_loading_still_ends_the_command_with_130(monkeypatch, capsys, tmp_path):
+    """A KeyboardInterrupt raised inside a callback of the import machinery is only reported as
+    "Exception ignored" and the program goes on (a fresh clone's CI saw a run that Ctrl-C hit so
+    finish with 0). The hook notes it without a traceback, and the command stops with 130 and one line."""
+    import types
+
+    import aac_sumo.cli as cli
+    from aac_sumo.cli import app
+
+    parser = app.build_parser()
+
+    def parse_args(argv):
+        cli._unraisable(types.SimpleNamespace(exc_type=KeyboardInterrupt))  # as sys.unraisablehook is called
+        return parser.parse_args(argv)
+
+    monkeypatch.setattr(app, "build_parser", lambda: types.SimpleNamespace(parse_args=parse_args))
+    assert cli.main(["run", "swarm_rescue", "--out", str(tmp_path / "out")]) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "interrupted" in err[0]
+    assert not (tmp_path / "out").exists()

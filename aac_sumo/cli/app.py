@@ -14,6 +14,7 @@ import signal
 import sys
 from pathlib import Path
 
+from aac_sumo.cli import INTERRUPTED
 from aac_sumo.cli.common import PROG, UsageError, check_out
 from aac_sumo.cli.parser import build_parser
 from aac_sumo.cli.studies import cmd_bench, cmd_stress, cmd_sweep, cmd_table, cmd_tune
@@ -30,6 +31,8 @@ def main(argv: list[str] | None = None) -> int:
     args = None
     try:
         args = build_parser().parse_args(argv)
+        if INTERRUPTED.is_set():  # a Ctrl-C while the modules loaded, which Python swallowed
+            raise KeyboardInterrupt
         return {"run": cmd_run, "sweep": cmd_sweep, "tune": cmd_tune, "table": cmd_table, "bench": cmd_bench,
                 "net": cmd_net, "stress": cmd_stress, **VIEW_COMMANDS}[args.command](args)
     except SystemExit as exc:  # --help
@@ -102,6 +105,8 @@ def cmd_run(args) -> int:
         scenario = scenario.with_overrides([f"sumo.output_dir={json.dumps(str(out))}"])
     runner.STOP.clear()
     previous = {sig: signal.signal(sig, lambda signum, frame: runner.STOP.set()) for sig in (signal.SIGINT, signal.SIGTERM)}
+    if INTERRUPTED.is_set():  # a Ctrl-C since main() began whose KeyboardInterrupt Python swallowed: stop at once
+        runner.STOP.set()
     try:  # SIGINT or SIGTERM stops the run between two periods; what it recorded is written
         result = runner.run(scenario)
     except runner.RunInterrupted as stop:
