@@ -285,12 +285,12 @@ def test_a_ctrl_c_that_python_swallowed_while_loading_still_ends_the_command_wit
     import types
 
     import aac_sumo.cli as cli
-    from aac_sumo.cli import app
+    from aac_sumo.cli import app, interrupt
 
     parser = app.build_parser()
 
     def parse_args(argv):
-        cli._unraisable(types.SimpleNamespace(exc_type=KeyboardInterrupt))  # as sys.unraisablehook is called
+        sys.unraisablehook(types.SimpleNamespace(exc_type=KeyboardInterrupt))  # as Python reports a swallowed one
         return parser.parse_args(argv)
 
     monkeypatch.setattr(app, "build_parser", lambda: types.SimpleNamespace(parse_args=parse_args))
@@ -298,3 +298,4 @@ def test_a_ctrl_c_that_python_swallowed_while_loading_still_ends_the_command_wit
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "interrupted" in err[0]
     assert not (tmp_path / "out").exists()
+    assert not interrupt.INTERRUPTED.is_set() and sys.unraisablehook is not interrupt._unraisable  # left as before

@@ -14,7 +14,7 @@ import signal
 import sys
 from pathlib import Path
 
-from aac_sumo.cli import INTERRUPTED
+from aac_sumo.cli.interrupt import INTERRUPTED
 from aac_sumo.cli.common import PROG, UsageError, check_out
 from aac_sumo.cli.parser import build_parser
 from aac_sumo.cli.studies import cmd_bench, cmd_stress, cmd_sweep, cmd_table, cmd_tune
