@@ -27,6 +27,7 @@ import pickle
 import signal
 import time
 import traceback
+from multiprocessing import resource_tracker
 from typing import Any, Callable
 
 import numpy as np
@@ -65,7 +66,7 @@ class IsolatedSimulator(Simulator):
         self._conn, child_end = context.Pipe()
         self._process = context.Process(target=_serve, args=(child_end, factory, args, kwargs or {}, tuple(mirror)),
                                         name=f"{name} simulator", daemon=True)
-        with _sigint_ignored():  # the child inherits it from its start: a Ctrl-C while it loads is the parent's alone
+        with _sigint_held():  # the child inherits the block from its start: a Ctrl-C while it loads is the parent's alone
             self._process.start()
         child_end.close()  # the child holds the other end: its death reads as EOF here
         try:
@@ -181,26 +182,23 @@ class IsolatedSimulator(Simulator):
 
 
 @contextlib.contextmanager
-def _sigint_ignored():
-    """SIGINT ignored within the block, where the process can set signal handlers (its main
-    thread); a new process started within it ignores SIGINT from its first instruction. A SIGINT
-    that arrives meanwhile is held (blocked: Linux keeps a blocked signal pending even while it is
-    ignored) and reaches this process's own handler as the block ends, so a Ctrl-C is never lost."""
+def _sigint_held():
+    """SIGINT blocked in this thread within the block; a process started within it inherits the
+    block (``_serve`` ignores SIGINT, then unblocks it, so a Ctrl-C while it loads is discarded
+    there). The handler is left as it is: a SIGINT that arrives meanwhile either reaches another
+    thread, whose Python-level handler only sets a flag for this one, or stays pending here until
+    the block ends. Ignoring it instead lost a Ctrl-C that Linux handed to another thread.
+    ``multiprocessing``'s resource tracker unblocks SIGINT after its own start: it is started
+    first."""
+    resource_tracker.ensure_running()
     try:
         signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     except ValueError:
         yield
         return
     try:
-        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    except ValueError:  # not the main thread: nothing to change
-        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
-        yield
-        return
-    try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
@@ -246,7 +244,8 @@ def _prefetch(target, names: tuple[str, ...]) -> dict:
 def _serve(conn, factory: Callable[..., Any], args: tuple, kwargs: dict, mirror: tuple[str, ...]) -> None:
     """The child: build the simulator, then answer requests until asked to close or the parent
     is gone."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C, then closes us
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent handles Ctrl-C, then closes us;
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})  # held since the start (_sigint_held): now discarded
 
     def mirrored(target) -> dict:
         return {name: getattr(target, name) for name in mirror if hasattr(target, name)}
