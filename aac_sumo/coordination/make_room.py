@@ -4,7 +4,8 @@ robots in its way make room.
 A robot that has stood (speed below ``STILL_SPEED``) for ``stall_periods`` periods without
 having finished may become the **leader**: the stalled robot that led least recently (ties: the
 lowest index). While it leads, the robots whose footprint centres lie within ``corridor`` [m] of
-the segment from its footprint centre to its goal (ahead of it) are **blockers**; each gets a
+the segment from its footprint centre to its goal (ahead of it, and no further than the
+``LEAD_PROGRESS`` its lead asks for plus ``corridor``) are **blockers**; each gets a
 make-room target, its rear axle moved away from that segment until its centre lies
 ``corridor`` plus ``ROOM_EXTRA`` off it and ``corridor`` further along the leader's way (away
 from the leader: a robot facing it backs off diagonally, which a car-like robot can do where a
@@ -64,8 +65,9 @@ class MakeRoom:
 
     def room_targets(self, states: np.ndarray, centres: np.ndarray, goal: np.ndarray, leader: int) -> dict[int, np.ndarray]:
         """Make-room targets (rear axle [m]) of the robots within ``corridor`` of the segment
-        from the leader's centre to ``goal``, ahead of the leader: out of the corridor and on
-        along it, away from the leader."""
+        from the leader's centre to ``goal``, ahead of the leader within the reach of its lead:
+        out of the corridor and on along it, away from the leader. (Without the reach, a leader
+        10 m from its goal pushed a parked robot near that goal off it, lead after lead.)"""
         a = centres[leader]
         seg = goal - a
         length = float(np.hypot(*seg))
@@ -76,7 +78,8 @@ class MakeRoom:
         along = rel @ u
         across = rel @ np.array([-u[1], u[0]])
         out = {}
-        for j in np.flatnonzero((along > 0.0) & (along < length + self.corridor) & (np.abs(across) < self.corridor)):
+        reach = min(length, LEAD_PROGRESS + self.corridor) + self.corridor
+        for j in np.flatnonzero((along > 0.0) & (along < reach) & (np.abs(across) < self.corridor)):
             if j == leader:
                 continue
             side = 1.0 if across[j] >= 0.0 else -1.0
