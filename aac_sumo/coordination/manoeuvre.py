@@ -26,7 +26,7 @@ import numpy as np
 
 from aac_sumo.kernels.geometry import pairwise_clearance
 from aac_sumo.kernels.manoeuvres import lattice_search
-from aac_sumo.kernels.motion import limited_steer
+from aac_sumo.kernels.motion import _bicycle_step, limited_steer
 
 #: Driving speed [m/s] of a primitive and the acceleration [m/s^2] it sets off and stops with
 #: (each within the robot's limits).
@@ -145,6 +145,18 @@ class ManoeuvrePlanner:
             steer = min(max(target, steer - self.rate), steer + self.rate)
             out.append(steer)
         return out
+
+    def to_rest(self, state: np.ndarray, steer: float) -> tuple[np.ndarray, np.ndarray]:
+        """Inputs (m, 2) that bring rear-axle ``state`` (4,) to rest at up to the primitives'
+        deceleration, the wheels held at ``steer`` [rad], and the state (4,) at rest (the
+        simulator's Euler step): where a manoeuvre of a robot still rocking begins."""
+        x, y, h, v = (float(a) for a in state)
+        rows = []
+        while abs(v) > 1e-9:
+            accel = -math.copysign(min(self.decel, abs(v) / self.dt), v)
+            rows.append((accel, steer))
+            x, y, h, v = _bicycle_step(x, y, h, v, accel, steer, self.dt, self.wheelbase, self.v_min, self.v_max)
+        return np.array(rows, dtype=float).reshape(-1, 2), np.array([x, y, h, 0.0])
 
     def stop_and_go(self, legs: list[tuple[int, float]], steer: float) -> np.ndarray:
         """Inputs (K, 2) of ``legs`` as searched: before each, the wheels turn where the robot

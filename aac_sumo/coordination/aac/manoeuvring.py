@@ -13,7 +13,6 @@ from collections import deque
 import numpy as np
 
 from aac_sumo.coordination.base import RobotDecision
-from aac_sumo.coordination.make_room import STILL_SPEED
 from aac_sumo.coordination.manoeuvre import ManoeuvrePlanner
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.world import WorldState
@@ -57,6 +56,7 @@ class Manoeuvring:
         """Robot ``i``'s turn of authority: on a manoeuvre, it drives on with it; else it plans
         (:meth:`plan_committed`), and when that leaves it standing after it has stalled
         (:meth:`stalled`), it manoeuvres where a way is found and passes the exact check.
+        A robot still rocking brakes to rest first, within its manoeuvre.
         Returns its record, whether its plan was cut (or replaced), and whether its commitment
         was kept, as :meth:`plan_committed`."""
         if not self.params.manoeuvre:
@@ -66,7 +66,7 @@ class Manoeuvring:
             return RobotDecision(True, reason=reason, mode="manoeuvre"), 0, 1
         record, cut, kept = self.plan_committed(world, i, others, reason, period, statics)
         stays = np.hypot(*(self.book.items[i].states[-1, :2] - world.states[i, :2])) < STAYS
-        if abs(world.states[i, 3]) < STILL_SPEED and stays and record.mode != "creep" and self.manoeuvre(world, i, period, statics):
+        if stays and record.mode != "creep" and self.manoeuvre(world, i, period, statics):
             record.mode = "manoeuvre"
             return record, 1, 0
         return record, cut, kept
@@ -88,16 +88,22 @@ class Manoeuvring:
         self.jammed = np.zeros(n, dtype=bool)
         if len(self.trail) == self.trail.maxlen:
             path = np.asarray(self.trail)
-            still = (np.hypot(*(path - path[0]).transpose(2, 0, 1)).max(axis=0) <= STALL) | np.asarray(self.finished(world), dtype=bool)
+            done = np.asarray(self.finished(world), dtype=bool)
+            still = (np.hypot(*(path - path[0]).transpose(2, 0, 1)).max(axis=0) <= STALL) | done
+            goals = np.array([task.points[-1] for task in self.tasks])
+            gained = np.hypot(*(path[0] - goals).T) - np.hypot(*(path[-1] - goals).T)
+            idle = (gained <= STALL) | done  # moving, but none the nearer its goal (making room, rocking)
             centres = world.robot_centres()
             near = np.hypot(*(centres[:, None] - centres[None]).transpose(2, 0, 1)) <= JAM_RADIUS
-            self.jammed = still & np.all(still[None] | ~near, axis=1)
+            self.jammed = still & np.all(idle[None] | ~near, axis=1)
 
     def stalled(self, i: int) -> bool:
-        """Whether robot ``i`` is in a jam: neither it nor any unfinished robot whose centre lies
-        within ``JAM_RADIUS`` of its own got further than ``STALL`` [m] from where it stood
-        ``manoeuvre_time`` ago, at any period since (a robot rocking on the spot stalls too; one
-        that waits while its neighbours move does not)."""
+        """Whether robot ``i`` is in a jam: it got no further than ``STALL`` [m] from where it
+        stood ``manoeuvre_time`` ago, at any period since (a robot rocking on the spot stalls
+        too), and no unfinished robot whose centre lies within ``JAM_RADIUS`` of its own got
+        more than ``STALL`` nearer its goal meanwhile (one that waits while its neighbours move
+        on does not stall; neighbours that only make room for a leader, or rock, move on
+        nowhere)."""
         return bool(self.jammed[i])
 
     def manoeuvre(self, world: WorldState, i: int, period: int, statics: np.ndarray) -> bool:
@@ -115,15 +121,16 @@ class Manoeuvring:
         others = [book.footprints(j, c, period) for j, c in enumerate(book.items) if j != i]
         obstacles = np.vstack([np.asarray(statics, dtype=float).reshape(-1, 5), *others])
         planner, steer, goal = self.manoeuvres[i], float(self.last_inputs[i, 1]), task.points[-1]
-        legs = planner.search(world.states[i], steer, goal, task.arrive - INSIDE, obstacles, book.margin)
+        brake, rest = planner.to_rest(world.states[i], steer)  # a robot rocking on the spot stops first
+        legs = planner.search(rest, steer, goal, task.arrive - INSIDE, obstacles, book.margin)
         self.next_manoeuvre[i], self._searched = period + RETRY, period
         if not legs:
             return False
         reach = np.cumsum([planner.distances[d] for d, _ in legs])
         legs = legs[: max(int(np.searchsorted(reach, ESCAPE, side="right")), 1)]  # the way out; then its MPC again
-        searched = planner.stop_and_go(legs, steer)
+        searched = np.vstack([brake, planner.stop_and_go(legs, steer)])
         end, near = (goal, task.arrive) if len(legs) == len(reach) else (self.commitment(world, i, period, searched).states[-1, :2], ESCAPE_END)
-        for inputs in [planner.smooth(legs, steer, share * task.speed) for share in SMOOTH] + [searched]:
+        for inputs in [np.vstack([brake, planner.smooth(legs, steer, share * task.speed)]) for share in SMOOTH] + [searched]:
             candidate = self.commitment(world, i, period, inputs)
             if np.hypot(*(candidate.states[-1, :2] - end)) <= near and book.clearance(i, candidate, period, statics) >= book.margin:
                 break
