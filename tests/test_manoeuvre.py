@@ -56,6 +56,19 @@ def test_primitives_turn_the_wheels_at_the_steering_rate_before_they_move():
     assert np.all(costs >= lengths * DT - 1e-12)
 
 
+@pytest.mark.parametrize("v, accels, driven", [(0.25, [-1.0, -1.0, -0.5], 0.045), (-0.15, [1.0, 0.5], 0.02), (0.0, [], 0.0)])
+def test_a_rocking_robot_brakes_to_rest_at_the_primitives_deceleration(v, accels, driven):
+    """From 0.25 m/s at 1 m/s^2 and dt = 0.1 s: -1, -1, then -0.5 to end exactly at rest, having
+    driven 0.025 + 0.015 + 0.005 m (Euler: each period at the speed it starts with); the wheels
+    stay where they are, and the rest state is where the simulator's rollout ends."""
+    state = np.array([1.0, -2.0, 0.3, v])
+    inputs, rest = planner().to_rest(state, 0.2)
+    assert np.allclose(inputs[:, 0], accels) and np.all(inputs[:, 1] == 0.2)
+    states = course(state, inputs)
+    assert np.allclose(states[-1], rest) and rest[3] == 0.0
+    assert DT * np.abs(states[:-1, 3]).sum() == pytest.approx(driven)
+
+
 def test_a_robot_between_parked_neighbours_manoeuvres_to_its_goal():
     """The 24-robot circle swap's seed 3 (r = 4 m): the last robot stood 1.2 m short of its goal,
     its MPC infeasible for the ellipses round its neighbours, which the rectangles leave room."""
@@ -127,4 +140,15 @@ def test_the_random_crossing_that_deadlocked_completes_with_manoeuvres():
     result = runner.run(scenario)
     assert result.metrics["completed"] and result.metrics["collisions"] == 0
     assert result.metrics["min_clearance_m"] >= scenario["aac.commit_margin"] - 1e-9
+    assert (result.steps["mode"] == "manoeuvre").any()
+
+
+@pytest.mark.slow
+def test_a_dense_crossing_whose_last_robot_rocked_completes():
+    """20 robots at 16.7 per 100 m^2, seed 7: the last robot rocked on the spot beside a robot that
+    kept making room for it and coming back, so that the jam rule never held (a deadlock at
+    36.2 s); neighbours that get no nearer their goals now leave the jam as it is."""
+    scenario = config.load("random_crossing", ["scenario.seed=7", "random_crossing.density=16.7"])
+    result = runner.run(scenario)
+    assert result.metrics["completed"] and result.metrics["collisions"] == 0
     assert (result.steps["mode"] == "manoeuvre").any()
