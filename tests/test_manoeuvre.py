@@ -152,3 +152,25 @@ def test_a_dense_crossing_whose_last_robot_rocked_completes():
     result = runner.run(scenario)
     assert result.metrics["completed"] and result.metrics["collisions"] == 0
     assert (result.steps["mode"] == "manoeuvre").any()
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(0, 2**31 - 1), st.integers(1, 60))
+def test_the_buckets_give_every_primitive_the_clearances_of_all_obstacles(seed, m):
+    """A primitive's least and last clearance and its end are the same whether it looks only at
+    its footprint's bucket of obstacles (kernels/manoeuvres.py) or at every obstacle."""
+    from aac_sumo.kernels.manoeuvres import BUCKET, _buckets, _primitive
+
+    rng = np.random.default_rng(seed)
+    obstacles = np.column_stack([rng.uniform(-3, 3, (m, 2)), rng.uniform(0.2, 1.5, (m, 2)), rng.uniform(-np.pi, np.pi, m)])
+    radii = 0.5 * np.hypot(obstacles[:, 2], obstacles[:, 3])
+    body, cap, floor = float(np.hypot(0.5 * LENGTH, 0.5 * WIDTH)), MARGIN + 2 * SPARE, -np.inf
+    glo = np.array([-2.0, -2.0])
+    first, items = _buckets(obstacles, radii, body + cap, glo, BUCKET, 8, 8)  # a grid smaller than the area: both paths run
+    rows, lengths, _ = planner().primitives(float(rng.uniform(-0.6, 0.6)))
+    state = np.array([*rng.uniform(-2.5, 2.5, 2), rng.uniform(-np.pi, np.pi), 0.0])
+    for inputs, k in zip(rows, lengths):
+        args = (state, inputs, int(k), obstacles, radii, body, DT, WHEELBASE, -1.5, 1.5, OFFSET, LENGTH, WIDTH, floor, cap)
+        bucketed = _primitive(*args, first, items, glo, BUCKET, 8, 8)
+        everyone = _primitive(*args, np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), glo, BUCKET, 0, 0)
+        assert np.array_equal(bucketed[0], everyone[0]) and bucketed[1] == everyone[1] and bucketed[2] == everyone[2]

@@ -15,22 +15,65 @@ from aac_sumo.kernels.geometry import rect_clearance
 from aac_sumo.kernels.motion import _bicycle_step
 
 
+#: Side [m] of the buckets that sort the obstacles for the clearance checks, and how far [m]
+#: beyond the search's box they reach (a footprint beyond them checks every obstacle).
+BUCKET = 0.5
+BUCKET_PAD = 2.0
+
+
 @numba.njit(cache=True, nogil=True)
-def _primitive(state, inputs, steps, obstacles, radii, body, dt, wheelbase, v_min, v_max, offset, length, width, floor, cap):
+def _buckets(obstacles, radii, grow, lo, size, nx, ny):
+    """The obstacles by bucket (side ``size`` [m], the grid's corner ``lo`` (2,), ``nx`` by
+    ``ny``): each is in every bucket that the square round its circumcircle grown by ``grow``
+    [m] touches (clamped into the grid). Returns the buckets' first entries (nx * ny + 1,)
+    and the obstacle indices, bucket after bucket."""
+    first = np.zeros(nx * ny + 1, dtype=np.int64)
+    for phase in range(2):
+        fill = first[:-1].copy()
+        items = np.empty(first[-1], dtype=np.int64)
+        for o in range(obstacles.shape[0]):
+            r = radii[o] + grow
+            x0 = min(max(int(math.floor((obstacles[o, 0] - r - lo[0]) / size)), 0), nx - 1)
+            x1 = min(max(int(math.floor((obstacles[o, 0] + r - lo[0]) / size)), 0), nx - 1)
+            y0 = min(max(int(math.floor((obstacles[o, 1] - r - lo[1]) / size)), 0), ny - 1)
+            y1 = min(max(int(math.floor((obstacles[o, 1] + r - lo[1]) / size)), 0), ny - 1)
+            for i in range(x0, x1 + 1):
+                for j in range(y0, y1 + 1):
+                    if phase == 0:
+                        first[i * ny + j + 1] += 1
+                    else:
+                        items[fill[i * ny + j]] = o
+                        fill[i * ny + j] += 1
+        if phase == 0:
+            first = np.cumsum(first)
+    return first, items
+
+
+@numba.njit(cache=True, nogil=True)
+def _primitive(state, inputs, steps, obstacles, radii, body, dt, wheelbase, v_min, v_max, offset, length, width, floor, cap,
+               first, items, glo, size, nx, ny):
     """Rear-axle state (4,) after ``steps`` of ``inputs`` (K, 2) from ``state``, and the least
     clearance [m] of the footprints on the way to ``obstacles`` (m, 5) (circumradii ``radii``;
     ``body`` the footprint's), and at its end, each at most ``cap``; the first is -inf as soon
-    as a state comes closer than ``floor``."""
+    as a state comes closer than ``floor``. Only the obstacles of the footprint centre's bucket
+    (:func:`_buckets`, grown by ``body + cap``) can come closer than ``cap``: the others are
+    not looked at (all of them beyond the buckets' grid)."""
     x, y, h, v = state[0], state[1], state[2], state[3]
     row = np.empty(5)
     row[2], row[3] = length, width
     least, last = cap, cap
+    everyone = np.arange(obstacles.shape[0])
     for k in range(steps + 1):
         if k > 0:
             x, y, h, v = _bicycle_step(x, y, h, v, inputs[k - 1, 0], inputs[k - 1, 1], dt, wheelbase, v_min, v_max)
         row[0], row[1], row[4] = x + offset * math.cos(h), y + offset * math.sin(h), h
+        ix, iy = int(math.floor((row[0] - glo[0]) / size)), int(math.floor((row[1] - glo[1]) / size))
+        if 0 <= ix < nx and 0 <= iy < ny:
+            near = items[first[ix * ny + iy]:first[ix * ny + iy + 1]]
+        else:
+            near = everyone
         here = cap
-        for o in range(obstacles.shape[0]):
+        for o in near:
             bound = math.hypot(row[0] - obstacles[o, 0], row[1] - obstacles[o, 1]) - body - radii[o]
             if bound >= here:
                 continue
@@ -70,6 +113,11 @@ def lattice_search(start, start_room, goal, tolerance, prims, steps, costs, whee
     heap = [(weight * math.hypot(goal[0] - start[0], goal[1] - start[1]) / speed, 0.0, 0)]
     expansions = 0
     found = -1
+    reach = margin + 2.0 * spare  # the clearance cap of every check
+    glo = lo - BUCKET_PAD
+    gnx = int(math.ceil((hi[0] - lo[0] + 2.0 * BUCKET_PAD) / BUCKET)) + 1
+    gny = int(math.ceil((hi[1] - lo[1] + 2.0 * BUCKET_PAD) / BUCKET)) + 1
+    first, items = _buckets(obstacles, radii, body + reach, glo, BUCKET, gnx, gny)
     while len(heap) and expansions < max_expansions:
         _, g, k = heapq.heappop(heap)
         if math.hypot(states[k, 0] - goal[0], states[k, 1] - goal[1]) <= tolerance:
@@ -82,7 +130,7 @@ def lattice_search(start, start_room, goal, tolerance, prims, steps, costs, whee
         floor = max(margin, min(margin + spare, room[k]))
         for p in range(prims.shape[1]):
             end, least, last = _primitive(states[k], prims[w, p], steps[w, p], obstacles, radii, body, dt, wheelbase, v_min, v_max,
-                                          offset, length, width, floor, margin + 2.0 * spare)
+                                          offset, length, width, floor, reach, first, items, glo, BUCKET, gnx, gny)
             if least < floor or end[0] < lo[0] or end[0] > hi[0] or end[1] < lo[1] or end[1] > hi[1]:
                 continue
             end[3] = 0.0
