@@ -90,3 +90,36 @@ def test_a_killed_dask_worker_becomes_an_error_row(tmp_path):
         written = list(csv.DictReader(fh))
     assert [(r["seed"], r["status"]) for r in written] == [("0", "ok"), ("1", "error"), ("2", "ok"), ("3", "ok")]
     assert "KilledWorker" in written[1]["error"]
+
+
+def test_a_sweep_killed_outright_leaves_no_worker_behind(tmp_path):
+    """SIGKILL on the sweep process alone (not its process group): its pool's workers notice
+    that their parent is gone and end within seconds. (Killed so, or by SIGTERM, a sweep's
+    workers used to live on, polling for work that never came.)"""
+    out = tmp_path / "sweep"
+    cmd = [AAC_SUMO, "sweep", "braking", "--grid", "braking.speed=5", "--seeds", "20", "--workers", "2", "--out", str(out), *SHORT]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        while not finished_rows(out / "results.csv", ["braking.speed"]) and proc.poll() is None:
+            time.sleep(0.05)
+        children = [int(pid) for pid in Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()]
+        workers = [pid for pid in children if "spawn_main" in Path(f"/proc/{pid}/cmdline").read_text()]
+        assert workers, "the sweep ended before it could be killed"
+        os.kill(proc.pid, signal.SIGKILL)  # the parent dies at once, without cleaning up
+        proc.wait()
+        end = time.monotonic() + 30.0
+        while time.monotonic() < end and any(Path(f"/proc/{pid}").exists() and "Z" not in _state(pid) for pid in workers):
+            time.sleep(0.1)
+        assert not [pid for pid in workers if Path(f"/proc/{pid}").exists() and "Z" not in _state(pid)]
+    finally:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+
+
+def _state(pid: int) -> str:
+    try:
+        return next(line for line in Path(f"/proc/{pid}/status").read_text().splitlines() if line.startswith("State:"))
+    except (FileNotFoundError, StopIteration):
+        return "Z"

@@ -4,9 +4,11 @@ by sweeps, tables and tuning (:mod:`aac_sumo.runs.sweep`)."""
 from __future__ import annotations
 
 import multiprocessing
+import multiprocessing.connection
 import os
 import signal
 import sys
+import threading
 from collections import deque
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, as_completed, wait
 from concurrent.futures.process import BrokenProcessPool
@@ -28,6 +30,16 @@ def one_line(exc: BaseException) -> str:
 
 def _init_worker() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is handled by the parent alone
+    parent = multiprocessing.parent_process()
+    if parent is not None:
+        threading.Thread(target=_exit_with, args=(parent.sentinel,), name="parent watch", daemon=True).start()
+
+
+def _exit_with(sentinel: int) -> None:
+    """End this worker when its parent has gone (a sweep killed by SIGTERM or SIGKILL left its
+    pool's workers behind, polling for work that never came)."""
+    multiprocessing.connection.wait([sentinel])
+    os._exit(1)
 
 
 class WorkerDied(RuntimeError):
