@@ -172,5 +172,5 @@ def test_the_buckets_give_every_primitive_the_clearances_of_all_obstacles(seed, 
     for inputs, k in zip(rows, lengths):
         args = (state, inputs, int(k), obstacles, radii, body, DT, WHEELBASE, -1.5, 1.5, OFFSET, LENGTH, WIDTH, floor, cap)
         bucketed = _primitive(*args, first, items, glo, BUCKET, 8, 8)
-        everyone = _primitive(*args, np.zeros(1, dtype=np.int64), np.zeros(0, dtype=np.int64), glo, BUCKET, 0, 0)
+        everyone = _primitive(*args, *_buckets(obstacles, radii, body + cap, glo, BUCKET, 0, 0), glo, BUCKET, 0, 0)
         assert np.array_equal(bucketed[0], everyone[0]) and bucketed[1] == everyone[1] and bucketed[2] == everyone[2]

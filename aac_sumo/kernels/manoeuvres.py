@@ -25,28 +25,40 @@ BUCKET_PAD = 2.0
 def _buckets(obstacles, radii, grow, lo, size, nx, ny):
     """The obstacles by bucket (side ``size`` [m], the grid's corner ``lo`` (2,), ``nx`` by
     ``ny``): each is in every bucket that the square round its circumcircle grown by ``grow``
-    [m] touches (clamped into the grid). Returns the buckets' first entries (nx * ny + 1,)
-    and the obstacle indices, bucket after bucket."""
-    first = np.zeros(nx * ny + 1, dtype=np.int64)
+    [m] touches (clamped into the grid), and in a last bucket (index ``nx * ny``) that holds
+    them all, for footprints beyond the grid. Returns the buckets' first entries
+    (nx * ny + 2,) and the obstacle indices, bucket after bucket."""
+    cells = nx * ny
+    first = np.zeros(cells + 2, dtype=np.int64)
+    fill = first[:-1].copy()
+    items = np.empty(0, dtype=np.int64)
     for phase in range(2):
-        fill = first[:-1].copy()
-        items = np.empty(first[-1], dtype=np.int64)
         for o in range(obstacles.shape[0]):
-            r = radii[o] + grow
-            x0 = min(max(int(math.floor((obstacles[o, 0] - r - lo[0]) / size)), 0), nx - 1)
-            x1 = min(max(int(math.floor((obstacles[o, 0] + r - lo[0]) / size)), 0), nx - 1)
-            y0 = min(max(int(math.floor((obstacles[o, 1] - r - lo[1]) / size)), 0), ny - 1)
-            y1 = min(max(int(math.floor((obstacles[o, 1] + r - lo[1]) / size)), 0), ny - 1)
-            for i in range(x0, x1 + 1):
-                for j in range(y0, y1 + 1):
-                    if phase == 0:
-                        first[i * ny + j + 1] += 1
-                    else:
-                        items[fill[i * ny + j]] = o
-                        fill[i * ny + j] += 1
+            if cells > 0:
+                r = radii[o] + grow
+                x0 = min(max(int(math.floor((obstacles[o, 0] - r - lo[0]) / size)), 0), nx - 1)
+                x1 = min(max(int(math.floor((obstacles[o, 0] + r - lo[0]) / size)), 0), nx - 1)
+                y0 = min(max(int(math.floor((obstacles[o, 1] - r - lo[1]) / size)), 0), ny - 1)
+                y1 = min(max(int(math.floor((obstacles[o, 1] + r - lo[1]) / size)), 0), ny - 1)
+                for i in range(x0, x1 + 1):
+                    for j in range(y0, y1 + 1):
+                        _put(phase, first, fill, items, i * ny + j, o)
+            _put(phase, first, fill, items, cells, o)
         if phase == 0:
             first = np.cumsum(first)
+            fill = first[:-1].copy()
+            items = np.empty(first[-1], dtype=np.int64)
     return first, items
+
+
+@numba.njit(cache=True, nogil=True)
+def _put(phase, first, fill, items, bucket, o):
+    """Count obstacle ``o`` in ``bucket`` (phase 0), or file it there (phase 1)."""
+    if phase == 0:
+        first[bucket + 1] += 1
+    else:
+        items[fill[bucket]] = o
+        fill[bucket] += 1
 
 
 @numba.njit(cache=True, nogil=True)
@@ -57,23 +69,19 @@ def _primitive(state, inputs, steps, obstacles, radii, body, dt, wheelbase, v_mi
     ``body`` the footprint's), and at its end, each at most ``cap``; the first is -inf as soon
     as a state comes closer than ``floor``. Only the obstacles of the footprint centre's bucket
     (:func:`_buckets`, grown by ``body + cap``) can come closer than ``cap``: the others are
-    not looked at (all of them beyond the buckets' grid)."""
+    not looked at (beyond the buckets' grid, the last bucket holds them all)."""
     x, y, h, v = state[0], state[1], state[2], state[3]
     row = np.empty(5)
     row[2], row[3] = length, width
     least, last = cap, cap
-    everyone = np.arange(obstacles.shape[0])
     for k in range(steps + 1):
         if k > 0:
             x, y, h, v = _bicycle_step(x, y, h, v, inputs[k - 1, 0], inputs[k - 1, 1], dt, wheelbase, v_min, v_max)
         row[0], row[1], row[4] = x + offset * math.cos(h), y + offset * math.sin(h), h
         ix, iy = int(math.floor((row[0] - glo[0]) / size)), int(math.floor((row[1] - glo[1]) / size))
-        if 0 <= ix < nx and 0 <= iy < ny:
-            near = items[first[ix * ny + iy]:first[ix * ny + iy + 1]]
-        else:
-            near = everyone
+        c = ix * ny + iy if 0 <= ix < nx and 0 <= iy < ny else nx * ny
         here = cap
-        for o in near:
+        for o in items[first[c]:first[c + 1]]:
             bound = math.hypot(row[0] - obstacles[o, 0], row[1] - obstacles[o, 1]) - body - radii[o]
             if bound >= here:
                 continue

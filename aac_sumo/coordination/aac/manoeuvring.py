@@ -81,6 +81,7 @@ class Manoeuvring:
                                                 self.fleet.a_min[j], self.fleet.a_max[j], self.fleet.length[j], self.fleet.width[j],
                                                 self.fleet.offset[j], self.planner.config.dt) for j in range(n)]
             self._counted = self._searched = -1
+            self.goals = np.array([task.points[-1] for task in self.tasks])
         if self._counted == period:
             return
         self._counted = period
@@ -90,12 +91,12 @@ class Manoeuvring:
             path = np.asarray(self.trail)
             done = np.asarray(self.finished(world), dtype=bool)
             still = (np.hypot(*(path - path[0]).transpose(2, 0, 1)).max(axis=0) <= STALL) | done
-            goals = np.array([task.points[-1] for task in self.tasks])
-            gained = np.hypot(*(path[0] - goals).T) - np.hypot(*(path[-1] - goals).T)
+            gained = np.hypot(*(path[0] - self.goals).T) - np.hypot(*(path[-1] - self.goals).T)
             idle = (gained <= STALL) | done  # moving, but none the nearer its goal (making room, rocking)
             centres = world.robot_centres()
-            near = np.hypot(*(centres[:, None] - centres[None]).transpose(2, 0, 1)) <= JAM_RADIUS
-            self.jammed = still & np.all(idle[None] | ~near, axis=1)
+            rows = np.flatnonzero(still)  # only a robot that stood can be in a jam: no n-by-n distances
+            near = np.hypot(*(centres[rows, None] - centres[None]).transpose(2, 0, 1)) <= JAM_RADIUS
+            self.jammed[rows] = np.all(idle[None] | ~near, axis=1)
 
     def stalled(self, i: int) -> bool:
         """Whether robot ``i`` is in a jam: it got no further than ``STALL`` [m] from where it
