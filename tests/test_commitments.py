@@ -11,8 +11,10 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from aac_sumo import config, experiments
+from aac_sumo.coordination.base import RobotDecision
 from aac_sumo.coordination.commitments import CommitmentBook, clusters, reach_radii, stopping_commitment
 from aac_sumo.coordination.traffic_courses import braking_courses, standing_points, stop_lines, traffic_clearances
+from aac_sumo.coordination.make_room import MakeRoom
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.dynamics import BicycleModel, VehicleLimits
 from aac_sumo.geometry import pairwise_rect_clearance
@@ -144,6 +146,30 @@ def test_spread_gives_a_long_cluster_one_authority_per_stretch_that_cannot_meet(
         for b in held[held > a]:
             assert np.hypot(*(centres[a] - centres[b])) - radii[a] - radii[b] > 0.05
 
+
+
+def test_spread_extra_authorities_leave_the_lead_cycle_as_one_authority_runs_it():
+    """During a lead, a group's first authority of each period cycles through the leader, a robot
+    in its way and anyone, as with one authority; "spread"'s further authorities of the period
+    come from the rest and do not move that cycle on (before, they took the whole cycle within
+    one period, and the leader held authority every period)."""
+    starts = [[1.2 * k, 0.0, 0.0] for k in range(9)]
+    goals = [[1.2 * k + 20.0, 0.0] for k in range(9)]
+    setup = experiments.build(config.load("swarm_rescue", swarm(starts, goals) + ['aac.authorities="spread"']))
+    coord, world = setup.coordinator, setup.sim.observe()
+    coord.decide(world)
+    coord.room = MakeRoom(9, stall_periods=10, lead_periods=80, corridor=1.0)
+    coord.room.leader, coord.room.targets = 4, {5: np.zeros(2)}
+    members = np.arange(9)
+    records = [RobotDecision(False) for _ in members]
+    firsts = []
+    for period in range(1, 4):
+        first, why = coord.choose_in_group(world, members, members, records, period)
+        rest = members[members != first]
+        extras = [coord.choose_in_group(world, members, rest, records, period, extra=True)[1] for _ in range(2)]
+        firsts.append(why)
+        assert not {"leader", "make_room"} & set(extras)
+    assert firsts[:2] == ["leader", "make_room"] and firsts[2] not in ("leader", "make_room")
 
 @settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 10_000), speed=st.floats(-1.5, 1.5), horizon=st.integers(1, 15))

@@ -32,9 +32,9 @@ class PrioritizedLfc(CommittedAac):
         everyone = np.arange(len(world.robots))
         return [(everyone, np.array([i])) for i in np.flatnonzero(~parked)]
 
-    def choose_in_group(self, world: WorldState, members: np.ndarray, candidates: np.ndarray, records: list[RobotDecision],
-                        period: int) -> tuple[int, str]:
-        """The group's one candidate, by its priority."""
+    def turns_in_group(self, world: WorldState, members: np.ndarray, candidates: np.ndarray, records: list[RobotDecision],
+                       period: int):
+        """The group's one candidate, by its priority (whatever ``aac.authorities`` says)."""
         i = int(candidates[0])
         self.last_turn[i] = period
-        return i, "priority"
+        yield i, "priority"

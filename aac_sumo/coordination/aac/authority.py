@@ -145,13 +145,28 @@ class AacCoordinator(Coordinator):
         gap = np.hypot(*(centres[candidates] - centres[i]).T) - self.reach[candidates] - self.reach[i]
         return candidates[gap > self.params.commit_margin]
 
+    def turns_in_group(self, world: WorldState, members: np.ndarray, candidates: np.ndarray, records: list[RobotDecision],
+                       period: int):
+        """This period's authorities of one group, in turn, as ``(robot, why)``: one
+        (:meth:`choose_in_group`), or with ``authorities = "spread"`` then more, each among the
+        candidates out of reach of those before it (:meth:`out_of_reach`), chosen once the one
+        before has planned; those further ones do not move the lead's cycle on."""
+        extra = False
+        while candidates.size:
+            i, reason = self.choose_in_group(world, members, candidates, records, period, extra)
+            yield i, reason
+            if not self.params.authorities.spread:
+                return
+            candidates, extra = self.out_of_reach(world, i, candidates), True
+
     def choose_in_group(self, world: WorldState, members: np.ndarray, candidates: np.ndarray, records: list[RobotDecision],
-                         period: int) -> tuple[int, str]:
+                         period: int, extra: bool = False) -> tuple[int, str]:
         """The authority among ``candidates`` and why: with close pairs among them, the proximity
         decision (blockers: the group's ``members`` and the obstacles; its samples seeded by the
         scenario seed, the period and the candidates' states, so that a group's decision depends
         on nothing outside it); without, the candidate that held authority longest ago (round
-        robin; ties go to the lowest index)."""
+        robin; ties go to the lowest index). An ``extra`` authority (a further one of the period,
+        :meth:`turns_in_group`) skips the lead's cycle and leaves it where it was."""
         centres = world.robot_centres()
         pairs = close_pairs(centres[candidates], self.params.close_distance)
         room = self.room
@@ -160,9 +175,9 @@ class AacCoordinator(Coordinator):
         movers = np.array([j for j in members if j in room.targets], dtype=int) if leader in candidates else np.empty(0, dtype=int)
         waited = period - self.last_turn[candidates]
         before = self.last_reason.get(int(members[0]), "")  # a lead cycles: leader, a robot in its way, anyone
-        if leader in candidates and before not in ("leader", "make_room"):
+        if not extra and leader in candidates and before not in ("leader", "make_room"):
             i, reason = leader, "leader"
-        elif before == "leader" and movers.size:
+        elif not extra and before == "leader" and movers.size:
             i, reason = int(movers[np.argmin(self.last_turn[movers])]), "make_room"
         elif len(pairs) == 0 or waited.max() > STARVING * self.planner.config.horizon:
             i, reason = int(candidates[np.argmax(waited)]), "round_robin"
@@ -181,7 +196,8 @@ class AacCoordinator(Coordinator):
                 records[j].score, records[j].progress = float(result.scores[row]), float(result.progress[row])
             i, reason = int(near[result.winner]), "proximity"
         self.last_turn[i] = period
-        self.last_reason[int(members[0])] = reason
+        if not extra:
+            self.last_reason[int(members[0])] = reason
         return i, reason
 
     def reference(self, world: WorldState, i: int, speeds: np.ndarray | None = None) -> np.ndarray:

@@ -123,8 +123,7 @@ class CommittedAac(Manoeuvring, Creeping, Queueing, TrafficBraking, AacCoordinat
                                         np.maximum(self.extra_shift - SHIFT_DECAY * cfg.dt, 0.0))
         holders, reasons, cuts, kept = [], [], 0, 0
         for members, candidates in self.groups(world, parked):
-            while candidates.size:
-                i, reason = self.choose_in_group(world, members, candidates, records, period)
+            for i, reason in self.turns_in_group(world, members, candidates, records, period):
                 others = members[members != i]
                 decided, cut, keep = self.take_turn(world, i, others, reason, period, statics)
                 decided.score, decided.progress = records[i].score, records[i].progress
@@ -133,9 +132,6 @@ class CommittedAac(Manoeuvring, Creeping, Queueing, TrafficBraking, AacCoordinat
                 reasons.append(reason)
                 cuts += cut
                 kept += keep
-                if not self.params.authorities.spread:
-                    break
-                candidates = self.out_of_reach(world, i, candidates)
         extended = self.extend_by_tracking(world, period, parked, holders, records, statics)
         braked = (self.brake_for_traffic(world, period, parked, records, statics)
                   if self.book.traffic or self.params.walker_brake or self.book.reaction is not None else 0)
