@@ -370,6 +370,48 @@ def test_obstacle_binds_in_well_posed_case():
     assert bound.inputs[0, 1] < -0.01  # steers away (to the right) from the cone on the left
 
 
+
+def _captured_solve(monkeypatch):
+    """The arguments of the fatrop solve behind one well-posed plan, and that problem."""
+    seen = []
+    solve = problem.MpcProblem.solve
+
+    def capture(self, *args):
+        seen.append((self, [np.array(a, copy=True) for a in args]))
+        return solve(self, *args)
+
+    monkeypatch.setattr(problem.MpcProblem, "solve", capture)
+    plan = planner(retry=False).plan(ROBOT, WELL_POSED["state"], straight_reference(0.0, 3.0), np.zeros(2), WELL_POSED["obstacles"])
+    monkeypatch.undo()
+    assert plan.status == "solved" and len(seen) == 1
+    return seen[0]
+
+
+def test_a_solve_through_the_bound_arrays_equals_a_call_by_keywords(monkeypatch):
+    """MpcProblem.solve evaluates the solver on arrays bound to it once (casadi's FunctionBuffer);
+    the plan is the one a call by keywords returns, to the bit."""
+    prob, (params, w0, lbx, ubx) = _captured_solve(monkeypatch)
+    outcome = prob.solve(params, w0, lbx, ubx)
+    by_keywords = np.asarray(prob.solver(x0=w0, p=params, lbx=lbx, ubx=ubx, lbg=prob._lbg, ubg=prob._ubg)["x"]).ravel()
+    states, inputs = prob.unpack(by_keywords)
+    assert outcome.status == "solved"
+    assert np.array_equal(outcome.states, states) and np.array_equal(outcome.inputs, inputs)
+
+
+@pytest.mark.parametrize("where", [0, 1, 2])
+def test_a_nan_in_a_problem_fails_that_solve_alone(monkeypatch, where):
+    """A NaN among the parameters, the guess or the bounds fails the solve at once, and the next
+    well-posed solve is solved as before (handed to fatrop, one such solve made every later one
+    fail at its first iteration)."""
+    prob, args = _captured_solve(monkeypatch)
+    before = prob.solve(*args)
+    broken = [a.copy() for a in args]
+    broken[where][3] = np.nan
+    failed = prob.solve(*broken)
+    after = prob.solve(*args)
+    assert failed.status == "failed" and "NaN" in failed.detail
+    assert after.status == "solved" and np.array_equal(after.states, before.states)
+
 def test_warm_start_reproduces_first_input():
     """Solving the same problem again, warm-started from the previous plan, returns the same
     first input."""
