@@ -272,8 +272,8 @@ class MpcProblem:
     def solve(self, params: np.ndarray, w0: np.ndarray, lbx: np.ndarray, ubx: np.ndarray) -> SolveOutcome:
         """Solve once from the initial guess ``w0``; never raises on solver failure. A problem
         with a NaN among its parameters, its guess or its bounds is not handed to the solver
-        (it fails at once): one such solve leaves fatrop failing every later solve at its
-        first iteration (casadi 3.8.2)."""
+        (it fails at once): handed to fatrop (casadi 3.8.2), such a solve either never returned
+        or left every later solve of the problem failing at its first iteration."""
         start = time.perf_counter()
         try:
             if np.isnan(params).any() or np.isnan(w0).any() or np.isnan(lbx).any() or np.isnan(ubx).any():
