@@ -150,7 +150,8 @@ class AacCoordinator(Coordinator):
         """This period's authorities of one group, in turn, as ``(robot, why)``: one
         (:meth:`choose_in_group`), or with ``authorities = "spread"`` then more, each among the
         candidates out of reach of those before it (:meth:`out_of_reach`), chosen once the one
-        before has planned; those further ones do not move the lead's cycle on."""
+        before has planned, by round robin alone (the lead's cycle and the proximity decision
+        pick the first)."""
         extra = False
         while candidates.size:
             i, reason = self.choose_in_group(world, members, candidates, records, period, extra)
@@ -166,7 +167,8 @@ class AacCoordinator(Coordinator):
         scenario seed, the period and the candidates' states, so that a group's decision depends
         on nothing outside it); without, the candidate that held authority longest ago (round
         robin; ties go to the lowest index). An ``extra`` authority (a further one of the period,
-        :meth:`turns_in_group`) skips the lead's cycle and leaves it where it was."""
+        :meth:`turns_in_group`) is the candidate that held authority longest ago, and leaves the
+        lead's cycle where it was."""
         centres = world.robot_centres()
         pairs = close_pairs(centres[candidates], self.params.close_distance)
         room = self.room
@@ -179,7 +181,7 @@ class AacCoordinator(Coordinator):
             i, reason = leader, "leader"
         elif not extra and before == "leader" and movers.size:
             i, reason = int(movers[np.argmin(self.last_turn[movers])]), "make_room"
-        elif len(pairs) == 0 or waited.max() > STARVING * self.planner.config.horizon:
+        elif extra or len(pairs) == 0 or waited.max() > STARVING * self.planner.config.horizon:
             i, reason = int(candidates[np.argmax(waited)]), "round_robin"
         else:
             near = candidates[np.unique(pairs)]
