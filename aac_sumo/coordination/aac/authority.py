@@ -150,25 +150,27 @@ class AacCoordinator(Coordinator):
         """This period's authorities of one group, in turn, as ``(robot, why)``: one
         (:meth:`choose_in_group`), or with ``authorities = "spread"`` then more, each among the
         candidates out of reach of those before it (:meth:`out_of_reach`), chosen once the one
-        before has planned, by round robin alone (the lead's cycle and the proximity decision
-        pick the first)."""
-        extra = False
-        while candidates.size:
-            i, reason = self.choose_in_group(world, members, candidates, records, period, extra)
+        before has planned, by round robin alone (:meth:`longest_waiting`; the lead's cycle and
+        the proximity decision pick the first)."""
+        i, reason = self.choose_in_group(world, members, candidates, records, period)
+        yield i, reason
+        while self.params.authorities.spread and (candidates := self.out_of_reach(world, i, candidates)).size:
+            i, reason = self.longest_waiting(candidates, period)
             yield i, reason
-            if not self.params.authorities.spread:
-                return
-            candidates, extra = self.out_of_reach(world, i, candidates), True
+
+    def longest_waiting(self, candidates: np.ndarray, period: int) -> tuple[int, str]:
+        """Round robin: the candidate that held authority longest ago (ties go to the lowest index)."""
+        i = int(candidates[np.argmax(period - self.last_turn[candidates])])
+        self.last_turn[i] = period
+        return i, "round_robin"
 
     def choose_in_group(self, world: WorldState, members: np.ndarray, candidates: np.ndarray, records: list[RobotDecision],
-                         period: int, extra: bool = False) -> tuple[int, str]:
+                         period: int) -> tuple[int, str]:
         """The authority among ``candidates`` and why: with close pairs among them, the proximity
         decision (blockers: the group's ``members`` and the obstacles; its samples seeded by the
         scenario seed, the period and the candidates' states, so that a group's decision depends
         on nothing outside it); without, the candidate that held authority longest ago (round
-        robin; ties go to the lowest index). An ``extra`` authority (a further one of the period,
-        :meth:`turns_in_group`) is the candidate that held authority longest ago, and leaves the
-        lead's cycle where it was."""
+        robin, :meth:`longest_waiting`)."""
         centres = world.robot_centres()
         pairs = close_pairs(centres[candidates], self.params.close_distance)
         room = self.room
@@ -177,12 +179,12 @@ class AacCoordinator(Coordinator):
         movers = np.array([j for j in members if j in room.targets], dtype=int) if leader in candidates else np.empty(0, dtype=int)
         waited = period - self.last_turn[candidates]
         before = self.last_reason.get(int(members[0]), "")  # a lead cycles: leader, a robot in its way, anyone
-        if not extra and leader in candidates and before not in ("leader", "make_room"):
+        if leader in candidates and before not in ("leader", "make_room"):
             i, reason = leader, "leader"
-        elif not extra and before == "leader" and movers.size:
+        elif before == "leader" and movers.size:
             i, reason = int(movers[np.argmin(self.last_turn[movers])]), "make_room"
-        elif extra or len(pairs) == 0 or waited.max() > STARVING * self.planner.config.horizon:
-            i, reason = int(candidates[np.argmax(waited)]), "round_robin"
+        elif len(pairs) == 0 or waited.max() > STARVING * self.planner.config.horizon:
+            i, reason = self.longest_waiting(candidates, period)
         else:
             near = candidates[np.unique(pairs)]
             blockers = np.vstack([centres[members]] + [o.centre[None, :] for o in world.obstacles])
@@ -198,8 +200,7 @@ class AacCoordinator(Coordinator):
                 records[j].score, records[j].progress = float(result.scores[row]), float(result.progress[row])
             i, reason = int(near[result.winner]), "proximity"
         self.last_turn[i] = period
-        if not extra:
-            self.last_reason[int(members[0])] = reason
+        self.last_reason[int(members[0])] = reason
         return i, reason
 
     def reference(self, world: WorldState, i: int, speeds: np.ndarray | None = None) -> np.ndarray:
