@@ -246,6 +246,30 @@ def test_close_pair_candidates_get_scores_and_one_wins():
     assert decision.notes["authority"] == "robot0"
 
 
+@pytest.mark.parametrize("length,to_goal,extra,shift", [
+    (16.0, 8.0, 0.0, 2.5), (16.0, 5.625, 0.0, 1.25), (16.0, 3.75, 0.0, 0.0),  # a long path: whole from 3, gone at 1.5 shifts from the goal
+    (16.0, 7.875, 1.0, 1.75),                                                 # a grown shift (3.5 m) fades out over 10.5 to 5.25 m
+    (8.0, 6.0, 0.0, 2.5), (8.0, 4.0, 0.0, 1.25), (8.0, 3.0, 0.0, 0.0),        # a short path: whole from 5/8, gone at 3/8 of its length
+    (8.0, 5.6, 1.0, 1.75),                                                    # and a grown shift over 7 to 4.2 m
+])
+def test_keep_right_fades_out_before_the_goal_in_shifts_shrunk_on_short_paths(length, to_goal, extra, shift):
+    """With another robot 2 m ahead, a robot's reference moves keep_right (2.5 m, plus what it
+    grew in a jam) to the right, fading out linearly as its goal nears: between 3 and 1.5 shifts
+    before it; on a path too short for keep_right's fade to begin and end by 5/8 and 3/8 of the
+    path before the goal, the distances shrink in proportion (an 8 m path: 5 and 3 m with
+    keep_right alone, so the shift is 1.25 m at the path's middle, where a circle swap's crowd
+    meets)."""
+    states = np.array([[0.0, 0.0, 0.0, 0.0], [length - to_goal + 2.0, 0.0, np.pi, 0.0]])
+    tasks = straight_tasks(np.array([[0.0, 0.0, 0.0, 0.0], [30.0, 0.0, np.pi, 0.0]]), np.array([[length, 0.0], [-30.0, 0.0]]))
+    aac = AacCoordinator(planner(), tasks, params=AacParams(keep_right=2.5))
+    aac.extra_shift[0] = extra
+    states[0, 0] = length - to_goal
+    world = WorldState(0.0, states, [robot(i) for i in range(2)])
+    assert aac.keep_right_shift(world, 0) == pytest.approx(shift)
+    reference = aac.reference(world, 0)
+    assert reference[:, 1] == pytest.approx(np.full(len(reference), -shift))
+
+
 @pytest.mark.parametrize("enabled", [True, False])
 def test_safety_stop_brakes_a_robot_heading_into_another(enabled):
     """Robot 2 drives at 1 m/s on its tracking law toward robot 1, which stands 0.3 m ahead

@@ -30,6 +30,12 @@ STARVING = 2
 SLOW_SHARE = 0.3
 SHIFT_GROWTH = 0.5
 SHIFT_DECAY = 0.1
+#: The keep-right shift is whole while the goal is more than FADE[1] shifts away and gone within
+#: FADE[0] shifts of it. On a path too short for ``keep_right``'s fade to end by FADE_PATH[0] of the
+#: path's length from the goal and begin by FADE_PATH[1], both distances shrink by the factor that
+#: makes them do so: a robot on a short path keeps some shift where the crowd meets, mid-way.
+FADE = (1.5, 3.0)
+FADE_PATH = (0.375, 0.625)
 
 
 class AacCoordinator(Coordinator):
@@ -212,8 +218,8 @@ class AacCoordinator(Coordinator):
         another robot's footprint centre lies ahead of it (in the half-plane in front, along the
         reference's heading) within ``keep_right_range`` [m]: a right-hand rule
         that turns head-on meetings and crowded crossings into passing on the right, a
-        roundabout in effect. The shift fades out between 4 and 2.5 times ``keep_right`` from
-        the goal, so that the robot arrives on its path."""
+        roundabout in effect. The shift fades out as the goal nears (``FADE``, ``FADE_PATH``), so
+        that the robot arrives on its path."""
         if self.room is not None and i in self.room.targets:
             return self.room_reference(world, i)
         if self.room is not None and self.room.backing_off(i) and world.robots[i].model.limits.v_min < 0.0:
@@ -267,5 +273,11 @@ class AacCoordinator(Coordinator):
         if not self.crowded_ahead(world)[i]:
             return 0.0
         shift += self.extra_shift[i]
-        to_goal = float(np.hypot(*(world.states[i, :2] - self.tasks[i].points[-1])))
-        return shift * (float(np.clip((to_goal - 1.5 * shift) / (1.5 * shift), 0.0, 1.0)) if self.tasks[i].stop_at_end else 1.0)
+        task = self.tasks[i]
+        if not task.stop_at_end:
+            return shift
+        gone, whole = (k * shift * min(1.0, share * task.length / (k * self.params.keep_right)) for k, share in zip(FADE, FADE_PATH))
+        to_goal = float(np.hypot(*(world.states[i, :2] - task.points[-1])))
+        if whole <= gone:  # a path of no length
+            return 0.0
+        return shift * float(np.clip((to_goal - gone) / (whole - gone), 0.0, 1.0))
