@@ -11,7 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aac_sumo import config
-from aac_sumo.coordination.manoeuvre import SPARE, ManoeuvrePlanner, speed_profile
+from aac_sumo.coordination.manoeuvre import INCHING, SPARE, ManoeuvrePlanner, speed_profile
 from aac_sumo.geometry import rect_clearance_rows
 from aac_sumo.kernels.motion import footprint_rows, rollouts
 from aac_sumo.runs import runner
@@ -96,6 +96,24 @@ def test_a_smoothed_manoeuvre_drives_the_same_legs_without_the_stops():
     assert np.all(np.abs(b[1:-1, 3]) > 0.0)  # it stands only at the ends
     steer = np.concatenate([[0.0], smoothed[:, 1]])
     assert np.all(np.abs(np.diff(steer)) <= LIMITS[2] * DT + 1e-12) and np.all(np.abs(steer) <= LIMITS[0] + 1e-12)
+
+
+def test_a_robot_boxed_in_with_a_few_centimetres_to_spare_inches_where_no_longer_arc_fits():
+    """Parked footprints 0.3 m ahead of and behind the robot's, and 0.07 m along both its sides: its
+    goal lies 0.17 m ahead. No primitive of LENGTHS (0.28 m of driving and more) fits in the box, so the lattice of
+    LENGTHS finds no way; the inching lattice (INCHING) drives its shortest primitive there."""
+    state = np.array([0.0, 0.0, 0.0, 0.0])
+    front, back = OFFSET + 0.5 * LENGTH + 0.3, OFFSET - 0.5 * LENGTH - 0.3  # the gaps' far sides [m], rear-axle frame
+    box = np.array([[front + 0.3, 0.0, 0.6, 1.2, 0.0], [back - 0.3, 0.0, 0.6, 1.2, 0.0],
+                    [OFFSET, 0.42, 2.0, 0.3, 0.0], [OFFSET, -0.42, 2.0, 0.3, 0.0]])
+    goal = np.array([0.17, 0.0])
+    assert planner().plan(state, 0.0, goal, 0.05, box, MARGIN) is None
+    inching = ManoeuvrePlanner(WHEELBASE, LIMITS, -1.5, 1.5, -2.0, 1.0, LENGTH, WIDTH, OFFSET, DT, INCHING)
+    inputs = inching.plan(state, 0.0, goal, 0.05, box, MARGIN)
+    assert inputs is not None
+    states = course(state, inputs)
+    assert np.hypot(*(states[-1, :2] - goal)) <= 0.05 and states[-1, 3] == pytest.approx(0.0, abs=1e-9)
+    assert least_clearance(states, box) >= MARGIN + SPARE - 1e-9
 
 
 def test_no_manoeuvre_to_a_walled_in_goal():

@@ -32,9 +32,12 @@ from aac_sumo.kernels.motion import _bicycle_step, limited_steer
 #: (each within the robot's limits).
 SPEED = 0.4
 ACCEL = 1.0
-#: Steering of the primitives as shares of the robot's steering limit, and the arc lengths [m].
+#: Steering of the primitives as shares of the robot's steering limit, and the arc lengths [m];
+#: where those find no way, the search is tried again with INCHING's (a robot hemmed in a few
+#: centimetres from its neighbours, that no 0.3 m arc leaves, can inch out).
 STEERS = (-1.0, -0.5, 0.0, 0.5, 1.0)
 LENGTHS = (0.3, 0.9)
+INCHING = (0.1, 0.3, 0.9)
 #: Lattice of the search's closed set: cell [m] and heading bins.
 CELL = 0.1
 HEADINGS = 36
@@ -71,7 +74,7 @@ class ManoeuvrePlanner:
     ``length`` x ``width`` [m] centred ``offset`` [m] ahead of the rear axle."""
 
     def __init__(self, wheelbase: float, steer_limits: np.ndarray, v_min: float, v_max: float, a_min: float, a_max: float,
-                 length: float, width: float, offset: float, dt: float):
+                 length: float, width: float, offset: float, dt: float, lengths: tuple[float, ...] = LENGTHS):
         self.wheelbase, self.dt = float(wheelbase), float(dt)
         self.v_min, self.v_max = float(v_min), float(v_max)
         self.shape = (np.array([float(offset)]), np.array([float(length)]), np.array([float(width)]))
@@ -82,7 +85,7 @@ class ManoeuvrePlanner:
         self.accel, self.decel = min(ACCEL, a_max), min(ACCEL, -a_min)
         self.steers = np.array(STEERS) * limit
         self.drives = [(d, d * speed_profile(length_, speed, self.accel, self.decel, dt))
-                       for d in ((1.0, -1.0) if v_min < 0.0 else (1.0,)) for length_ in LENGTHS]
+                       for d in ((1.0, -1.0) if v_min < 0.0 else (1.0,)) for length_ in lengths]
         self.distances = [abs(float(np.sum(np.cumsum(a)[:-1]))) * dt * dt for _, a in self.drives]  # Euler: the speed each period starts with
 
     def primitives(self, steer: float) -> tuple[list[np.ndarray], np.ndarray, np.ndarray]:

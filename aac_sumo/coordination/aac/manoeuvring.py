@@ -13,7 +13,7 @@ from collections import deque
 import numpy as np
 
 from aac_sumo.coordination.base import RobotDecision
-from aac_sumo.coordination.manoeuvre import ManoeuvrePlanner
+from aac_sumo.coordination.manoeuvre import INCHING, LENGTHS, ManoeuvrePlanner
 from aac_sumo.coordination.regions import Fleet
 from aac_sumo.world import WorldState
 
@@ -77,9 +77,10 @@ class Manoeuvring:
         if getattr(self, "trail", None) is None:
             self.trail = deque(maxlen=int(round(self.params.manoeuvre_time / self.planner.config.dt)) + 1)
             self.manoeuvre_end, self.next_manoeuvre = np.zeros(n, dtype=int), np.zeros(n, dtype=int)
-            self.manoeuvres = [ManoeuvrePlanner(self.fleet.wheelbase[j], self.fleet.steer_limits[j], self.fleet.v_min[j], self.fleet.v_max[j],
-                                                self.fleet.a_min[j], self.fleet.a_max[j], self.fleet.length[j], self.fleet.width[j],
-                                                self.fleet.offset[j], self.planner.config.dt) for j in range(n)]
+            self.manoeuvres = [[ManoeuvrePlanner(self.fleet.wheelbase[j], self.fleet.steer_limits[j], self.fleet.v_min[j], self.fleet.v_max[j],
+                                                 self.fleet.a_min[j], self.fleet.a_max[j], self.fleet.length[j], self.fleet.width[j],
+                                                 self.fleet.offset[j], self.planner.config.dt, lengths) for lengths in (LENGTHS, INCHING)]
+                               for j in range(n)]
             self._counted = self._searched = -1
             self.goals = np.array([task.points[-1] for task in self.tasks])
         if self._counted == period:
@@ -121,9 +122,12 @@ class Manoeuvring:
         task, book = self.tasks[i], self.book
         others = [book.footprints(j, c, period) for j, c in enumerate(book.items) if j != i]
         obstacles = np.vstack([np.asarray(statics, dtype=float).reshape(-1, 5), *others])
-        planner, steer, goal = self.manoeuvres[i], float(self.last_inputs[i, 1]), task.points[-1]
-        brake, rest = planner.to_rest(world.states[i], steer)  # a robot rocking on the spot stops first
-        legs = planner.search(rest, steer, goal, task.arrive - INSIDE, obstacles, book.margin)
+        steer, goal = float(self.last_inputs[i, 1]), task.points[-1]
+        for planner in self.manoeuvres[i]:  # arcs of 0.3 m and more; where they find no way, inching too
+            brake, rest = planner.to_rest(world.states[i], steer)  # a robot rocking on the spot stops first
+            legs = planner.search(rest, steer, goal, task.arrive - INSIDE, obstacles, book.margin)
+            if legs is not None:
+                break
         self.next_manoeuvre[i], self._searched = period + RETRY, period
         if not legs:
             return False
