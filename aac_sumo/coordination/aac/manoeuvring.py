@@ -123,8 +123,8 @@ class Manoeuvring:
         others = [book.footprints(j, c, period) for j, c in enumerate(book.items) if j != i]
         obstacles = np.vstack([np.asarray(statics, dtype=float).reshape(-1, 5), *others])
         steer, goal = float(self.last_inputs[i, 1]), task.points[-1]
+        brake, rest = self.manoeuvres[i][0].to_rest(world.states[i], steer)  # a robot rocking on the spot stops first
         for planner in self.manoeuvres[i]:  # arcs of 0.3 m and more; where they find no way, inching too
-            brake, rest = planner.to_rest(world.states[i], steer)  # a robot rocking on the spot stops first
             legs = planner.search(rest, steer, goal, task.arrive - INSIDE, obstacles, book.margin)
             if legs is not None:
                 break
