@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 
 from aac_sumo import network
 from aac_sumo.experiments.junction_routes import RoutePath, route_legs, route_path
-from aac_sumo.experiments.lane_geometry import CURVE_DECEL, along
+from aac_sumo.experiments.lane_geometry import CURVE_DECEL, along, centring_shift
 
 A_LAT = 2.0  # [m/s^2]
 CHANGE_START, CHANGE_LENGTH = 10.0, 30.0  # [m]
@@ -306,3 +306,47 @@ def test_a_junction_whose_internal_lane_has_no_length_is_passed_as_the_lanes_mee
     assert_smooth(route.points)
     (span,) = [j for j in route.junctions if j.junction == "bottom1"]
     assert span.s_out - span.s_in < 1.0
+
+
+# --- turns that keep the body in its lane ------------------------------------------------------
+
+
+@settings(max_examples=60, deadline=None)
+@given(radius=st.floats(3.0, 500.0), front=st.floats(1.0, 5.0), half=st.floats(0.2, 1.2), left=st.booleans())
+def test_the_centring_shift_centres_the_band_a_turning_body_sweeps_on_the_curve(radius, front, half, left):
+    """A rear axle on the circle of radius R - |shift| sweeps from its inner rear corner to its
+    outer front corner a band whose middle is the curve of radius R; the shift points to the
+    curve's centre (the curvature's sign)."""
+    shift = centring_shift((1.0 if left else -1.0) / radius, front, half)
+    assert np.sign(shift) == (1.0 if left else -1.0)
+    u = radius - abs(shift)
+    inner, outer = u - half, np.hypot(u + half, front)
+    assert 0.5 * (inner + outer) == pytest.approx(radius, rel=1e-12)
+
+
+def body_corners(points: np.ndarray, front: float, rear: float, half: float) -> np.ndarray:
+    """Every corner (4 M, 2) of a body whose rear axle is at each of ``points`` (M, 2), headed along the path."""
+    seg = np.gradient(points, axis=0)
+    h = np.arctan2(seg[:, 1], seg[:, 0])
+    c, s = np.cos(h)[:, None], np.sin(h)[:, None]
+    out = [points + np.hstack([c * a - s * b, s * a + c * b]) for a in (front, -rear) for b in (half, -half)]
+    return np.vstack(out)
+
+
+@pytest.mark.parametrize("edges", [["NC", "CW"], ["NC", "CE"]])
+def test_a_car_whose_path_keeps_inside_a_turn_sweeps_a_band_nearer_its_lanes(plus, edges):
+    """A 4.5 m car (wheelbase 2.6 m) on a right and a left turn of the plus crossing: with the
+    centring shift its body's farthest corner comes nearer the centre lines of the lanes it
+    follows, by most of the shift, and the path stays on the lanes away from the turn."""
+    length, wheelbase, width = 4.5, 2.6, 1.8
+    front, rear = 0.5 * (length + wheelbase), 0.5 * (length - wheelbase)
+    plain = path(plus, edges)
+    kept = path(plus, edges, front=front, half_width=0.5 * width)
+    lanes = followed(plus, plain)
+    turning = np.abs(plain.curvature) > 0.05  # the same stretch of both paths (point k lies beside point k)
+    reach = [distance(body_corners(p.points[turning], front, rear, 0.5 * width), lanes).max() for p in (plain, kept)]
+    largest = np.abs(centring_shift(plain.curvature, front, 0.5 * width)).max()
+    assert 0.2 < largest < 0.5
+    assert reach[1] < reach[0] - 0.5 * largest
+    straight = np.abs(plain.curvature) < 1e-4
+    assert np.abs(kept.points[straight] - plain.points[straight]).max() < 1e-3

@@ -72,6 +72,9 @@ class CityParams:
     yellow_decel: float = param(2.0, "at a yellow a car goes on where stopping before the line (with one period's travel and 1 m "
                                 "to spare) would need more than this, if it reaches the line before the light's shortest yellow "
                                 "ends; 0: only cars that cannot stop at robot.a_comfort go on [m/s^2]", **NN)
+    centre_turns: bool = param(True, "a car's path keeps inside each turn and curve by as much as centres the band its body "
+                               "sweeps on its lane (lane_geometry.centring_shift: 0.4 m on a 7 m turn), so that its front corner "
+                               "does not swing into the next lane; false: its rear axle follows the lanes' centre lines")
 
 
 class CityCars:
@@ -125,7 +128,8 @@ class CityCars:
         start = int(np.argmin([shape.project(state[:2])[1] for shape in shapes]))
         s0 = shapes[start].project(state[:2])[0]
         try:
-            path = city_path(self.net, self.edges[k], start, s0, self.p, self.scenario["robot.a_lat_max"])
+            path = city_path(self.net, self.edges[k], start, s0, self.p, self.scenario["robot.a_lat_max"], robot.length, robot.model.wheelbase,
+                             robot.width)
         except ValueError as exc:
             raise ScenarioError(self.scenario.source, KEYS, f"routes a controlled car can drive ({robot.name}: {exc})") from None
         self.tasks[k] = PathReference(path.points, self.p.speed, stop_at_end=False, limits=path.limits)
@@ -182,11 +186,13 @@ class CityCars:
         return self.done.copy()
 
 
-def city_path(net, edges, start: int, s0: float, p: CityParams, a_lat_max: float):
-    """The way (:func:`~aac_sumo.experiments.junction_routes.route_path`) of a car on the route
-    ``edges`` from lane ``start`` of the first, ``s0`` [m] into it, as ``p`` asks; ValueError where
-    there is none."""
-    return route_path(net, route_legs(net, list(edges), start), s0, min(p.curve_lat_accel, a_lat_max), p.change_start, p.change_length)
+def city_path(net, edges, start: int, s0: float, p: CityParams, a_lat_max: float, length: float, wheelbase: float, width: float):
+    """The way (:func:`~aac_sumo.experiments.junction_routes.route_path`) of a car ``length`` by
+    ``width`` [m] with ``wheelbase`` [m] (equal overhangs) on the route ``edges`` from lane ``start``
+    of the first, ``s0`` [m] into it, as ``p`` asks; ValueError where there is none."""
+    front = 0.5 * (length + wheelbase) if p.centre_turns else 0.0  # rear axle to front bumper
+    return route_path(net, route_legs(net, list(edges), start), s0, min(p.curve_lat_accel, a_lat_max), p.change_start, p.change_length,
+                      front, 0.5 * width)
 
 
 def drivable(scenario: Scenario, net, vehicles: list) -> list:
@@ -206,7 +212,8 @@ def drivable(scenario: Scenario, net, vehicles: list) -> list:
         reasons = []
         for start in range(len(network.car_lanes(net.getEdge(edges[0])))):
             try:
-                path = city_path(net, edges, start, 0.0, p, scenario["robot.a_lat_max"])
+                path = city_path(net, edges, start, 0.0, p, scenario["robot.a_lat_max"], scenario["robot.length"], scenario["robot.wheelbase"],
+                                 scenario["robot.width"])
             except ValueError as exc:
                 reasons.append(str(exc))
                 continue

@@ -20,6 +20,7 @@ from aac_sumo.experiments.lane_geometry import (
     SAMPLE_STEP,
     SMOOTH_PAD,
     along,
+    centring_shift,
     offset_polyline,
     smoothstep,
 )
@@ -242,7 +243,8 @@ def _smooth(line: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     return points[len(pad): len(pad) + n + 1], curvature[len(pad): len(pad) + n + 1], step
 
 
-def route_path(net, legs: list[Leg], s0: float, a_lat: float, change_start: float, change_length: float) -> RoutePath:
+def route_path(net, legs: list[Leg], s0: float, a_lat: float, change_start: float, change_length: float,
+               front: float = 0.0, half_width: float = 0.0) -> RoutePath:
     """The path along ``legs`` from arc length ``s0`` [m] of the first leg's arrive lane (along its
     shape: SUMO's lane positions run along ``getLength()``, which may differ) to the end of the last
     edge's lane, through the junctions' internal lanes: ``smooth_path`` of the lanes' shapes sampled
@@ -252,7 +254,10 @@ def route_path(net, legs: list[Leg], s0: float, a_lat: float, change_start: floa
     ``change_start`` before the edge's end. ``limits`` caps the speed at each lane's limit and at
     ``a_lat`` [m/s^2] of lateral acceleration, lowered ahead of each cap at ``CURVE_DECEL``.
     ``ValueError`` where ``s0`` does not lie on the first lane, or a change would be cut to less
-    than half its length."""
+    than half its length. With a car's ``front`` (rear axle to front bumper) and ``half_width`` [m],
+    the path keeps :func:`~aac_sumo.experiments.lane_geometry.centring_shift` inside each curve, so
+    that the body of a car whose rear axle follows it sweeps a band centred on the lanes (its
+    curvature and curve speeds are the shifted path's)."""
     first = car_lanes(net.getEdge(legs[0].edge))[legs[0].arrive]
     if not 0.0 <= s0 < _arc(_shape(first))[-1]:
         raise ValueError(f"s0 = {s0:.1f} m does not lie on lane {first.getID()} ({_arc(_shape(first))[-1]:.1f} m long)")
@@ -277,6 +282,10 @@ def route_path(net, legs: list[Leg], s0: float, a_lat: float, change_start: floa
     right, left = (np.vstack([getattr(p, side) for p in pieces])[keep] for side in ("right", "left"))
 
     points, curvature, step = _smooth(line)
+    if front > 0.0:
+        shift = centring_shift(curvature, front, half_width)
+        points = offset_polyline(points, shift)
+        curvature = curvature / np.maximum(1.0 - np.abs(curvature * shift), 0.5)  # a circle of radius R - |shift|
     s_raw = np.arange(len(points)) * step  # point k is the spline at the shapes' arc length k * step
     i = np.clip(np.searchsorted(arc, s_raw, side="right") - 1, 0, len(arc) - 2)
     t = np.clip((s_raw - arc[i]) / (arc[i + 1] - arc[i]), 0.0, 1.0)

@@ -110,15 +110,28 @@ def lane_reference(points: np.ndarray, speed: float, a_lat: float, caps=None) ->
     return PathReference(points, speed, stop_at_end=False, limits=limits)
 
 
-def offset_polyline(line: np.ndarray, offset: float) -> np.ndarray:
-    """``line`` (M, 2) shifted ``offset`` [m] to its left (negative: right), vertex by vertex
-    along the mean of the adjacent segments' normals."""
+def centring_shift(curvature, front: float, half_width: float) -> np.ndarray:
+    """How far [m] a car's rear axle keeps inside a curve of signed ``curvature`` (...,) [1/m]
+    (positive: turning left; the result has its sign) for the band its body sweeps to be centred
+    on the curve: a car whose rear axle runs on a circle of radius u sweeps from its inner rear
+    corner, u - w/2, to its outer front corner, sqrt((u + w/2)^2 + f^2), with ``front`` = f [m] from
+    the rear axle to the front bumper and ``half_width`` = w/2 [m]. Their mean is R for
+    u = R - f^2 / (4 (R + w/2)): the shift is f^2 |k| / (4 (1 + |k| w/2)) (0.39 m on a 7 m turn for
+    f = 3.5 m, w = 1.8 m; 2 mm on a 500 m curve). On the curve itself (u = R) that band lies
+    off-centre towards the outside: the front corner swings wide into the next lane."""
+    k = np.asarray(curvature, dtype=float)
+    return front**2 * k / (4.0 * (1.0 + np.abs(k) * half_width))
+
+
+def offset_polyline(line: np.ndarray, offset) -> np.ndarray:
+    """``line`` (M, 2) shifted ``offset`` [m] (a number, or one per vertex (M,)) to its left
+    (negative: right), vertex by vertex along the mean of the adjacent segments' normals."""
     seg = np.diff(line, axis=0)
     seg = seg / np.maximum(np.hypot(*seg.T), 1e-12)[:, None]
     normal = np.column_stack([-seg[:, 1], seg[:, 0]])
     vertex = np.vstack([normal[:1], normal[:-1] + normal[1:], normal[-1:]])
     vertex /= np.maximum(np.hypot(*vertex.T), 1e-12)[:, None]
-    return line + offset * vertex
+    return line + np.asarray(offset, dtype=float)[..., None] * vertex
 
 
 def lane_edges(rd: network.Road, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:
