@@ -117,7 +117,7 @@ def centring_shift(curvature, front: float, half_width: float) -> np.ndarray:
     corner, u - w/2, to its outer front corner, sqrt((u + w/2)^2 + f^2), with ``front`` = f [m] from
     the rear axle to the front bumper and ``half_width`` = w/2 [m]. Their mean is R for
     u = R - f^2 / (4 (R + w/2)): the shift is f^2 |k| / (4 (1 + |k| w/2)) (0.39 m on a 7 m turn for
-    f = 3.5 m, w = 1.8 m; 2 mm on a 500 m curve). On the curve itself (u = R) that band lies
+    f = 3.5 m, w = 1.8 m; 6 mm on a 500 m curve). On the curve itself (u = R) that band lies
     off-centre towards the outside: the front corner swings wide into the next lane."""
     k = np.asarray(curvature, dtype=float)
     return front**2 * k / (4.0 * (1.0 + np.abs(k) * half_width))
