@@ -46,6 +46,7 @@ from aac_sumo.experiments.signals import BOX_LENGTH, GO, Line, Signals, YellowRu
 from aac_sumo.experiments.junction_routes import route_legs, route_path
 from aac_sumo.references import LateralBand, PathReference
 from aac_sumo.registry import register_experiment
+from aac_sumo.sim.sumo_frames import bumper_to_axle
 from aac_sumo.sim.sumo_options import SumoParams, sumo_params
 from aac_sumo.world import WorldState, parking_spot
 
@@ -190,7 +191,7 @@ def city_path(net, edges, start: int, s0: float, p: CityParams, a_lat_max: float
     """The way (:func:`~aac_sumo.experiments.junction_routes.route_path`) of a car ``length`` by
     ``width`` [m] with ``wheelbase`` [m] (equal overhangs) on the route ``edges`` from lane ``start``
     of the first, ``s0`` [m] into it, as ``p`` asks; ValueError where there is none."""
-    front = 0.5 * (length + wheelbase) if p.centre_turns else 0.0  # rear axle to front bumper
+    front = bumper_to_axle(length, wheelbase) if p.centre_turns else 0.0
     return route_path(net, route_legs(net, list(edges), start), s0, min(p.curve_lat_accel, a_lat_max), p.change_start, p.change_length,
                       front, 0.5 * width)
 

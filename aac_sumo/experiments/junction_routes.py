@@ -285,7 +285,7 @@ def route_path(net, legs: list[Leg], s0: float, a_lat: float, change_start: floa
     if front > 0.0:
         shift = centring_shift(curvature, front, half_width)
         points = offset_polyline(points, shift)
-        curvature = curvature / np.maximum(1.0 - np.abs(curvature * shift), 0.5)  # a circle of radius R - |shift|
+        curvature = curvature / np.maximum(1.0 - np.abs(curvature * shift), 0.5)  # a circle of radius R - |shift| (at most twice as tight)
     s_raw = np.arange(len(points)) * step  # point k is the spline at the shapes' arc length k * step
     i = np.clip(np.searchsorted(arc, s_raw, side="right") - 1, 0, len(arc) - 2)
     t = np.clip((s_raw - arc[i]) / (arc[i + 1] - arc[i]), 0.0, 1.0)
