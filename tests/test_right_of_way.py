@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from aac_sumo import network
 from aac_sumo.experiments.junction_routes import route_legs, route_path
-from aac_sumo.experiments.right_of_way import FOE_ACCEL, FOE_SPEED_FACTOR, RightOfWay, travel_time, yield_lines
+from aac_sumo.experiments.right_of_way import FOE_ACCEL, FOE_SPEED_FACTOR, RightOfWay, clear_time, travel_time, yield_lines
 
 
 def build(folder, node_type: str, major_lanes: int = 1):
@@ -81,6 +81,35 @@ def test_travel_time_is_the_kinematics_of_speeding_up_then_cruising(distance, sp
     covered = speed * min(t, t_up) + 0.5 * accel * min(t, t_up) ** 2 + top * max(t - t_up, 0.0)
     assert covered == pytest.approx(distance, abs=1e-6)
     assert travel_time(distance + 1.0, speed, accel, top) > t  # further takes longer
+
+
+@given(st.floats(0.0, 50.0), st.floats(1.0, 30.0), st.floats(0.0, 20.0), st.floats(0.5, 4.0), st.floats(1.0, 20.0))
+def test_a_car_goes_through_a_junction_no_faster_than_its_cap(to_line, through, speed, accel, top):
+    """Below the cap: speeding up over the whole distance. Above it: its own speed to the line, then
+    the cap, so it never takes less than the junction at the cap."""
+    t = clear_time(to_line, through, speed, accel, top)
+    if speed <= top:
+        assert t == travel_time(to_line + through, speed, accel, top)
+    else:
+        assert t == pytest.approx(to_line / speed + through / top)
+    assert t >= through / top - 1e-9
+
+
+def test_a_car_faster_than_its_junctions_cap_is_held_for_a_foe_it_would_meet_at_the_cap(priority):
+    """A car at 12 m/s 20 m before the line of a left turn capped below that: at its own speed it
+    would clear before a foe arriving in ``gap``, at the cap it would not, so the line holds."""
+    ((y, _),), _ = lines(priority, ["SC", "CW"])
+    foe = next(f for f in y.foes if f.approach == "WC_0")
+    speed, length = 12.0, 4.0
+    assert y.speed < speed
+    through = (y.s_out - y.s_in) + length
+    at_cap, at_own = clear_time(20.0, through, speed, 1.5, y.speed), (20.0 + through) / speed
+    arrive = 0.5 * (at_cap + at_own) + 1.0  # between the two, after the 1 s gap
+    room = FOE_SPEED_FACTOR * foe.speed * arrive
+    vehicles = {foe.approach: [("bg.0", foe.length - room, FOE_SPEED_FACTOR * foe.speed)]}
+    boxes = RightOfWay(gap=1.0, accel=1.5).boxes(0.0, approach(y, 20.0), {}, vehicles, ["aac.0"], np.array([speed]),
+                                                 np.array([9.0]), np.array([length]))
+    assert len(boxes) == 1
 
 
 def approach(y, d):

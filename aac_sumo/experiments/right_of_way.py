@@ -159,6 +159,16 @@ def yield_lines(net, path: RoutePath) -> list[tuple[YieldLine, float]]:
     return out
 
 
+def clear_time(to_line: float, through: float, speed: float, accel: float, top: float) -> float:
+    """Time [s] for a car ``to_line`` [m] before a junction whose speed cap is ``top`` [m/s] to
+    cover ``to_line`` and then ``through`` [m] (the junction and its own length), from ``speed``
+    [m/s] speeding up at ``accel`` [m/s^2]. A car faster than the cap reaches the line at most at
+    its own speed and goes through at the cap."""
+    if speed <= top:
+        return travel_time(to_line + through, speed, accel, top)
+    return max(to_line, 0.0) / speed + through / top
+
+
 def travel_time(distance: float, speed: float, accel: float, top: float) -> float:
     """Time [s] to cover ``distance`` [m] from ``speed`` [m/s], speeding up at ``accel`` [m/s^2]
     to at most ``top`` [m/s] (keeping ``speed`` when it is above ``top``)."""
@@ -271,7 +281,7 @@ class RightOfWay:
         holding = dict.fromkeys(seen, False)
         for key, (k, d) in nearest.items():
             y = ylines[key]
-            clear = travel_time(d + (y.s_out - y.s_in) + float(lengths[k]), float(speeds[k]), self.accel, y.speed)
+            clear = clear_time(d, (y.s_out - y.s_in) + float(lengths[k]), float(speeds[k]), self.accel, y.speed)
             holding[key] = self.arrivals(y, states, vehicles, names[k], False, waiting[key]) < clear + self.gap
         regulated = {key: cars for key, cars in seen.items() if ylines[key].counts}
         unregulated = {key: cars for key, cars in seen.items() if not ylines[key].counts}
