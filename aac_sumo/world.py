@@ -66,7 +66,10 @@ class Obstacle:
     not a crossing or a junction's walking area), how far [m] its two ends lie from her along
     it; None elsewhere. ``signalled`` is, for a vehicle whose blinker signals a lane change it has
     not begun (SUMO's drivers wait for a gap with it on), its footprint row ``[cx, cy, length,
-    width, heading]`` over its lane and the next lane on that side; None otherwise.
+    width, heading]`` over its lane and the next lane on that side; None otherwise. ``course``
+    is, for a vehicle SUMO drives, the polyline (K, 2) [m] its footprint centre follows ahead
+    along its route's lanes, through the junctions' internal lanes (row 0: its centre now);
+    None: it goes on straight along its velocity.
     """
 
     name: str
@@ -80,6 +83,7 @@ class Obstacle:
     accel: float = 0.0
     walkway: tuple[float, float] | None = None
     signalled: np.ndarray | None = None
+    course: np.ndarray | None = None
 
     def step_out_speed(self, reach: float, walkway_time: float) -> float:
         """How fast [m/s] this pedestrian may step out of her way on top of her velocity:

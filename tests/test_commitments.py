@@ -402,6 +402,26 @@ def test_a_braking_course_is_the_closed_form_stop_along_the_velocity(speed, dece
     np.testing.assert_array_equal(rows[:, 2:], np.tile([4.5, 1.8, heading], (len(rows), 1)))
 
 
+@settings(max_examples=40, deadline=None)
+@given(speed=st.floats(0.5, 20.0), decel=st.floats(1.0, 9.0), leg=st.floats(0.0, 30.0), turn=st.floats(-2.5, 2.5))
+def test_a_braking_course_with_a_course_follows_it_round_the_corner(speed, decel, leg, turn):
+    """A SUMO car whose course turns by ``turn`` after ``leg`` metres (its route through a
+    junction) stops ``v^2 / 2b`` along that course, not along its velocity: every row lies on the
+    polyline at the closed-form travel, headed along the leg it is on."""
+    course = np.array([[0.0, 0.0], [leg, 0.0], [leg, 0.0], [leg + 50.0 * np.cos(turn), 50.0 * np.sin(turn)]])
+    car = Obstacle("bg.0", "scripted", np.zeros(2), np.array([speed, 0.0]), 0.0, 4.5, 1.8, course=course)
+    (rows,) = braking_courses([car], decel, 0.1)
+    t = np.minimum(np.arange(len(rows)) * 0.1, speed / decel)
+    travel = speed * t - 0.5 * decel * t**2
+    first = travel <= leg
+    np.testing.assert_allclose(rows[first, :2], np.column_stack([travel[first], np.zeros(first.sum())]), atol=1e-9)
+    beyond = travel[~first] - leg
+    np.testing.assert_allclose(rows[~first, :2], np.column_stack([leg + beyond * np.cos(turn), beyond * np.sin(turn)]), atol=1e-9)
+    assert rows[0, 4] == 0.0
+    np.testing.assert_allclose(rows[1:, 4], np.where(travel[1:] < leg, 0.0, turn), atol=1e-12)
+    np.testing.assert_array_equal(rows[:, 2:4], np.tile([4.5, 1.8], (len(rows), 1)))
+
+
 def test_a_car_behind_an_uncontrolled_car_may_commit_only_to_stop_behind_where_that_car_can_stop():
     """A SUMO car at 16 m/s 20 m ahead may brake at 4.5 m/s^2 and stand 28.4 m on. A robot
     behind it at 16 m/s whose stopping tail brakes at 2 m/s^2 (64 m) would run into it there and

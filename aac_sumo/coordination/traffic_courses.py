@@ -1,7 +1,8 @@
 """SUMO's own cars as the exact check of committed plans sees them (beyond the paper).
 
 A vehicle no coordinator drives (kind ``scripted``) is a **braking course**: it goes on along its
-velocity braking at ``aac.traffic_decel`` (or harder where it already is) until it stands. Only
+course (SUMO's cars: their route's lanes through the junctions), else along its velocity, braking
+at ``aac.traffic_decel`` (or harder where it already is) until it stands. Only
 the vehicles ahead of a robot count for it, and a continuation stays where it can stop behind
 where each of them could stand. Used by :class:`~aac_sumo.coordination.commitments.CommitmentBook`
 and :class:`~aac_sumo.coordination.aac.committed.CommittedAac`.
@@ -24,9 +25,11 @@ def braking_courses(obstacles, decel: float, dt: float) -> list[np.ndarray]:
     """Footprint rows ``[cx, cy, length, width, heading]`` (K+1, 5) of each vehicle among
     ``obstacles`` that no coordinator drives (kind ``scripted``: SUMO's own cars; and ``signal``, a red
     light's stop line, which stands) from now until
-    it stands, braking from its speed along its velocity at ``decel`` [m/s^2], or harder when
-    its estimated :attr:`~aac_sumo.world.Obstacle.accel` already is, with the heading it has;
-    K periods of ``dt`` [s] until it stands (0 for a standing vehicle)."""
+    it stands, braking from its speed at ``decel`` [m/s^2], or harder when its estimated
+    :attr:`~aac_sumo.world.Obstacle.accel` already is: along its
+    :attr:`~aac_sumo.world.Obstacle.course` where it has one (headed along it), else straight
+    along its velocity with the heading it has; K periods of ``dt`` [s] until it stands (0 for
+    a standing vehicle)."""
     out = []
     for o in obstacles:
         if o.kind not in ("scripted", "signal"):
@@ -36,12 +39,32 @@ def braking_courses(obstacles, decel: float, dt: float) -> list[np.ndarray]:
         steps = int(np.ceil(speed / (brake * dt) - 1e-9)) if speed > 0.0 else 0  # an exact count is not lost to rounding
         t = np.minimum(np.arange(steps + 1) * dt, speed / brake)
         travel = speed * t - 0.5 * brake * t**2
-        direction = np.asarray(o.velocity, dtype=float) / speed if speed > 0.0 else np.zeros(2)
         rows = np.empty((steps + 1, 5))
-        rows[:, :2] = np.asarray(o.centre, dtype=float) + travel[:, None] * direction
         rows[:, 2:] = (o.length, o.width, o.heading)
+        if o.course is not None and steps > 0:
+            rows[:, :2], rows[1:, 4] = along_polyline(o.course, travel)[0], along_polyline(o.course, travel[1:])[1]
+        else:
+            direction = np.asarray(o.velocity, dtype=float) / speed if speed > 0.0 else np.zeros(2)
+            rows[:, :2] = np.asarray(o.centre, dtype=float) + travel[:, None] * direction
         out.append(rows)
     return out
+
+
+def along_polyline(points: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Points (K, 2) [m] at arc lengths ``s`` (K,) [m] >= 0 along the polyline ``points`` (M, 2),
+    which goes on straight beyond its last point, and the headings (K,) [rad] of the segments
+    they lie on (repeated points are skipped; a polyline of one point stands)."""
+    pts = np.asarray(points, dtype=float)
+    seg = np.diff(pts, axis=0)
+    length = np.hypot(seg[:, 0], seg[:, 1])
+    keep = length > 1e-9
+    starts, seg, length = pts[:-1][keep], seg[keep], length[keep]
+    if len(length) == 0:
+        return np.repeat(pts[:1], len(s), axis=0), np.zeros(len(s))
+    arc = np.r_[0.0, np.cumsum(length)[:-1]]
+    k = np.clip(np.searchsorted(arc, s, side="right") - 1, 0, len(length) - 1)
+    where = starts[k] + ((s - arc[k]) / length[k])[:, None] * seg[k]
+    return where, np.arctan2(seg[k, 1], seg[k, 0])
 
 
 def stop_lines(obstacles) -> np.ndarray:
@@ -64,7 +87,7 @@ def signalled_courses(obstacles, decel: float, dt: float) -> list[np.ndarray]:
     them, so that a car approaching one lets it in (the exact check does not hold them)."""
     waiting = [o for o in obstacles if o.kind == "scripted" and o.signalled is not None]
     return braking_courses([replace(o, centre=o.signalled[:2], length=float(o.signalled[2]), width=float(o.signalled[3]),
-                                    heading=float(o.signalled[4])) for o in waiting], decel, dt)
+                                    heading=float(o.signalled[4]), course=None) for o in waiting], decel, dt)
 
 
 def ahead_of(points: np.ndarray, here: np.ndarray, heading: float) -> np.ndarray:

@@ -109,6 +109,7 @@ class SumoSimulator(SumoReading, Simulator):
         self._sim_pairs: set[tuple[str, str]] = set()
         self._obstacle_dims: dict[str, tuple[float, float, str]] = {}
         self._walkway_lanes: dict[str, float | None] = {}  # lane id -> its length [m] when only pedestrians may use it
+        self._lane_shapes: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # lane id -> its centre-line points and their arc lengths
         self.t = 0.0
         self.drives = options.sumo_drives
         self.orders: dict[int, list[LaneOrder]] = {}  # SUMO-driven vehicles' lanes, by robot index (order_lanes)

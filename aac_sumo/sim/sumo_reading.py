@@ -23,13 +23,17 @@ CROSSING_LANE = re.compile(r"^:.+_c\d+_\d+$")
 
 #: The width [m] of the lanes a crossing crosses when no vehicle lane cuts its centre-line.
 DEFAULT_LANE_WIDTH = 3.2
+#: A SUMO vehicle's course (:attr:`~aac_sumo.world.Obstacle.course`) reaches this far [m] beyond
+#: where it could stop braking at COURSE_DECEL [m/s^2] (gentler than any braking course's).
+COURSE_REACH = 10.0
+COURSE_DECEL = 1.0
 
 
 class SumoReading:
     """The reading half of :class:`~aac_sumo.sim.sumo.SumoSimulator`, which sets the attributes
     it uses: ``api`` (libsumo or traci), ``robots``, ``states``, ``present``, ``index``,
     ``routed``, ``removed``, ``arrived``, ``drives``, ``events``, ``t``, ``options`` and the caches
-    ``_obstacle_dims`` and ``_walkway_lanes``, and the method ``_make_ours`` (speed modes and allowed speed of a car we move)."""
+    ``_obstacle_dims``, ``_walkway_lanes`` and ``_lane_shapes``, and the method ``_make_ours`` (speed modes and allowed speed of a car we move)."""
 
     def _note_removed(self) -> None:
         """Note every controlled vehicle SUMO no longer has: a routed one leaves the road, a
@@ -165,9 +169,37 @@ class SumoReading:
                     wish_centre, wish_heading, wish_length, wish_width = collision_cover(x, y, angle, lane_angle, length, width, signalled)
                     wish = np.array([*wish_centre, wish_length, wish_width, wish_heading])
                 centre, heading, length, width = collision_cover(x, y, angle, lane_angle, length, width, sweep)
+                course = self._course(oid, lane, v.getLanePosition(oid), centre, speed)
                 seen.append(Obstacle(oid, obstacle_kind, centre, velocity_from_sumo(speed, 0.0, lane_angle), heading, length, width,
-                                     signalled=wish))
+                                     signalled=wish, course=course))
         return bodies, seen
+
+    def _shape(self, lane: str) -> tuple[np.ndarray, np.ndarray]:
+        """Centre-line points (M, 2) [m] of ``lane`` and their arc lengths (M,) [m], cached."""
+        if lane not in self._lane_shapes:
+            shape = np.asarray(self.api.lane.getShape(lane), dtype=float)[:, :2]
+            self._lane_shapes[lane] = (shape, np.r_[0.0, np.cumsum(np.hypot(*np.diff(shape, axis=0).T))])
+        return self._lane_shapes[lane]
+
+    def _course(self, oid: str, lane: str, pos: float, centre: np.ndarray, speed: float) -> np.ndarray:
+        """:attr:`~aac_sumo.world.Obstacle.course` of SUMO's vehicle ``oid``, whose front is at
+        ``pos`` [m] along ``lane`` and whose footprint centre is ``centre``: from the centre
+        to its lane's centre-line points ahead of its front, then the junction's internal lane and
+        the next lane of each of its upcoming links (``vehicle.getNextLinks``), until the course
+        runs COURSE_REACH [m] beyond where it could stop from ``speed`` [m/s] at COURSE_DECEL."""
+        reach = COURSE_REACH + speed**2 / (2.0 * COURSE_DECEL)
+        shape, arc = self._shape(lane)
+        ahead = shape[arc > pos]
+        parts, run = [np.asarray(centre, dtype=float)[None, :], ahead], float(arc[-1] - pos)
+        for link in self.api.vehicle.getNextLinks(oid) if run < reach else ():
+            for nxt in (link[4], link[0]):  # the internal lane through the junction, then the lane it leads to
+                if nxt:
+                    shape, arc = self._shape(nxt)
+                    parts.append(shape)
+                    run += float(arc[-1])
+            if run >= reach:
+                break
+        return np.vstack(parts)
 
     def _signalled(self, oid: str, lane: str) -> float:
         """:func:`~aac_sumo.sim.sumo_frames.signalled_sweep` of SUMO's vehicle ``oid`` on ``lane``."""
