@@ -69,7 +69,7 @@ class Obstacle:
     width, heading]`` over its lane and the next lane on that side; None otherwise. ``course``
     is, for a vehicle SUMO drives, the polyline (K, 2) [m] its footprint centre follows ahead
     along its route's lanes, through the junctions' internal lanes (row 0: its centre now);
-    None: it goes on straight along its velocity.
+    None (and while it changes lanes): it goes on straight along its velocity.
     """
 
     name: str

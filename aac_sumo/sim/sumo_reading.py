@@ -169,7 +169,7 @@ class SumoReading:
                     wish_centre, wish_heading, wish_length, wish_width = collision_cover(x, y, angle, lane_angle, length, width, signalled)
                     wish = np.array([*wish_centre, wish_length, wish_width, wish_heading])
                 centre, heading, length, width = collision_cover(x, y, angle, lane_angle, length, width, sweep)
-                course = self._course(oid, lane, v.getLanePosition(oid), centre, speed)
+                course = None if lateral else self._course(oid, lane, v.getLanePosition(oid), centre, speed)  # changing lanes: straight on
                 seen.append(Obstacle(oid, obstacle_kind, centre, velocity_from_sumo(speed, 0.0, lane_angle), heading, length, width,
                                      signalled=wish, course=course))
         return bodies, seen
