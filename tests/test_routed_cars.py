@@ -124,6 +124,26 @@ def test_a_users_sumocfg_runs_unchanged_with_its_controlled_flow_among_backgroun
         assert trip.get("vaporized") in (None, "") and 0.0 < float(trip.get("arrival")) - arrived[name] <= 0.2 + 1e-6, name
 
 
+@pytest.mark.parametrize("declared", [0.0, 2.0])
+def test_sumo_inserts_a_controlled_car_no_faster_than_it_can_stop_at_the_declared_deceleration(tmp_path, capsys, declared):
+    """A controlled car of a user's routes departs at ``departSpeed="max"`` with its front at the
+    road's start, 30.5 m behind the rear of a car standing in its lane. SUMO picks the fastest
+    speed from which the car's vType can stop behind it: with ``sumo.declared_decel`` (2 m/s^2)
+    below sqrt(2 * 2 * 30.5) = 11 m/s, as the car will brake once ours; with the vType's own
+    6 m/s^2, faster than that."""
+    flows = """<vType id="quick" length="4.5" width="1.8" decel="6.0"/>
+        <vehicle id="wall" type="bg" route="road" depart="0" departPos="35" departLane="1" departSpeed="0">
+            <stop lane="E0_1" endPos="35" duration="1000"/></vehicle>
+        <vehicle id="ours.0" type="quick" route="road" depart="0" departPos="0" departLane="1" departSpeed="max"/>"""
+    cfg = user_config(tmp_path, flows)
+    out = tmp_path / "out"
+    code = cli.main(["run", "lane_change", "--set", f"sumo.config={cfg}", "--set", "sumo.controlled_types=quick",
+                     "--set", f"sumo.declared_decel={declared}", "--set", "scenario.duration=0.5", "--out", str(out)])
+    assert code == 0, capsys.readouterr().err
+    speed = pd.read_csv(out / "steps.csv").query("robot == 'ours.0'").v.iloc[0]
+    assert (speed**2 < 2.0 * 2.0 * 30.5) == bool(declared), speed
+
+
 @pytest.mark.parametrize("sets, key", [
     (["sumo.controlled_types=nosuch"], "sumo.controlled_types"),
     (["sumo.controlled_ids=bgf.*", "lane_change.exit_lanes=5"], "lane_change.exit_lanes"),

@@ -5,6 +5,8 @@ change's cars of SUMO's routes (:mod:`~aac_sumo.experiments.routed_cars`) and th
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from aac_sumo.config import Scenario, ScenarioError
@@ -75,6 +77,7 @@ def routed_setup(scenario: Scenario, cars, robots: list, vehicles: list[RoutedVe
     scenario's coordinator on lateral bands; ``extra`` goes to the Setup. SUMO is closed again when
     anything fails."""
     states = np.array([parking_spot(k) for k in range(len(robots))])
+    options = replace(options, declared_types=tuple(sorted({v.vtype for v in vehicles})))
     sim = sumo_simulator(robots, states, scenario["scenario.dt"], [], options, scenario["sumo.isolate"], frozenset(v.id for v in vehicles))
     try:
         cars.sim = sim

@@ -106,6 +106,7 @@ class SumoOptions:
     lateral_resolution: float = 0.0  # SUMO's sublane model's lateral resolution [m]; 0: off (not set by us)
     sumo_drives: bool = False  # SUMO's own driver moves the controlled vehicles (see the module)
     declared_decel: float = 0.0  # the decel SUMO is told our cars brake at [m/s^2]; 0: their vType's
+    declared_types: tuple[str, ...] = ()  # vTypes of the controlled cars of SUMO's routes, told declared_decel before any departs
 
     def our_options(self, dt: float) -> dict[str, str]:
         """The SUMO options the co-simulation sets itself, name -> value."""
