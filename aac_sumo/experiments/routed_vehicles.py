@@ -77,7 +77,8 @@ def routed_setup(scenario: Scenario, cars, robots: list, vehicles: list[RoutedVe
     scenario's coordinator on lateral bands; ``extra`` goes to the Setup. SUMO is closed again when
     anything fails."""
     states = np.array([parking_spot(k) for k in range(len(robots))])
-    options = replace(options, declared_types=tuple(sorted({v.vtype for v in vehicles})))
+    if sumo_params(scenario).declared_at_insertion:
+        options = replace(options, declared_types=tuple(sorted({v.vtype for v in vehicles})))
     sim = sumo_simulator(robots, states, scenario["scenario.dt"], [], options, scenario["sumo.isolate"], frozenset(v.id for v in vehicles))
     try:
         cars.sim = sim

@@ -74,6 +74,9 @@ class SumoParams:
     declared_decel: float = param(0.0, "the comfortable deceleration SUMO is told each controlled car brakes at (its vType's "
                                   "decel, which SUMO's drivers assume of it when they change lanes in front of it, set by "
                                   "vehicle.setDecel when the car becomes ours) [m/s^2]; 0: the vType's own", **NN)
+    declared_at_insertion: bool = param(True, "with declared_decel, SUMO's vTypes of the controlled cars of its routes are told "
+                                        "it before any departs, so that departSpeed=\"max\" inserts a car no faster than it "
+                                        "can stop at it behind what stands ahead (false: only once each car is ours)")
     output_dir: str = param("", "directory of SUMO's own output files and of its message log sumo.log (aac-sumo run sets it to "
                             "--out; empty: out/<scenario name> when outputs are asked for, else no files and SUMO's warnings off)")
 
