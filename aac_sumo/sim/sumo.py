@@ -141,19 +141,6 @@ class SumoSimulator(SumoReading, Simulator):
             self.close()
             raise
 
-    def _declare_types(self) -> None:
-        """With ``declared_decel``, SUMO's vTypes of the controlled cars of its routes
-        (``declared_types``) brake at it, before SUMO inserts any of them: ``departSpeed="max"`` then inserts a car no
-        faster than it can stop at that deceleration behind what stands ahead, as for every
-        car once ours (:meth:`_make_ours`). Not when SUMO drives them (the baseline keeps its
-        vType)."""
-        if self.drives or self.options.declared_decel <= 0.0:
-            return
-        known = set(self.api.vehicletype.getIDList())
-        for vtype in self.options.declared_types:
-            if vtype in known:
-                self.api.vehicletype.setDecel(vtype, self.options.declared_decel)
-
     def _insert(self, edges: list[str]) -> None:
         v = self.api.vehicle
         placed = [(i, robot) for i, robot in enumerate(self.robots) if robot.name not in self.routed]

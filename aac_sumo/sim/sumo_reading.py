@@ -54,6 +54,19 @@ class SumoReading:
         self.present[i] = False
         self.states[i] = parking_spot(i)
 
+    def _declare_types(self) -> None:
+        """With ``declared_decel``, SUMO's vTypes of the controlled cars of its routes
+        (``declared_types``) brake at it before SUMO inserts any of them: ``departSpeed="max"``
+        then inserts a car no faster than it can stop at that deceleration behind what stands
+        ahead, as every car brakes once ours (``_make_ours``). Not when SUMO drives them (the
+        baseline keeps its vType)."""
+        if self.drives or self.options.declared_decel <= 0.0:
+            return
+        known = set(self.api.vehicletype.getIDList())
+        for vtype in self.options.declared_types:
+            if vtype in known:
+                self.api.vehicletype.setDecel(vtype, self.options.declared_decel)
+
     def _take_departed(self) -> None:
         """Make the routed vehicles SUMO departed in its last step ours, at the pose and speed
         SUMO gave them."""
