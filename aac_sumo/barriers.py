@@ -98,6 +98,10 @@ def inflate_for_disc(a, b, d, toward=None):
         local = np.asarray(toward, dtype=float)
         nx, ny = local[..., 0] / a**2, local[..., 1] / b**2  # normal direction, up to scale
         length = np.hypot(nx, ny)
+        big = np.abs(np.stack(np.broadcast_arrays(nx, ny))).max(axis=0)
+        tiny = (length < 1e-150) & (big > 0)  # a norm that underflows (denormal components): scale to 1 first
+        nx, ny = np.where(tiny, nx / np.where(tiny, big, 1.0), nx), np.where(tiny, ny / np.where(tiny, big, 1.0), ny)
+        length = np.where(tiny, np.hypot(nx, ny), length)
         safe = np.where(length > 0, length, 1.0)
         ux, uy = np.where(length > 0, nx / safe, 1.0), np.where(length > 0, ny / safe, 0.0)
         support = (a * ux) ** 2 + (b * uy) ** 2
