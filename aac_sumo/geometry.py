@@ -19,6 +19,26 @@ from aac_sumo.kernels.paths import polyline_offsets
 _MAX_BISECTIONS = 1100
 
 
+def along(polyline, s, extend: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Points (K, 2) [m] at arc lengths ``s`` (K,) [m] along ``polyline`` (M, 2) [m], and the
+    headings (K,) [rad] of the segments they lie on. Arc lengths outside the polyline are clamped
+    to its ends, or with ``extend`` continue straight along its first and last segments. Repeated
+    points are skipped; a polyline of one point stands there."""
+    pts = np.asarray(polyline, dtype=float)
+    s = np.atleast_1d(np.asarray(s, dtype=float))
+    seg = np.diff(pts, axis=0)
+    length = np.hypot(seg[:, 0], seg[:, 1])
+    keep = length > 1e-9
+    starts, seg, length = pts[:-1][keep], seg[keep], length[keep]
+    if len(length) == 0:
+        return np.repeat(pts[:1], len(s), axis=0), np.zeros(len(s))
+    arc = np.r_[0.0, np.cumsum(length)]
+    if not extend:
+        s = np.clip(s, 0.0, arc[-1])
+    k = np.clip(np.searchsorted(arc, s, side="right") - 1, 0, len(length) - 1)
+    return starts[k] + ((s - arc[k]) / length[k])[:, None] * seg[k], np.arctan2(seg[k, 1], seg[k, 0])
+
+
 def wrap_angle(angle) -> np.ndarray:
     """``angle`` [rad] wrapped into [-pi, pi] (the same direction within one turn)."""
     return np.angle(np.exp(1j * np.asarray(angle, dtype=float)))

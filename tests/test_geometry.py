@@ -415,3 +415,41 @@ def test_compiled_rect_clearance_equals_the_numpy_one(a, b):
 
     a, b = np.array(a), np.array(b)
     assert compiled_clearance(a, b) == pytest.approx(float(rect_clearance_rows(a, b)), abs=1e-12)
+
+
+@settings(max_examples=80, deadline=None)
+@given(line=st.lists(st.tuples(st.floats(-20, 20), st.floats(-20, 20)), min_size=2, max_size=6),
+       frac=st.floats(-0.5, 1.5))
+def test_along_walks_the_arc_length(line, frac):
+    """A point at arc length s lies s along the polyline (its end segments carried on straight
+    with ``extend``, clamped to its ends without)."""
+    from aac_sumo.geometry import along
+
+    poly = np.array(line)
+    seg = np.diff(poly, axis=0)
+    keep = np.hypot(*seg.T) > 1e-9
+    if not keep.any():
+        return
+    starts, seg = poly[:-1][keep], seg[keep]
+    lengths = np.hypot(*seg.T)
+    total = lengths.sum()
+    s = frac * total
+    for extend in (False, True):
+        (point,), (heading,) = along(poly, s, extend=extend)
+        walk = s if extend else min(max(s, 0.0), total)
+        k = int(np.clip(np.searchsorted(np.cumsum(lengths), walk, side="left"), 0, len(lengths) - 1)) if walk > 0 else 0
+        expected = starts[k] + (walk - np.r_[0.0, np.cumsum(lengths)][k]) / lengths[k] * seg[k]
+        np.testing.assert_allclose(point, expected, atol=1e-9 * max(1.0, total))
+        assert np.isclose(heading, np.arctan2(seg[k, 1], seg[k, 0])) or np.hypot(*(point - starts[k])) < 1e-9
+
+
+def test_along_closed_form():
+    from aac_sumo.geometry import along
+
+    line = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 0.0], [10.0, 10.0]])  # east, a repeated point, then north
+    points, headings = along(line, [-2.0, 4.0, 15.0, 23.0])
+    np.testing.assert_allclose(points, [[0.0, 0.0], [4.0, 0.0], [10.0, 5.0], [10.0, 10.0]])
+    np.testing.assert_allclose(headings, [0.0, 0.0, np.pi / 2, np.pi / 2])
+    points, _ = along(line, [-2.0, 23.0], extend=True)
+    np.testing.assert_allclose(points, [[-2.0, 0.0], [10.0, 13.0]])
+    np.testing.assert_allclose(along(np.array([[3.0, 4.0]]), [0.0, 5.0])[0], [[3.0, 4.0], [3.0, 4.0]])

@@ -15,7 +15,8 @@ from hypothesis import strategies as st
 
 from aac_sumo import network
 from aac_sumo.experiments.junction_routes import RoutePath, route_legs, route_path
-from aac_sumo.experiments.lane_geometry import CURVE_DECEL, along, centring_shift
+from aac_sumo.experiments.lane_geometry import CURVE_DECEL, centring_shift
+from aac_sumo.geometry import along
 
 A_LAT = 2.0  # [m/s^2]
 CHANGE_START, CHANGE_LENGTH = 10.0, 30.0  # [m]

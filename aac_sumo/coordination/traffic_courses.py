@@ -16,6 +16,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from aac_sumo.geometry import along
 from aac_sumo.kernels.geometry import paired_clearance
 from aac_sumo.references import PathReference
 from aac_sumo.world import line_binds
@@ -42,29 +43,12 @@ def braking_courses(obstacles, decel: float, dt: float) -> list[np.ndarray]:
         rows = np.empty((steps + 1, 5))
         rows[:, 2:] = (o.length, o.width, o.heading)
         if o.course is not None and steps > 0:
-            rows[:, :2], rows[1:, 4] = along_polyline(o.course, travel)[0], along_polyline(o.course, travel[1:])[1]
+            rows[:, :2], rows[1:, 4] = along(o.course, travel, extend=True)[0], along(o.course, travel[1:], extend=True)[1]
         else:
             direction = np.asarray(o.velocity, dtype=float) / speed if speed > 0.0 else np.zeros(2)
             rows[:, :2] = np.asarray(o.centre, dtype=float) + travel[:, None] * direction
         out.append(rows)
     return out
-
-
-def along_polyline(points: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Points (K, 2) [m] at arc lengths ``s`` (K,) [m] >= 0 along the polyline ``points`` (M, 2),
-    which goes on straight beyond its last point, and the headings (K,) [rad] of the segments
-    they lie on (repeated points are skipped; a polyline of one point stands)."""
-    pts = np.asarray(points, dtype=float)
-    seg = np.diff(pts, axis=0)
-    length = np.hypot(seg[:, 0], seg[:, 1])
-    keep = length > 1e-9
-    starts, seg, length = pts[:-1][keep], seg[keep], length[keep]
-    if len(length) == 0:
-        return np.repeat(pts[:1], len(s), axis=0), np.zeros(len(s))
-    arc = np.r_[0.0, np.cumsum(length)[:-1]]
-    k = np.clip(np.searchsorted(arc, s, side="right") - 1, 0, len(length) - 1)
-    where = starts[k] + ((s - arc[k]) / length[k])[:, None] * seg[k]
-    return where, np.arctan2(seg[k, 1], seg[k, 0])
 
 
 def stop_lines(obstacles) -> np.ndarray:

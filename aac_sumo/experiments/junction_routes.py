@@ -19,11 +19,11 @@ from aac_sumo.experiments.lane_geometry import (
     CURVE_DECEL,
     SAMPLE_STEP,
     SMOOTH_PAD,
-    along,
     centring_shift,
     offset_polyline,
     smoothstep,
 )
+from aac_sumo.geometry import along
 from aac_sumo.network import VEHICLE_CLASS, car_lanes
 from aac_sumo.references import curve_speeds, smooth_path
 

@@ -41,8 +41,9 @@ from aac_sumo.experiments.sumo_driver import lane_indices
 from aac_sumo.experiments.routed_cars import build_routed
 from aac_sumo.experiments.lane_change_params import LaneChangeParams, lane_change_params
 from aac_sumo.experiments.lane_geometry import (
-    BAND_SETTLE, MIN_LANES, ROAD_MARGIN, along, blend, lane_edges, smooth_reference,
+    BAND_SETTLE, MIN_LANES, ROAD_MARGIN, blend, lane_edges, smooth_reference,
 )
+from aac_sumo.geometry import along
 from aac_sumo.references import LateralBand, PathReference
 from aac_sumo.registry import register_experiment
 from aac_sumo.sim.sumo_options import LaneOrder, SumoOptions, SumoParams, sumo_params

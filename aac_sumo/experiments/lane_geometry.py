@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from aac_sumo import network
+from aac_sumo.geometry import along
 from aac_sumo.references import PathReference, curve_speeds, smooth_path
 
 SAMPLE_STEP = 1.0  # reference path resolution along the road [m]
@@ -23,19 +24,6 @@ def smoothstep(x) -> np.ndarray:
     """Quintic 0 -> 1 on [0, 1] with zero first and second derivatives at both ends."""
     x = np.clip(x, 0.0, 1.0)
     return x**3 * (10.0 - 15.0 * x + 6.0 * x**2)
-
-
-def along(polyline: np.ndarray, s) -> tuple[np.ndarray, np.ndarray]:
-    """Points (K, 2) and headings (K,) [rad] at arc lengths ``s`` [m] of ``polyline`` (clamped)."""
-    seg = np.diff(polyline, axis=0)
-    seg_len = np.hypot(*seg.T)
-    keep = seg_len > 1e-9
-    seg, seg_len, start = seg[keep], seg_len[keep], polyline[:-1][keep]
-    cum = np.r_[0.0, np.cumsum(seg_len)]
-    s = np.clip(np.atleast_1d(np.asarray(s, dtype=float)), 0.0, cum[-1])
-    i = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(seg_len) - 1)
-    t = (s - cum[i]) / seg_len[i]
-    return start[i] + t[:, None] * seg[i], np.arctan2(seg[i, 1], seg[i, 0])
 
 
 def blend(line_a: np.ndarray, line_b: np.ndarray, s_from: float, s_begin: float, length: float) -> np.ndarray:

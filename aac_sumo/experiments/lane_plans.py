@@ -12,7 +12,8 @@ from typing import NamedTuple
 import numpy as np
 
 from aac_sumo import network
-from aac_sumo.experiments.lane_geometry import BAND_SETTLE, SAMPLE_STEP, along, offset_polyline, smoothstep
+from aac_sumo.experiments.lane_geometry import BAND_SETTLE, SAMPLE_STEP, offset_polyline, smoothstep
+from aac_sumo.geometry import along
 from aac_sumo.references import LateralBand, PathReference
 
 END_MARGIN = 15.0  # a car has finished this far before the end of its route [m]
