@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from aac_sumo.network import sumo_binary
 from aac_sumo.sim.sumo_frames import (
-    body_from_sumo, collision_cover, heading_from_sumo, lane_change_sweep, signalled_sweep, state_from_sumo, sumo_from_state,
+    body_from_sumo, collision_cover, heading_from_sumo, lane_change_sweep, lane_direction, signalled_sweep, state_from_sumo, sumo_from_state,
     velocity_from_sumo,
 )
 
@@ -89,6 +89,38 @@ def test_a_car_pulling_out_at_24_degrees_is_covered_in_both_lanes():
     assert centre[1] - 0.5 * width == pytest.approx(-8.3)
     assert centre[1] + 0.5 * width == pytest.approx(-7.4 + 4.5 * math.sin(math.radians(24)) + 0.9 * math.cos(math.radians(24)))
     assert length == pytest.approx(4.5 + 0.9 * math.sin(math.radians(24)))
+
+
+@given(st.floats(4.0, 60.0), st.floats(0.0, 1.0), st.floats(2.0, 12.0), st.sampled_from([-1.0, 1.0]), st.floats(0.0, 359.9))
+def test_a_car_following_a_curved_lane_is_covered_by_its_body(radius, where, length, turn, start_deg):
+    """A car on a lane that turns a quarter circle of ``radius`` (left or right), front and back
+    on its centre-line, at the angle SUMO gives it (the chord from back to front): the lane's
+    direction under it is that chord, so its cover is its body, however tight the turn. The
+    tangent at its front would have widened the cover by about length^2 / (2 radius)."""
+    start = math.radians(start_deg)
+    phi = start + turn * np.linspace(0.0, 0.5 * math.pi, 60)  # the lane's heading along it
+    centre = -turn * radius * np.array([-math.sin(start), math.cos(start)])  # the circle's centre, the lane starting at 0
+    shape = centre + turn * radius * np.c_[-np.sin(phi), np.cos(phi)]
+    arc = np.r_[0.0, np.cumsum(np.hypot(*np.diff(shape, axis=0).T))]
+    pos = length + where * (arc[-1] - length) if arc[-1] > length else arc[-1]
+    front = np.interp(pos, arc, shape[:, 0]), np.interp(pos, arc, shape[:, 1])
+    back = np.interp(pos - length, arc, shape[:, 0]), np.interp(pos - length, arc, shape[:, 1])
+    if pos - length < 0.0:
+        return
+    angle = (90.0 - math.degrees(math.atan2(front[1] - back[1], front[0] - back[0]))) % 360.0
+    tangent = (90.0 - math.degrees(np.interp(pos, arc, np.unwrap(phi)))) % 360.0
+    _, _, cover_length, cover_width = collision_cover(*front, angle, lane_direction(shape, arc, pos, length, tangent), length, 1.8)
+    assert (cover_length, cover_width) == pytest.approx((length, 1.8), abs=1e-6)
+    _, _, _, tangent_width = collision_cover(*front, angle, tangent, length, 1.8)
+    assert tangent_width > 1.8 + 0.25 * length**2 / radius * 0.5  # what the tangent made of it
+
+
+def test_a_straight_lane_keeps_sumos_tangent():
+    """Under a car on a straight stretch the lane's direction is SUMO's tangent, unchanged to the last bit."""
+    shape = np.array([[0.0, 0.0], [100.0, 0.0], [100.0, 50.0]])
+    arc = np.array([0.0, 100.0, 150.0])
+    assert lane_direction(shape, arc, 50.0, 5.0, 89.99999999999999) == 89.99999999999999
+    assert lane_direction(shape, arc, 102.0, 5.0, 0.0) == pytest.approx(90.0 - math.degrees(math.atan2(2.0, 3.0)))
 
 
 def test_a_sumo_velocity_is_the_speed_along_the_lane_plus_the_lateral_speed_across_it():

@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 
+from aac_sumo.geometry import along
 from aac_sumo.sim.base import Crossing
 
 
@@ -92,6 +93,22 @@ def collision_cover(x: float, y: float, angle_deg: float, lane_angle_deg: float,
     cl, sl = math.cos(lane), math.sin(lane)
     centre = np.array([x + mid_a * cl - mid_c * sl, y + mid_a * sl + mid_c * cl])
     return centre, lane, hi_a - lo_a, hi_c - lo_c
+
+
+def lane_direction(shape: np.ndarray, arc: np.ndarray, pos: float, length: float, tangent_deg: float) -> float:
+    """The direction [navigational degrees] of a lane under a vehicle ``length`` [m] long whose
+    front is ``pos`` [m] along it (``shape`` (M, 2) [m], the lane's centre-line points at arc
+    lengths ``arc`` (M,) [m]): the lane's tangent at the front, ``tangent_deg``, where it runs
+    straight under the vehicle, else the chord from the vehicle's back (its length behind the
+    front along the lane, carried back along the first segment before the lane's start) to its
+    front. SUMO gives a car following a curved lane the chord's angle (front to back,
+    ``MSVehicle::computeAngle``) and checks it on the lane as a band along the lane: against the
+    tangent, a car turning a corner would seem to stand at an angle to its lane, and its cover
+    (:func:`collision_cover`) would swing its rear out into the next lanes."""
+    if not np.any((arc[1:-1] > pos - length) & (arc[1:-1] < pos)):
+        return tangent_deg
+    (back, front), _ = along(shape, [pos - length, pos], extend=True)
+    return (90.0 - math.degrees(math.atan2(front[1] - back[1], front[0] - back[0]))) % 360.0
 
 
 def velocity_from_sumo(speed: float, lateral_speed: float, lane_angle_deg: float) -> np.ndarray:

@@ -13,7 +13,7 @@ import numpy as np
 from aac_sumo.network import VEHICLE_CLASS
 from aac_sumo.sim.base import Crossing
 from aac_sumo.sim.sumo_frames import (BLINKER_LEFT, BLINKER_RIGHT, angle_as_sumo_keeps, body_from_sumo, collision_cover, crossing_from_sumo,
-                                      lane_change_sweep, signalled_sweep, state_from_sumo, sumo_from_state, velocity_from_sumo)
+                                      lane_change_sweep, lane_direction, signalled_sweep, state_from_sumo, sumo_from_state, velocity_from_sumo)
 from aac_sumo.world import Obstacle, parking_spot
 
 
@@ -172,7 +172,8 @@ class SumoReading:
                     seen.append(body)
                     continue
                 lane = v.getLaneID(oid)
-                lane_angle = self.api.lane.getAngle(lane, v.getLanePosition(oid))
+                pos = v.getLanePosition(oid)
+                lane_angle = lane_direction(*self._shape(lane), pos, length, self.api.lane.getAngle(lane, pos))
                 speed, lateral = v.getSpeed(oid), v.getLateralSpeed(oid)
                 bodies.append(Obstacle(oid, obstacle_kind, centre, velocity_from_sumo(speed, lateral, lane_angle), heading, length, width))
                 sweep = lane_change_sweep(lateral, v.getLateralLanePosition(oid), self.api.lane.getWidth(lane)) if lateral else 0.0
@@ -182,7 +183,7 @@ class SumoReading:
                     wish_centre, wish_heading, wish_length, wish_width = collision_cover(x, y, angle, lane_angle, length, width, signalled)
                     wish = np.array([*wish_centre, wish_length, wish_width, wish_heading])
                 centre, heading, length, width = collision_cover(x, y, angle, lane_angle, length, width, sweep)
-                course = None if lateral else self._course(oid, lane, v.getLanePosition(oid), centre, speed)  # changing lanes: straight on
+                course = None if lateral else self._course(oid, lane, pos, centre, speed)  # changing lanes: straight on
                 seen.append(Obstacle(oid, obstacle_kind, centre, velocity_from_sumo(speed, 0.0, lane_angle), heading, length, width,
                                      signalled=wish, course=course))
         return bodies, seen
