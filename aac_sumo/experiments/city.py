@@ -41,7 +41,7 @@ from aac_sumo.experiments.common import Setup, simulator_drives
 from aac_sumo.experiments.lane_change import network_files, sumo_options, with_resolved_paths
 from aac_sumo.experiments.lane_geometry import ROAD_MARGIN, SAMPLE_STEP
 from aac_sumo.experiments.routed_vehicles import KEYS, route_edges, routed_robots, routed_setup, routed_vehicles
-from aac_sumo.experiments.right_of_way import RightOfWay, YieldLine, yield_lines
+from aac_sumo.experiments.right_of_way import RightOfWay, YieldLine, may_hold, yield_lines
 from aac_sumo.experiments.signals import BOX_LENGTH, GO, Line, Signals, YellowRule
 from aac_sumo.experiments.junction_routes import route_legs, route_path
 from aac_sumo.references import LateralBand, PathReference
@@ -56,6 +56,10 @@ SECTION = "city"
 SIGNAL_RANGE = 150.0
 #: Room [m] a car keeps before a stop line it stops for at yellow, beyond one period's travel.
 YELLOW_SLACK = 1.0
+#: SUMO's default ``departPos`` puts a car's front this far [m] beyond its length into its first edge ...
+DEPART_FRONT = 0.1
+#: ... and a car inserted there is to stop this far [m] before that edge's end: the check's margin and a metre.
+INSERTION_ROOM = 1.5
 
 
 @dataclass(frozen=True)
@@ -260,6 +264,26 @@ def build_city(scenario: Scenario) -> Setup:
     robots = routed_robots(scenario, vehicles, from_section(CityParams, scenario, SECTION).speed, "city.speed")
     cars = CityCars(scenario, net, vehicles, robots)
     cars.sumo_drives = simulator_drives(scenario)
-    return routed_setup(scenario, cars, robots, vehicles, sumo_options(scenario, net_path, routes),
+    options = sumo_options(scenario, net_path, routes)
+    if su.declared_at_insertion and su.declared_decel > 0.0:
+        options = dataclasses.replace(options, insertion_speeds=insertion_speeds(net, cars.edges, vehicles, su.declared_decel, scenario["scenario.dt"]))
+    return routed_setup(scenario, cars, robots, vehicles, options,
                         figures=lambda: dict(red_light_violations=cars.signals.violations,
                                                      right_of_way_violations=cars.right_of_way.violations), held=lambda: cars.held)
+
+
+def insertion_speeds(net, edges: list, vehicles: list, decel: float, dt: float) -> tuple[tuple[str, float], ...]:
+    """``(id, speed [m/s])`` of each of ``vehicles`` (routes ``edges``) whose first junction may
+    make it wait (:func:`~aac_sumo.experiments.right_of_way.may_hold`): the most it can be
+    inserted at, at SUMO's default position, to stop ``INSERTION_ROOM`` before its first edge's
+    end at ``decel`` [m/s^2] after one period ``dt`` [s] of travel. A fringe edge of randomTrips'
+    routes is often a few tens of metres long: ``departSpeed="max"`` inserted grid6's cars at
+    14-15 m/s 36-50 m before an unregulated junction where a foe was coming, and they had to
+    brake at 2.3-2.6 m/s^2 from their first period."""
+    out = []
+    for v, route in zip(vehicles, edges):
+        if len(route) < 2 or not may_hold(net, route[0], route[1]):
+            continue
+        room = max(net.getEdge(route[0]).getLength() - v.length - DEPART_FRONT - INSERTION_ROOM, 0.0)
+        out.append((v.id, decel * (np.sqrt(dt * dt + 2.0 * room / decel) - dt)))
+    return tuple(out)

@@ -134,6 +134,15 @@ def _foes(net, node, conn) -> tuple[list, bool]:
     return found, True
 
 
+def may_hold(net, edge: str, nxt: str) -> bool:
+    """Whether a car going from ``edge`` to ``nxt`` (edge ids) may have to wait at the junction
+    between them, on any lane it may take: at a traffic light, or where its link has foes it
+    yields to (:func:`yield_lines`' rule, every crossing way at an unregulated junction)."""
+    a = net.getEdge(edge)
+    return any(c.getTLSID() or _foes(net, a.getToNode(), c)[0] for c in a.getConnections(net.getEdge(nxt))
+               if c.getFromLane().allows(VEHICLE_CLASS) and c.getToLane().allows(VEHICLE_CLASS))
+
+
 def yield_lines(net, path: RoutePath) -> list[tuple[YieldLine, float]]:
     """Each junction link on ``path`` that may have to yield, with the line's arc length [m]."""
     out, arc = [], np.r_[0.0, np.cumsum(np.hypot(*np.diff(path.points, axis=0).T))]

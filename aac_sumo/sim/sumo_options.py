@@ -76,7 +76,8 @@ class SumoParams:
                                   "vehicle.setDecel when the car becomes ours) [m/s^2]; 0: the vType's own", **NN)
     declared_at_insertion: bool = param(True, "with declared_decel, SUMO's vTypes of the controlled cars of its routes are told "
                                         "it before any departs, so that departSpeed=\"max\" inserts a car no faster than it "
-                                        "can stop at it behind what stands ahead (false: only once each car is ours)")
+                                        "can stop at it behind what stands ahead, and (on a city's routes) before the end of its "
+                                        "first edge where that junction may make it wait (false: only once each car is ours)")
     output_dir: str = param("", "directory of SUMO's own output files and of its message log sumo.log (aac-sumo run sets it to "
                             "--out; empty: out/<scenario name> when outputs are asked for, else no files and SUMO's warnings off)")
 
@@ -110,6 +111,7 @@ class SumoOptions:
     sumo_drives: bool = False  # SUMO's own driver moves the controlled vehicles (see the module)
     declared_decel: float = 0.0  # the decel SUMO is told our cars brake at [m/s^2]; 0: their vType's
     declared_types: tuple[str, ...] = ()  # vTypes of the controlled cars of SUMO's routes, told declared_decel before any departs
+    insertion_speeds: tuple[tuple[str, float], ...] = ()  # (controlled vehicle id, the most SUMO inserts it at [m/s]) of SUMO's routes
 
     def our_options(self, dt: float) -> dict[str, str]:
         """The SUMO options the co-simulation sets itself, name -> value."""

@@ -58,20 +58,40 @@ class SumoReading:
         """With ``declared_decel``, SUMO's vTypes of the controlled cars of its routes
         (``declared_types``) brake at it before SUMO inserts any of them: ``departSpeed="max"``
         then inserts a car no faster than it can stop at that deceleration behind what stands
-        ahead, as every car brakes once ours (``_make_ours``). Not when SUMO drives them (the
-        baseline keeps its vType)."""
-        if self.drives or self.options.declared_decel <= 0.0:
+        ahead, as every car brakes once ours (``_make_ours``); and each car of
+        ``insertion_speeds`` is inserted no faster than its speed there (:meth:`_cap_insertions`).
+        Not when SUMO drives them (the baseline keeps its vType)."""
+        declared = not self.drives and self.options.declared_decel > 0.0
+        self._uncapped = dict(self.options.insertion_speeds) if declared else {}
+        if not declared:
             return
         known = set(self.api.vehicletype.getIDList())
         for vtype in self.options.declared_types:
             if vtype in known:
                 self.api.vehicletype.setDecel(vtype, self.options.declared_decel)
+        self._cap_insertions()
+
+    def _cap_insertions(self) -> None:
+        """Each controlled vehicle of ``insertion_speeds`` that SUMO has loaded and not yet
+        departed gets its speed there as its maximum speed (``vehicle.setMaxSpeed``), so that
+        ``departSpeed="max"`` inserts it no faster; :meth:`_make_ours` raises it again once it
+        departs. SUMO loads route files ahead of their departures (``--route-steps``); a vehicle
+        loaded in the step it departs keeps its speed."""
+        if not self._uncapped:
+            return
+        v = self.api.vehicle
+        for vid in sorted(set(self._uncapped) & set(v.getLoadedIDList())):
+            v.setMaxSpeed(vid, min(self._uncapped.pop(vid), v.getMaxSpeed(vid)))
 
     def _take_departed(self) -> None:
         """Make the routed vehicles SUMO departed in its last step ours, at the pose and speed
-        SUMO gave them."""
+        SUMO gave them (the others it has loaded since are capped, :meth:`_cap_insertions`)."""
         v = self.api.vehicle
-        for vid in self.api.simulation.getDepartedIDList():
+        departed = self.api.simulation.getDepartedIDList()
+        for vid in departed:
+            self._uncapped.pop(vid, None)
+        self._cap_insertions()
+        for vid in departed:
             i = self.index.get(vid)
             if i is None or vid not in self.routed or self.present[i] or vid in self.removed:
                 continue
