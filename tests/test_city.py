@@ -147,3 +147,38 @@ def test_an_osm_city_of_the_wheel_runs_on_random_trips_and_leaves_undrivable_rou
                      "--set", "sumo.controlled_types=[]", "--set", f'sumo.controlled_ids=["{refused}"]', "--out", str(tmp_path / "none")])
     err = capsys.readouterr().err.strip()
     assert code == 2 and len(err.splitlines()) == 1 and "none of 1 is" in err and refused in err
+
+
+@pytest.mark.parametrize("declared", [False, True])
+def test_sumo_inserts_a_controlled_car_no_faster_than_it_can_stop_before_a_junction_where_it_must_wait(tmp_path, capsys, declared):
+    """A car of the route files departs at ``departSpeed="max"`` on a 40 m edge into an
+    unregulated junction (where a controlled car yields to every crossing way). With
+    ``sumo.declared_at_insertion`` SUMO inserts it no faster than it can stop at the declared
+    2 m/s^2, after one period of travel, 1.5 m before the edge's end; without, at the lane's
+    13.9 m/s times its speed factor."""
+    from aac_sumo import network
+
+    folder = tmp_path / "net"
+    folder.mkdir()
+    nodes = {"C": (0, 0), "W": (-40, 0), "E": (100, 0), "N": (0, 100), "S": (0, -100)}
+    (folder / "net.nod.xml").write_text("<nodes>" + "".join(
+        f'<node id="{n}" x="{x}" y="{y}"' + (' type="unregulated"/>' if n == "C" else "/>") for n, (x, y) in nodes.items()) + "</nodes>")
+    (folder / "net.edg.xml").write_text("<edges>" + "".join(
+        f'<edge id="{a}{b}" from="{a}" to="{b}" numLanes="1" speed="13.9"/>' for n in "WENS" for a, b in ((n, "C"), ("C", n))) + "</edges>")
+    net = network.build(folder)[0]
+    routes = tmp_path / "cars.rou.xml"
+    routes.write_text("""<routes><vType id="ours" length="4.5" width="1.8" decel="6.0" speedFactor="1.1"/>
+        <vehicle id="ours.0" type="ours" depart="0" departSpeed="max"><route edges="WC CE"/></vehicle></routes>""")
+    out = tmp_path / "out"
+    code = cli.main(["run", "city", "--set", 'sumo.config=""', "--set", f"sumo.net={net}", "--set", f"sumo.routes={routes}",
+                     "--set", "sumo.controlled_types=[\"ours\"]", "--set", f"sumo.declared_at_insertion={str(declared).lower()}",
+                     "--set", "scenario.duration=0.5", "--out", str(out)])
+    assert code == 0, capsys.readouterr().err
+    speed = pd.read_csv(out / "steps.csv").query("robot == 'ours.0'").v.iloc[0]
+    length = network.read(net, "sumo.net", "test").getEdge("WC").getLength()
+    room = length - 4.5 - 0.1 - 1.5
+    if declared:
+        assert speed * 0.1 + speed**2 / (2.0 * 2.0) <= room + 1e-6
+        assert speed > 0.9 * 2.0 * (np.sqrt(0.01 + room) - 0.1)  # and no slower than that
+    else:
+        assert speed > 13.9

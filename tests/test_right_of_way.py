@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from aac_sumo import network
 from aac_sumo.experiments.junction_routes import route_legs, route_path
-from aac_sumo.experiments.right_of_way import FOE_ACCEL, FOE_SPEED_FACTOR, RightOfWay, clear_time, travel_time, yield_lines
+from aac_sumo.experiments.right_of_way import FOE_ACCEL, FOE_SPEED_FACTOR, RightOfWay, clear_time, may_hold, travel_time, yield_lines
 
 
 def build(folder, node_type: str, major_lanes: int = 1):
@@ -52,6 +52,14 @@ def test_a_minor_road_yields_to_the_major_road_and_the_major_road_to_no_one(prio
     assert s == pytest.approx(path.junctions[0].s_in)
     assert y.s_out > y.s_in and 0.0 < y.speed <= 13.9
     assert lines(priority, ["WC", "CE"])[0] == []  # straight along the major road: nothing to yield to
+
+
+def test_a_junction_may_hold_a_car_where_its_link_has_foes_it_yields_to(priority, unregulated):
+    """The major road's straight link holds no one; the minor road's, and the major road's left
+    turn (across the oncoming lane), may; at an unregulated junction every link may."""
+    assert not may_hold(priority, "WC", "CE") and not may_hold(priority, "WC", "CS")  # straight on, right turn
+    assert may_hold(priority, "SC", "CN") and may_hold(priority, "WC", "CN")
+    assert all(may_hold(unregulated, a, b) for a, b in (("WC", "CE"), ("SC", "CN"), ("WC", "CS")))
 
 
 def test_a_left_turn_from_the_major_road_yields_to_the_oncoming_major_road(priority):
