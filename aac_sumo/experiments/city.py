@@ -266,7 +266,8 @@ def build_city(scenario: Scenario) -> Setup:
     cars.sumo_drives = simulator_drives(scenario)
     options = sumo_options(scenario, net_path, routes)
     if su.declared_at_insertion and su.declared_decel > 0.0:
-        options = dataclasses.replace(options, insertion_speeds=insertion_speeds(net, cars.edges, vehicles, su.declared_decel, scenario["scenario.dt"]))
+        caps = insertion_speeds(net, cars.edges, vehicles, su.declared_decel, scenario["scenario.dt"])
+        options = dataclasses.replace(options, insertion_speeds=caps)
     return routed_setup(scenario, cars, robots, vehicles, options,
                         figures=lambda: dict(red_light_violations=cars.signals.violations,
                                                      right_of_way_violations=cars.right_of_way.violations), held=lambda: cars.held)
