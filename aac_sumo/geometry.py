@@ -21,9 +21,10 @@ _MAX_BISECTIONS = 1100
 
 def along(polyline, s, extend: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Points (K, 2) [m] at arc lengths ``s`` (K,) [m] along ``polyline`` (M, 2) [m], and the
-    headings (K,) [rad] of the segments they lie on. Arc lengths outside the polyline are clamped
-    to its ends, or with ``extend`` continue straight along its first and last segments. Repeated
-    points are skipped; a polyline of one point stands there."""
+    headings (K,) [rad] of the segments they lie on (at a vertex, the one that begins there). Arc
+    lengths outside the polyline are clamped to its ends, or with ``extend`` continue straight
+    along its first and last segments. Repeated points are skipped; a polyline of one point
+    stands there."""
     pts = np.asarray(polyline, dtype=float)
     s = np.atleast_1d(np.asarray(s, dtype=float))
     seg = np.diff(pts, axis=0)

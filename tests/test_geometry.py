@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import minimize_scalar
 
@@ -420,9 +420,11 @@ def test_compiled_rect_clearance_equals_the_numpy_one(a, b):
 @settings(max_examples=80, deadline=None)
 @given(line=st.lists(st.tuples(st.floats(-20, 20), st.floats(-20, 20)), min_size=2, max_size=6),
        frac=st.floats(-0.5, 1.5))
+@example(line=[(0.0, 1.0), (0.0, 0.0), (0.0, 1.0)], frac=0.5)  # on the vertex where the line turns back
 def test_along_walks_the_arc_length(line, frac):
     """A point at arc length s lies s along the polyline (its end segments carried on straight
-    with ``extend``, clamped to its ends without)."""
+    with ``extend``, clamped to its ends without), with the heading of the segment it lies on (at
+    a vertex, the one that begins there)."""
     from aac_sumo.geometry import along
 
     poly = np.array(line)
@@ -432,15 +434,15 @@ def test_along_walks_the_arc_length(line, frac):
         return
     starts, seg = poly[:-1][keep], seg[keep]
     lengths = np.hypot(*seg.T)
+    begins = np.r_[0.0, np.cumsum(lengths)[:-1]]
     total = lengths.sum()
     s = frac * total
     for extend in (False, True):
         (point,), (heading,) = along(poly, s, extend=extend)
         walk = s if extend else min(max(s, 0.0), total)
-        k = int(np.clip(np.searchsorted(np.cumsum(lengths), walk, side="left"), 0, len(lengths) - 1)) if walk > 0 else 0
-        expected = starts[k] + (walk - np.r_[0.0, np.cumsum(lengths)][k]) / lengths[k] * seg[k]
-        np.testing.assert_allclose(point, expected, atol=1e-9 * max(1.0, total))
-        assert np.isclose(heading, np.arctan2(seg[k, 1], seg[k, 0])) or np.hypot(*(point - starts[k])) < 1e-9
+        k = int(np.clip(np.searchsorted(begins, walk, side="right") - 1, 0, len(lengths) - 1))
+        np.testing.assert_allclose(point, starts[k] + (walk - begins[k]) / lengths[k] * seg[k], atol=1e-9 * max(1.0, total))
+        assert heading == pytest.approx(np.arctan2(seg[k, 1], seg[k, 0]))
 
 
 def test_along_closed_form():
