@@ -483,3 +483,32 @@ def test_a_car_changing_lanes_beside_one_that_changes_the_same_way_is_not_cuttin
     assert len(stop_points(dataclasses.replace(world), 0, behind, params, courses=parallel)) == 0
     staying = intended_courses(world, [behind, keeping], 0.5 * params.cut_in)
     assert len(stop_points(dataclasses.replace(world), 0, behind, params, courses=staying)) == 1
+
+
+@settings(max_examples=30, deadline=None)
+@given(radius=st.floats(5.0, 12.0), speed=st.floats(1.5, 4.0))
+def test_a_lookahead_that_shrinks_with_speed_keeps_a_slow_car_in_its_lane_round_a_street_corner(radius, speed):
+    """A car at 1.5-4 m/s on the tracking law round a 90-degree right turn of 5-12 m radius (grid6's
+    junction turns are 5.6 m) stays within 0.5 m of the lane's centre line once it aims at most
+    one second ahead (at least 3 m: ``Pursuit(10, 1, 3)``). Aiming a fixed 10 m ahead it swings
+    out of the lane: it starts to turn 10 m early, cuts in, and leaves the corner still turned
+    (1.5 m and more wide on the 5.6 m turn at 2 m/s, into the oncoming lane)."""
+    from aac_sumo.coordination.tracking import Pursuit, track_course
+
+    arc = radius * np.linspace(0.0, 0.5 * np.pi, 40)
+    corner = np.column_stack([radius * np.sin(arc / radius), radius * np.cos(arc / radius) - radius])  # from heading 0 to -pi/2
+    points = np.vstack([[[-30.0, 0.0]], corner, corner[-1] + [[0.0, -30.0]]])
+    task = PathReference(points, speed, stop_at_end=False)
+
+    def widest(lookahead) -> float:
+        state = np.array([-20.0, 0.0, 0.0, speed])
+        steer, worst = 0.0, 0.0
+        for _ in range(int((50.0 + radius) / speed / DT)):
+            u = track_course(CAR, state, task, lookahead, 1.0, steer, DT, 1)[0]
+            state, steer = CAR.model.step(state, u, DT), float(u[1])
+            worst = max(worst, float(task.distance(state[None, :2])[0]))
+        return worst
+
+    assert widest(Pursuit(10.0, 1.0, 3.0)) <= 0.5
+    if radius < 6.0 and speed <= 2.5:
+        assert widest(10.0) > 1.0

@@ -378,8 +378,12 @@ def test_compiled_rollouts_step_the_bicycle_model(seed, steps, dt):
 def _pure_pursuit(robot, state, task, lookahead, speed_gain, previous_steer, dt, offset, target_speed):
     """The tracking law as numpy statements, from the path's own methods: the definition the
     compiled rollout is held to."""
+    from aac_sumo.coordination.tracking import pursuit
+
+    aim = pursuit(lookahead)  # a fixed distance, or at low speed the distance covered in aim.time, at least aim.least
+    look = aim.distance if aim.time <= 0.0 else min(aim.distance, max(aim.least, aim.time * abs(float(state[3]))))
     s0, _ = task.project(state[:2])
-    pose = task.pose_at(min(s0 + lookahead, task.length) if task.stop_at_end else s0 + lookahead)[0]
+    pose = task.pose_at(min(s0 + look, task.length) if task.stop_at_end else s0 + look)[0]
     target = pose[:2] + offset * np.array([np.sin(pose[2]), -np.cos(pose[2])])
     near_goal = task.stop_at_end and float(np.hypot(*(task.points[-1] - state[:2]))) <= task.approach
     if near_goal:
@@ -403,10 +407,11 @@ def _pure_pursuit(robot, state, task, lookahead, speed_gain, previous_steer, dt,
 @given(seed=st.integers(0, 100_000), steps=st.integers(1, 12))
 def test_compiled_tracking_course_is_the_pure_pursuit_law_applied_period_after_period(seed, steps):
     """:func:`~aac_sumo.coordination.tracking.track_course` on random paths (stopping or not,
-    with speed limits or not, an approach zone or not), robots, offsets and target speeds gives
-    the inputs of the tracking law evaluated from the path's methods and the model's steering
-    limits, stepping the robot's model between periods."""
-    from aac_sumo.coordination.tracking import track_course
+    with speed limits or not, an approach zone or not), robots, offsets, target speeds and
+    lookaheads (fixed, or shrinking with speed) gives the inputs of the tracking law evaluated
+    from the path's methods and the model's steering limits, stepping the robot's model between
+    periods."""
+    from aac_sumo.coordination.tracking import Pursuit, track_course
     from aac_sumo.references import PathReference
     from aac_sumo.world import RobotSpec
 
@@ -419,6 +424,8 @@ def test_compiled_tracking_course_is_the_pure_pursuit_law_applied_period_after_p
                          limits=rng.uniform(0.5, 10, len(points)) if rng.integers(2) else None)
     state = np.r_[points[0] + rng.uniform(-2, 2, 2), rng.uniform(-3, 3), rng.uniform(0, limits.v_max)]
     lookahead, offset, previous, dt = rng.uniform(0.5, 3), rng.choice([0.0, 1.0]), rng.uniform(-0.3, 0.3), 0.1
+    if rng.integers(2):  # aiming nearer at low speed
+        lookahead = Pursuit(lookahead, rng.uniform(0.2, 1.5), rng.uniform(0.1, 1.0))
     target = float(rng.uniform(0, 5)) if rng.integers(2) else None
     got = track_course(robot, state, task, lookahead, 1.0, previous, dt, steps, offset, target)
     for k in range(steps):
@@ -461,7 +468,7 @@ def test_compiled_continuation_is_the_loop_of_the_anticipated_speed_law(seed, st
     anticipation's ``accel``, the steering is :func:`~aac_sumo.coordination.tracking.track`'s
     with that target, and the robot's model steps (equal up to the last bit of libm's rounding)."""
     from aac_sumo.coordination.anticipation import speed_cap
-    from aac_sumo.coordination.tracking import track
+    from aac_sumo.coordination.tracking import Pursuit, track
     from aac_sumo.kernels.motion import continuation_inputs
     from aac_sumo.references import PathReference
     from aac_sumo.world import RobotSpec
@@ -474,12 +481,13 @@ def test_compiled_continuation_is_the_loop_of_the_anticipated_speed_law(seed, st
     state = np.r_[points[0] + rng.uniform(-1.0, 1.0, 2), rng.uniform(-0.2, 0.2), rng.uniform(0.0, 12.0)]
     stops = np.column_stack([rng.uniform(-5.0, 120.0, n_stops), rng.uniform(0.0, 10.0, n_stops), rng.uniform(0.0, 1.5, n_stops)])
     dt, lag, decel, accel_up, calm = 0.1, 0.3, 1.5, 1.5, 2.0
-    lookahead, gain, shift, lat, steer0 = 10.0, 1.0, float(rng.choice([0.0, 0.5])), 2.0, float(rng.uniform(-0.05, 0.05))
+    pursuit = Pursuit(10.0, *((1.0, 3.0) if rng.integers(2) else (0.0, 0.0)))
+    gain, shift, lat, steer0 = 1.0, float(rng.choice([0.0, 0.5])), 2.0, float(rng.uniform(-0.05, 0.05))
     accel0, jerk = float(rng.uniform(-3.0, 3.0)), float(rng.choice([0.0, 5.0]))
     lim = robot.model.limits
     got = continuation_inputs(*(float(c) for c in state), steps, t0, dt, stops, decel, accel_up, calm, lag, robot.model.wheelbase,
                               lim.a_min, lim.a_max, lim.steer_max, lim.v_min, lim.v_max, lim.a_lat_max, min(lim.a_lat_max, lat),
-                              lim.steer_rate_max, lim.comfort_decel, steer0, *task.arrays(), task.speed, task.decel, lookahead, gain, shift,
+                              lim.steer_rate_max, lim.comfort_decel, steer0, *task.arrays(), task.speed, task.decel, *pursuit.args(), gain, shift,
                               np.empty(0), 1.0, accel0, jerk)
     steer, before = steer0, accel0
     for k in range(steps):
@@ -487,7 +495,7 @@ def test_compiled_continuation_is_the_loop_of_the_anticipated_speed_law(seed, st
         moved = stops + np.column_stack([stops[:, 1] * t, np.zeros((len(stops), 2))])
         ahead = task.project(state[:2])[0] + max(float(state[3]), 0.0) * lag
         target = min(float(speed_cap(moved, [ahead], decel)[0]), float(task.speed_at(ahead)))
-        want = track(robot, state, task, lookahead, gain, steer, dt, shift, target_speed=target, a_lat=lat)
+        want = track(robot, state, task, pursuit, gain, steer, dt, shift, target_speed=target, a_lat=lat)
         want[0] = min(max((target - float(state[3])) / lag, -calm), accel_up)
         if jerk > 0.0:  # no faster than easing off at jerk reaches the target, within jerk * dt of the acceleration before,
             gap = target - float(state[3])  # then within the envelope, which wins
@@ -519,7 +527,7 @@ def test_a_continuation_behind_a_standing_point_can_always_stop_before_it(v0, sp
     lim = robot.model.limits
     inputs = continuation_inputs(0.0, 0.0, 0.0, v0, 200, 0, dt, np.zeros((0, 3)), 1.5, 1.5, calm, lag, robot.model.wheelbase,
                                  lim.a_min, lim.a_max, lim.steer_max, lim.v_min, lim.v_max, lim.a_lat_max, 2.0, lim.steer_rate_max,
-                                 lim.comfort_decel, 0.0, *task.arrays(), task.speed, task.decel, 10.0, 1.0, 0.0,
+                                 lim.comfort_decel, 0.0, *task.arrays(), task.speed, task.decel, 10.0, 0.0, 0.0, 1.0, 0.0,
                                  np.array([s_h]), HARD_SHARE * tail, accel0, jerk)
     state = np.array([0.0, 0.0, 0.0, v0])
     for u in inputs:

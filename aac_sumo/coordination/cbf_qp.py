@@ -60,10 +60,10 @@ import osqp
 import scipy.sparse as sp
 
 from aac_sumo.barriers import stage_parameters
-from aac_sumo.config.keys import P
+from aac_sumo.config.keys import NN, P
 from aac_sumo.config.schema import param, section
 from aac_sumo.coordination.base import Coordinator, Decision, Finished, RobotDecision
-from aac_sumo.coordination.tracking import track
+from aac_sumo.coordination.tracking import Pursuit, track
 from aac_sumo.mpc.settings import MpcConfig
 from aac_sumo.mpc.planner import MpcPlanner, ego_discs
 from aac_sumo.references import PathReference
@@ -82,7 +82,15 @@ class CbfQpParams:
 
     radius: float = param(5.0, "another robot whose footprint centre is within this of the ego's gets a barrier row [m]", **P)
     lookahead: float = param(1.0, "pure-pursuit lookahead of the nominal tracking law [m]", **P)
+    lookahead_time: float = param(0.0, "with > 0, at low speed the lookahead shrinks to the distance covered in this time, but not below "
+                                  "lookahead_min: a car that turns a tight corner slowly aims at the corner, not beyond it [s]", **NN)
+    lookahead_min: float = param(0.0, "the shortest lookahead with lookahead_time > 0 [m]", **NN)
     speed_gain: float = param(1.0, "speed-error gain of the nominal tracking law [1/s]", **P)
+
+    @property
+    def pursuit(self) -> Pursuit:
+        """Where the nominal tracking law aims (:class:`~aac_sumo.coordination.tracking.Pursuit`)."""
+        return Pursuit(self.lookahead, self.lookahead_time, self.lookahead_min)
 
 
 @dataclass
@@ -255,7 +263,7 @@ class CbfQpCoordinator(Coordinator):
         for i in np.flatnonzero(~parked):
             start = time.perf_counter()
             robot, state = world.robots[i], world.states[i]
-            nominal = track(robot, state, self.tasks[i], p.lookahead, p.speed_gain, self.last_inputs[i, 1], cfg.dt,
+            nominal = track(robot, state, self.tasks[i], p.pursuit, p.speed_gain, self.last_inputs[i, 1], cfg.dt,
                             target_speed=self.tracking_speed(world, i, p.speed_gain), a_lat=self.tracking_lat())
             result = self.filter(world, i, nominal, self.neighbours(world, i, as_obstacles))
             if result.ok:

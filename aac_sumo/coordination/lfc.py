@@ -26,7 +26,7 @@ from aac_sumo.config.keys import NN, P
 from aac_sumo.config.schema import from_section, param, section
 from aac_sumo.coordination.aac.params import AacParams
 from aac_sumo.coordination.base import FALLBACKS, Coordinator, Decision, Finished, RobotDecision, check_safety_options, straight_behind
-from aac_sumo.coordination.tracking import track
+from aac_sumo.coordination.tracking import Pursuit, track
 from aac_sumo.coordination.prioritized import PrioritizedLfc
 from aac_sumo.mpc.planner import MpcPlanner
 from aac_sumo.references import PathReference
@@ -47,6 +47,9 @@ class LfcParams:
     fallback: str = param("brake", "what a robot whose solve fails applies: brake (the planner's fallback) or tracking "
                           "(the tracking law below through the safety stop; needs safety_stop)", type=FALLBACKS)
     lookahead: float = param(1.0, "pure-pursuit lookahead of that tracking law [m]", **P)
+    lookahead_time: float = param(0.0, "with > 0, at low speed the lookahead shrinks to the distance covered in this time, but not below "
+                                  "lookahead_min: a car that turns a tight corner slowly aims at the corner, not beyond it [s]", **NN)
+    lookahead_min: float = param(0.0, "the shortest lookahead with lookahead_time > 0 [m]", **NN)
     speed_gain: float = param(1.0, "speed-error gain of that tracking law [1/s]", **P)
     ignore_followers: bool = param(False, "a robot does not avoid robots straight behind it: they keep their distance "
                                    "through the safety stop (needs safety_stop); nor does the safety stop brake for uncontrolled vehicles "
@@ -57,6 +60,11 @@ class LfcParams:
 
     def __post_init__(self):
         check_safety_options(self.safety_stop, self.fallback, self.ignore_followers)
+
+    @property
+    def pursuit(self) -> Pursuit:
+        """Where that tracking law aims (:class:`~aac_sumo.coordination.tracking.Pursuit`)."""
+        return Pursuit(self.lookahead, self.lookahead_time, self.lookahead_min)
 
 
 class LfcCoordinator(Coordinator):
@@ -91,7 +99,7 @@ class LfcCoordinator(Coordinator):
             records[i] = self.solve(world, i, world.obstacles + regions, "priority")
             plan = self.plans[i]
             if plan.status != "solved" and self.params.fallback == "tracking":
-                inputs[i] = track(world.robots[i], world.states[i], self.tasks[i], self.params.lookahead, self.params.speed_gain,
+                inputs[i] = track(world.robots[i], world.states[i], self.tasks[i], self.params.pursuit, self.params.speed_gain,
                                   self.last_inputs[i, 1], cfg.dt, target_speed=self.tracking_speed(world, i, self.params.speed_gain),
                                   a_lat=self.tracking_lat())
                 records[i].mode = "tracking"

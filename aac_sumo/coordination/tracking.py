@@ -3,6 +3,8 @@ path plus a proportional speed loop. No obstacle avoidance; it only keeps robots
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from aac_sumo.kernels.motion import limited_steer, tracking_course
@@ -10,11 +12,32 @@ from aac_sumo.references import PathReference
 from aac_sumo.world import RobotSpec
 
 
-def track(robot: RobotSpec, state: np.ndarray, task: PathReference, lookahead: float, speed_gain: float,
+@dataclass(frozen=True)
+class Pursuit:
+    """Where pure pursuit aims: ``distance`` [m] beyond the projection; with ``time`` > 0 [s],
+    only as far as the car covers in that time at its speed where that is shorter, but at least
+    ``least`` [m] (:func:`~aac_sumo.kernels.motion.pursuit_distance`). A fixed distance on a corner
+    of a few metres' radius aims at the street beyond it: a car that turns it slowly swings wide."""
+
+    distance: float
+    time: float = 0.0
+    least: float = 0.0
+
+    def args(self) -> tuple[float, float, float]:
+        """The compiled tracking law's ``lookahead, lookahead_time, lookahead_min``."""
+        return float(self.distance), float(self.time), float(self.least)
+
+
+def pursuit(lookahead: float | Pursuit) -> Pursuit:
+    """``lookahead`` as a :class:`Pursuit` (a float: a fixed distance [m])."""
+    return lookahead if isinstance(lookahead, Pursuit) else Pursuit(float(lookahead))
+
+
+def track(robot: RobotSpec, state: np.ndarray, task: PathReference, lookahead: float | Pursuit, speed_gain: float,
           previous_steer: float, dt: float, offset: float = 0.0, target_speed: float | None = None,
           a_lat: float | None = None) -> np.ndarray:
-    """Input ``[accel, steer]`` steering the rear axle toward the path point ``lookahead`` [m]
-    ahead of its projection (moved ``offset`` [m] to the right of the path) and driving the
+    """Input ``[accel, steer]`` steering the rear axle toward the path point ``lookahead`` [m] (a
+    :class:`Pursuit`: as that says) ahead of its projection (moved ``offset`` [m] to the right of the path) and driving the
     speed toward the reference speed there (or ``target_speed`` [m/s] when given); within the task's ``approach`` distance of its
     goal, toward the goal at the speed that stops there. It brakes at most at the robot's
     comfort deceleration, and its steering keeps the vehicle limits (angle, lateral
@@ -24,7 +47,7 @@ def track(robot: RobotSpec, state: np.ndarray, task: PathReference, lookahead: f
     return track_course(robot, state, task, lookahead, speed_gain, previous_steer, dt, 1, offset, target_speed, a_lat)[0]
 
 
-def track_course(robot: RobotSpec, state: np.ndarray, task: PathReference, lookahead: float, speed_gain: float,
+def track_course(robot: RobotSpec, state: np.ndarray, task: PathReference, lookahead: float | Pursuit, speed_gain: float,
                  previous_steer: float, dt: float, steps: int, offset: float = 0.0, target_speed: float | None = None,
                  a_lat: float | None = None, a_up: float | None = None) -> np.ndarray:
     """Inputs (steps, 2) of :func:`track` applied for ``steps`` periods from ``state`` under the
@@ -33,7 +56,7 @@ def track_course(robot: RobotSpec, state: np.ndarray, task: PathReference, looka
     x, y, h, v = (float(c) for c in state[:4])
     return tracking_course(x, y, h, v, int(steps), float(dt), *tracking_bounds(robot, a_lat, a_up), float(previous_steer), *task.arrays(),
                            float(task.speed), float(task.decel),
-                           bool(task.stop_at_end), float(task.approach), float(lookahead), float(speed_gain), float(offset),
+                           bool(task.stop_at_end), float(task.approach), *pursuit(lookahead).args(), float(speed_gain), float(offset),
                            np.nan if target_speed is None else float(target_speed))
 
 

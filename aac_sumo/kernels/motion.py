@@ -132,11 +132,11 @@ def braking_tail(state, previous_steer, heading, decel, wheelbase, v_min, v_max,
 @numba.njit(cache=True)
 def tracking_course(x, y, h, v, steps, dt, wheelbase, a_min, a_max, steer_max, v_min, v_max, a_lat_max, a_lat_comfort, steer_rate_max, comfort,
                     previous_steer, points, seg_len, cum, seg_dir, seg_heading, t_max, chunk_centre, chunk_radius, chunk, limits,
-                    speed, decel, stop_at_end, approach, lookahead, speed_gain, offset, target_speed):
+                    speed, decel, stop_at_end, approach, lookahead, lookahead_time, lookahead_min, speed_gain, offset, target_speed):
     """Inputs (steps, 2) ``[accel, steer]`` of the tracking law (the loop form of
     :func:`aac_sumo.coordination.tracking.track`) applied period after period from the rear-axle
     state ``(x, y, h, v)``, each step of :func:`_bicycle_step` with the inputs clipped to the
-    robot's bounds. Pure pursuit of the path point ``lookahead`` [m] beyond the projection
+    robot's bounds. Pure pursuit of the path point :func:`pursuit_distance` [m] beyond the projection
     (clamped to the end of a path that stops), moved ``offset`` [m] to the right; within
     ``approach`` [m] of the goal of a path that stops, straight at the goal at the speed that
     stops there. The speed loop drives towards the path's speed at the projection (its
@@ -153,7 +153,7 @@ def tracking_course(x, y, h, v, steps, dt, wheelbase, a_min, a_max, steer_max, v
         i, t, _ = closest_on_polyline(points, seg_len, t_max, x, y, chunk_centre, chunk_radius, chunk)
         accel, steer = _tracking_step(i, t, x, y, h, v, dt, wheelbase, a_max, steer_max, a_lat_max, a_lat_comfort, steer_rate_max, comfort,
                                       steer_prev, points, seg_len, cum, seg_dir, seg_heading, limits, speed, decel, stop_at_end, approach,
-                                      lookahead, speed_gain, offset, target_speed)
+                                      lookahead, lookahead_time, lookahead_min, speed_gain, offset, target_speed)
         out[k, 0], out[k, 1] = accel, steer
         x, y, h, v = _bicycle_step(x, y, h, v, min(max(accel, a_min), a_max), min(max(steer, -steer_max), steer_max), dt, wheelbase,
                                    v_min, v_max)
@@ -162,8 +162,20 @@ def tracking_course(x, y, h, v, steps, dt, wheelbase, a_min, a_max, steer_max, v
 
 
 @numba.njit(cache=True)
+def pursuit_distance(lookahead, lookahead_time, lookahead_min, v):
+    """How far [m] beyond its projection the tracking law aims: ``lookahead``; with
+    ``lookahead_time`` > 0 [s], the distance the car covers in that time at its speed ``v`` [m/s]
+    where that is shorter, but at least ``lookahead_min`` [m] (a car turning a tight corner
+    slowly aims at the corner, not at the street beyond it)."""
+    if lookahead_time <= 0.0:
+        return lookahead
+    return min(lookahead, max(lookahead_min, lookahead_time * abs(v)))
+
+
+@numba.njit(cache=True)
 def _tracking_step(i, t, x, y, h, v, dt, wheelbase, a_max, steer_max, a_lat_max, a_lat_comfort, steer_rate_max, comfort, steer_prev, points,
-                   seg_len, cum, seg_dir, seg_heading, limits, speed, decel, stop_at_end, approach, lookahead, speed_gain, offset, target_speed):
+                   seg_len, cum, seg_dir, seg_heading, limits, speed, decel, stop_at_end, approach, lookahead, lookahead_time, lookahead_min,
+                   speed_gain, offset, target_speed):
     """One period of :func:`tracking_course` from the rear-axle state ``(x, y, h, v)`` that
     projects at fraction ``t`` of the path's segment ``i``: its ``(accel, steer)``, before the
     robot's bounds clip them."""
@@ -171,7 +183,8 @@ def _tracking_step(i, t, x, y, h, v, dt, wheelbase, a_max, steer_max, a_lat_max,
     length = cum[n_seg]
     gx, gy = points[n_seg, 0], points[n_seg, 1]
     s0 = cum[i] + t * seg_len[i]
-    sl = min(s0 + lookahead, length) if stop_at_end else s0 + lookahead
+    look = pursuit_distance(lookahead, lookahead_time, lookahead_min, v)
+    sl = min(s0 + look, length) if stop_at_end else s0 + look
     j = min(max(np.searchsorted(cum, sl, side="right") - 1, 0), n_seg - 1)
     local = sl - cum[j]
     if stop_at_end:
@@ -212,8 +225,8 @@ def _tracking_step(i, t, x, y, h, v, dt, wheelbase, a_max, steer_max, a_lat_max,
 @numba.njit(cache=True)
 def continuation_inputs(x, y, h, v, steps, t0, dt, stops, cap_decel, accel_up, calm, lag, wheelbase, a_min, a_max, steer_max, v_min, v_max,
                         a_lat_max, a_lat_comfort, steer_rate_max, comfort, previous_steer, points, seg_len, cum, seg_dir, seg_heading, t_max,
-                        chunk_centre, chunk_radius, chunk, limits, speed, decel, lookahead, speed_gain, offset, hard, hard_decel,
-                        accel_prev, jerk):
+                        chunk_centre, chunk_radius, chunk, limits, speed, decel, lookahead, lookahead_time, lookahead_min, speed_gain, offset,
+                        hard, hard_decel, accel_prev, jerk):
     """Inputs (steps, 2) of a continuation along a path that does not stop, from the rear-axle
     state ``(x, y, h, v)`` reached ``t0`` periods of ``dt`` [s] from now: each period the speed
     that reaches, in ``lag`` [s], the lower of the path's speed, the anticipation's speed cap
@@ -224,7 +237,8 @@ def continuation_inputs(x, y, h, v, steps, t0, dt, stops, cap_decel, accel_up, c
     from reaches the target with no acceleration left (sqrt(2 ``jerk`` |target - v|)) and within ``jerk`` * ``dt`` of the
     acceleration before (``accel_prev`` [m/s^2] before the first period), except that it slows
     for a standing point of ``hard`` as fast as it must (that stop keeps its bound); the steering of
-    one period of :func:`tracking_course` with that target speed; then one :func:`_bicycle_step`. The compiled loop of
+    one period of :func:`tracking_course` with that target speed (aiming :func:`pursuit_distance` ahead); then one
+    :func:`_bicycle_step`. The compiled loop of
     :meth:`~aac_sumo.coordination.aac.committed.CommittedAac.continued_commitment`."""
     out = np.empty((steps, 2))
     steer, before = previous_steer, accel_prev
@@ -244,7 +258,8 @@ def continuation_inputs(x, y, h, v, steps, t0, dt, stops, cap_decel, accel_up, c
         path_speed = speed if limits.shape[0] == 0 else min(speed, np.interp(ahead, cum, limits))
         target = min(cap, path_speed)
         turn = _tracking_step(i, f, x, y, h, v, dt, wheelbase, a_max, steer_max, a_lat_max, a_lat_comfort, steer_rate_max, comfort, steer,
-                              points, seg_len, cum, seg_dir, seg_heading, limits, speed, decel, False, 0.0, lookahead, speed_gain, offset,
+                              points, seg_len, cum, seg_dir, seg_heading, limits, speed, decel, False, 0.0, lookahead, lookahead_time, lookahead_min,
+                              speed_gain, offset,
                               target)[1]
         gap = target - v
         accel = min(max(gap / lag, -calm), accel_up)

@@ -228,7 +228,7 @@ class CommittedAac(Manoeuvring, Creeping, Queueing, TrafficBraking, AacCoordinat
         self.behind_traffic[i] = len(hard) > 0
         args = (len(head), cfg.dt, np.ascontiguousarray(stops, dtype=float), float(rules.decel), float(rules.accel), float(calm),
                 max(CONTINUATION_LAG, cfg.dt), *tracking_bounds(robot, self.tracking_lat()), steer, *task.arrays(), float(task.speed),
-                float(task.decel), float(self.params.lookahead), float(self.params.speed_gain), float(self.keep_right_shift(world, i)), hard,
+                float(task.decel), *self.params.pursuit.args(), float(self.params.speed_gain), float(self.keep_right_shift(world, i)), hard,
                 float(HARD_SHARE * self.held_decel(calm)[i]), accel, float(self.params.continuation_jerk))
         more = continuation_inputs(float(x), float(y), float(h), float(v), periods, *args)
         longer = (2 * periods, 3 * periods) if self.book.walkers is not None and len(self.book.walkers.strips) else ()
@@ -372,7 +372,7 @@ class CommittedAac(Manoeuvring, Creeping, Queueing, TrafficBraking, AacCoordinat
         shift of now by default); with ``comfort``, within the planner's comfort envelope (a course it drives: it set off at 3 m/s^2)."""
         cfg = self.planner.config
         up, lat = (cfg.comfort_accel if comfort and cfg.comfort_accel > 0.0 else None), (self.tracking_lat() if comfort else None)
-        return track_course(world.robots[j], world.states[j], self.path(j), self.params.lookahead, self.params.speed_gain, self.last_inputs[j, 1],
+        return track_course(world.robots[j], world.states[j], self.path(j), self.params.pursuit, self.params.speed_gain, self.last_inputs[j, 1],
                             cfg.dt, steps, self.keep_right_shift(world, j) if shift is None else shift, a_lat=lat, a_up=up)
 
     def committed_safety_stop(self, world: WorldState, inputs: np.ndarray, records: list[RobotDecision], period: int,

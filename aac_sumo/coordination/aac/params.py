@@ -8,6 +8,7 @@ from aac_sumo.config.keys import NN, P
 from aac_sumo.config.schema import ParamError, param, section
 from aac_sumo.coordination.base import FALLBACKS, check_safety_options
 from aac_sumo.coordination.proximity import ProximityParams
+from aac_sumo.coordination.tracking import Pursuit
 
 
 @dataclass(frozen=True)
@@ -66,6 +67,9 @@ class AacParams:
                               "(off by default, as lfc.safety_stop: the paper has no such layer)")
     safety_margin: float = param(0.1, "footprint gap below which the safety stop triggers [m]", **NN)
     lookahead: float = param(1.0, "pure-pursuit lookahead of the tracking law for robots without a plan [m]", **P)
+    lookahead_time: float = param(0.0, "with > 0, at low speed the lookahead shrinks to the distance covered in this time, but not below "
+                                  "lookahead_min: a car that turns a tight corner slowly aims at the corner, not beyond it [s]", **NN)
+    lookahead_min: float = param(0.0, "the shortest lookahead with lookahead_time > 0 [m]", **NN)
     speed_gain: float = param(1.0, "speed-error gain of the tracking law [1/s]", **P)
     fallback: str = param("brake", "what an authority whose solve fails applies: brake (the planner's fallback, as in the paper) or "
                           "tracking (the tracking law through the safety stop; needs safety_stop)", type=FALLBACKS)
@@ -142,3 +146,8 @@ class AacParams:
             raise ParamError("manoeuvre", "false unless {section}.commit is true", True)
         if self.authorities.spread and not self.commit:
             raise ParamError("authorities", "\"clusters\" or an integer unless {section}.commit is true", "spread")
+
+    @property
+    def pursuit(self) -> Pursuit:
+        """Where the tracking law aims (:class:`~aac_sumo.coordination.tracking.Pursuit`)."""
+        return Pursuit(self.lookahead, self.lookahead_time, self.lookahead_min)

@@ -144,7 +144,7 @@ class StoredPlanAac(AacCoordinator):
         margins = np.zeros(len(holders))
         for row, i in enumerate(holders):
             if records[i].status != "solved" and self.params.fallback == "tracking":
-                inputs[i] = track(world.robots[i], world.states[i], self.tasks[i], self.params.lookahead, self.params.speed_gain,
+                inputs[i] = track(world.robots[i], world.states[i], self.tasks[i], self.params.pursuit, self.params.speed_gain,
                                   self.last_inputs[i, 1], cfg.dt, target_speed=self.tracking_speed(world, i, self.params.speed_gain),
                                   a_lat=self.tracking_lat())
                 self.used[i] = len(self.plans[i].inputs)  # no plan to follow: tracking until its next turn
@@ -189,10 +189,10 @@ class StoredPlanAac(AacCoordinator):
                     out[0, 0] = min(out[0, 0], max(lawful, -world.robots[j].model.limits.comfort_decel))
                 if self.yielding(world, j):  # it keeps its lane on the tracking law's steering (a plan made a period
                     # or more ago, driven open-loop at 9 m/s, took a car 0.54 m off its lane beside a walker)
-                    out[0, 1] = track(world.robots[j], world.states[j], task, self.params.lookahead, self.params.speed_gain,
+                    out[0, 1] = track(world.robots[j], world.states[j], task, self.params.pursuit, self.params.speed_gain,
                                       self.last_inputs[j, 1], self.planner.config.dt, a_lat=self.tracking_lat())[1]
                 return out, "plan"
             out[:] = 0.0
-        out[0] = track(world.robots[j], world.states[j], task, self.params.lookahead, self.params.speed_gain, self.last_inputs[j, 1],
+        out[0] = track(world.robots[j], world.states[j], task, self.params.pursuit, self.params.speed_gain, self.last_inputs[j, 1],
                        self.planner.config.dt, target_speed=speed, a_lat=self.tracking_lat())
         return out, "tracking"
