@@ -407,18 +407,33 @@ def test_a_braking_course_is_the_closed_form_stop_along_the_velocity(speed, dece
 def test_a_braking_course_with_a_course_follows_it_round_the_corner(speed, decel, leg, turn):
     """A SUMO car whose course turns by ``turn`` after ``leg`` metres (its route through a
     junction) stops ``v^2 / 2b`` along that course, not along its velocity: every row lies on the
-    polyline at the closed-form travel, headed along the leg it is on."""
+    polyline at the closed-form travel of its centre, headed along the leg it is on, until its
+    body reaches the corner; across it, as SUMO places a car on its lane, its front is on the
+    polyline half a length on and it is headed along the chord from the point half a length back."""
     course = np.array([[0.0, 0.0], [leg, 0.0], [leg, 0.0], [leg + 50.0 * np.cos(turn), 50.0 * np.sin(turn)]])
     car = Obstacle("bg.0", "scripted", np.zeros(2), np.array([speed, 0.0]), 0.0, 4.5, 1.8, course=course)
     (rows,) = braking_courses([car], decel, 0.1)
     t = np.minimum(np.arange(len(rows)) * 0.1, speed / decel)
     travel = speed * t - 0.5 * decel * t**2
-    first = travel <= leg
-    np.testing.assert_allclose(rows[first, :2], np.column_stack([travel[first], np.zeros(first.sum())]), atol=1e-9)
-    beyond = travel[~first] - leg
-    np.testing.assert_allclose(rows[~first, :2], np.column_stack([leg + beyond * np.cos(turn), beyond * np.sin(turn)]), atol=1e-9)
+    def on_course(s):  # behind its start, straight back along its first leg (the turned one where the first is empty)
+        first = np.array([1.0, 0.0]) if leg > 1e-9 else np.array([np.cos(turn), np.sin(turn)])
+        return np.where((s < 0.0)[:, None], s[:, None] * first, np.where(s[:, None] <= leg, np.column_stack([s, np.zeros(len(s))]),
+                        np.column_stack([leg + (s - leg) * np.cos(turn), (s - leg) * np.sin(turn)])))
+
+    before, after = travel + 2.25 <= leg, travel - 2.25 >= leg  # the whole body before the corner, beyond it
+    np.testing.assert_allclose(rows[before, :2], on_course(travel[before]), atol=1e-9)
+    np.testing.assert_allclose(rows[after, :2], on_course(travel[after]), atol=1e-9)
     assert rows[0, 4] == 0.0
-    np.testing.assert_allclose(rows[1:, 4], np.where(travel[1:] < leg, 0.0, turn), atol=1e-12)
+    np.testing.assert_allclose(rows[1:, 4][before[1:]], 0.0, atol=1e-12)
+    np.testing.assert_allclose(rows[1:, 4][after[1:]], turn, atol=1e-12)
+    astride = np.flatnonzero(~before & ~after)
+    astride = astride[astride > 0]
+    ahead = np.column_stack([np.cos(rows[astride, 4]), np.sin(rows[astride, 4])])
+    front, back = on_course(travel[astride] + 2.25), on_course(travel[astride] - 2.25)
+    np.testing.assert_allclose(rows[astride, :2] + 2.25 * ahead, front, atol=1e-9)
+    chord = front - back
+    np.testing.assert_allclose(chord[:, 0] * ahead[:, 1] - chord[:, 1] * ahead[:, 0], 0.0, atol=1e-9)  # headed along the chord
+    assert np.all(np.einsum("ij,ij->i", chord, ahead) >= 0.0)
     np.testing.assert_array_equal(rows[:, 2:4], np.tile([4.5, 1.8], (len(rows), 1)))
 
 

@@ -118,3 +118,72 @@ def test_the_links_of_one_lane_share_its_line_no_box_comes_down_on_a_car_of_anot
     held = period("y", -(LENGTHS[0] + BOX_LENGTH) - 0.1, 30.0)
     assert {b.name for b in held} == {"signal J1 1 e_in_0", "signal J1 2 e_in_0"}
     assert s.violations == 0
+
+
+GRID6 = [(42.0, "GGrrGGrr"), (3.0, "yyrryyrr"), (42.0, "rrGGrrGG"), (3.0, "rryyrryy")]  # grid6's junction 2/0
+
+
+def test_green_left_is_the_time_until_each_link_leaves_green_round_the_cycle():
+    from aac_sumo.experiments.signals import green_left
+
+    assert green_left(GRID6, 0, 10.0) == [10.0, 10.0, 0.0, 0.0, 10.0, 10.0, 0.0, 0.0]
+    assert green_left(GRID6, 2, 41.9) == [0.0, 0.0, 41.9, 41.9, 0.0, 0.0, 41.9, 41.9]
+    two = [(10.0, "Gr"), (5.0, "gr"), (4.0, "yr"), (12.0, "rG"), (4.0, "ry")]  # green with and without priority: green all the same
+    assert green_left(two, 0, 3.0) == [8.0, 0.0]
+    assert green_left([(30.0, "GO"), (30.0, "rO")], 1, 5.0) == [0.0, np.inf]  # off (no signal) all round the cycle
+    assert green_left(GRID6, 4, 1.0) is None  # a phase the program does not have
+
+
+def test_with_a_preview_a_line_holds_before_its_yellow_for_the_cars_that_would_not_pass_before_it_ends():
+    """3 s before a 3 s yellow a car at 13.89 m/s 60 m before the line reaches it in 4.3 s, within
+    the 5.5 s the yellow (less 0.5 s) leaves: it goes on, and no box stands in its way. One 80 m
+    before it needs 5.8 s: the line holds it now, while it can stop at 1.2 m/s^2, not at the
+    yellow, when it would be 38 m before the line and need 2.5 m/s^2."""
+    rule = YellowRule(2.0, 1.0, 0.1, {"J1": 3.0}, preview=3.0, accel=1.5)
+
+    def early(distances, speeds, left, tops=None):
+        s = Signals(rule)
+        approach = {k: [(LINE, d)] for k, d in enumerate(distances)}
+        n = len(distances)
+        return s, s.boxes({"J1": "rrGr"}, approach, np.asarray(speeds, dtype=float), np.full(n, 3.0), np.full(n, 4.0),
+                          {"J1": [0.0, 0.0, left, 0.0]}, None if tops is None else np.asarray(tops, dtype=float))
+
+    assert early([60.0], [13.89], 3.0)[1] == []
+    s, held = early([80.0], [13.89], 3.0)
+    assert len(held) == 1 and s.violations == 0
+    assert early([80.0], [13.89], 3.1)[1] == []  # further from the yellow than the preview: green as ever
+    assert len(early([60.0], [13.89], 3.0, tops=[5.0])[1]) == 1  # one that must slow to 5 m/s for its turn at the line: 6.2 s
+    assert early([30.0], [4.0], 3.0, tops=[13.89])[1] == []  # one setting off from a queue speeds up: 30 m in 4.2 s
+
+
+def test_a_car_the_preview_lets_through_is_held_again_once_it_would_no_longer_pass_before_the_yellow_ends():
+    """The cars let through are chosen afresh each period while the light is green: one that
+    falls behind (a slow car ahead of it) and can still stop comfortably gets the box; at the
+    yellow the choice of its last green period stands."""
+    s = Signals(YellowRule(2.0, 1.0, 0.1, {"J1": 3.0}, preview=3.0, accel=1.5))
+
+    def period(state, d, v, left):
+        return s.boxes({"J1": "rr" + state + "r"}, {0: [(LINE, d)]}, np.array([v]), np.array([3.0]), np.array([4.0]),
+                       {"J1": [0.0, 0.0, left, 0.0]})
+
+    assert period("G", 60.0, 13.89, 3.0) == []
+    assert period("G", 55.0, 13.89, 2.5) == []
+    assert len(period("G", 45.0, 5.0, 1.5)) == 1  # it slowed: 45 m from 5 m/s takes 5.1 s, the yellow ends in 4 s
+    assert len(period("y", 30.0, 3.0, 0.0)) == 1  # held at yellow too
+    s = Signals(YellowRule(2.0, 1.0, 0.1, {"J1": 3.0}, preview=3.0, accel=1.5))
+    assert period("G", 40.0, 13.89, 1.0) == []
+    assert period("y", 26.0, 13.89, 0.0) == []  # let through in the preview: it goes on at yellow
+    assert period("y", -1.0, 13.89, 0.0) == [] and s.violations == 0
+
+
+@given(d=st.floats(0.0, 200.0), v=st.floats(0.0, 20.0), top=st.floats(0.5, 20.0))
+def test_a_car_reaches_the_line_at_an_average_speed_between_its_own_and_its_paths_speed_there(d, v, top):
+    """:func:`arrival_time`: speeding up (v < top) it is :func:`travel_time`; slowing to its path's
+    speed at the line, its average speed lies between that speed and its own."""
+    from aac_sumo.experiments.signals import arrival_time, travel_time
+
+    t = arrival_time(d, v, 1.5, top)
+    if v <= top:
+        assert t == travel_time(d, v, 1.5, top)
+    elif d > 0.0:
+        assert top * (1 - 1e-9) <= d / t <= v * (1 + 1e-9)

@@ -43,12 +43,29 @@ def braking_courses(obstacles, decel: float, dt: float) -> list[np.ndarray]:
         rows = np.empty((steps + 1, 5))
         rows[:, 2:] = (o.length, o.width, o.heading)
         if o.course is not None and steps > 0:
-            rows[:, :2], rows[1:, 4] = along(o.course, travel, extend=True)[0], along(o.course, travel[1:], extend=True)[1]
+            rows[:, :2] = along(o.course, travel, extend=True)[0]
+            rows[1:, :2], rows[1:, 4] = _on_course(o.course, travel[1:], o.length)
         else:
             direction = np.asarray(o.velocity, dtype=float) / speed if speed > 0.0 else np.zeros(2)
             rows[:, :2] = np.asarray(o.centre, dtype=float) + travel[:, None] * direction
         out.append(rows)
     return out
+
+
+def _on_course(course: np.ndarray, travel: np.ndarray, length: float) -> tuple[np.ndarray, np.ndarray]:
+    """Centres (K, 2) [m] and headings (K,) [rad] of a vehicle ``length`` [m] long whose centre
+    has gone ``travel`` (K,) [m] along ``course`` (starting at its centre): where the course bends
+    under its body, as SUMO places a car on its lane, its front on the course, headed along the
+    chord from the course's point half a length behind its centre to its front (centred on the
+    course and turned to its tangent, a turning car's rear swung 1.3 m out into the next lane);
+    elsewhere the course's point and segment."""
+    centre, tangent = along(course, travel, extend=True)
+    front, ahead = along(course, travel + 0.5 * length, extend=True)
+    back, behind = along(course, travel - 0.5 * length, extend=True)
+    bent = (ahead != tangent) | (behind != tangent)
+    chord = np.arctan2(front[:, 1] - back[:, 1], front[:, 0] - back[:, 0])
+    placed = front - 0.5 * length * np.column_stack([np.cos(chord), np.sin(chord)])
+    return np.where(bent[:, None], placed, centre), np.where(bent, chord, tangent)
 
 
 def stop_lines(obstacles) -> np.ndarray:

@@ -42,7 +42,7 @@ from aac_sumo.experiments.lane_change import network_files, sumo_options, with_r
 from aac_sumo.experiments.lane_geometry import ROAD_MARGIN, SAMPLE_STEP
 from aac_sumo.experiments.routed_vehicles import KEYS, route_edges, routed_robots, routed_setup, routed_vehicles
 from aac_sumo.experiments.right_of_way import RightOfWay, YieldLine, may_hold, yield_lines
-from aac_sumo.experiments.signals import BOX_LENGTH, GO, Line, Signals, YellowRule
+from aac_sumo.experiments.signals import BOX_LENGTH, GO, Line, Signals, YellowRule, green_left
 from aac_sumo.experiments.junction_routes import route_legs, route_path
 from aac_sumo.references import LateralBand, PathReference
 from aac_sumo.registry import register_experiment
@@ -77,6 +77,9 @@ class CityParams:
     yellow_decel: float = param(2.0, "at a yellow a car goes on where stopping before the line (with one period's travel and 1 m "
                                 "to spare) would need more than this, if it reaches the line before the light's shortest yellow "
                                 "ends; 0: only cars that cannot stop at robot.a_comfort go on [m/s^2]", **NN)
+    yellow_preview: float = param(3.0, "a stop line holds already this long before its light turns yellow (the program says when): a "
+                                  "car that would not reach the line before the yellow ends stops gently, where at the yellow it "
+                                  "might neither stop at yellow_decel nor pass before red; 0: only at the yellow [s]", **NN)
     centre_turns: bool = param(True, "a car's path keeps inside each turn and curve by as much as centres the band its body "
                                "sweeps on its lane (lane_geometry.centring_shift: 0.4 m on a 7 m turn), so that its front corner "
                                "does not swing into the next lane; false: its rear axle follows the lanes' centre lines")
@@ -98,7 +101,9 @@ class CityCars:
         self.free_flow = np.full(n, np.nan)
         self.done = np.zeros(n, dtype=bool)
         self.admitted = np.zeros(n, dtype=bool)
-        self.signals = Signals(YellowRule(self.p.yellow_decel, YELLOW_SLACK, scenario["scenario.dt"], shortest_yellows(net)))
+        self.signals = Signals(YellowRule(self.p.yellow_decel, YELLOW_SLACK, scenario["scenario.dt"], shortest_yellows(net), self.p.yellow_preview,
+                                          scenario["controller.anticipate_accel"]))
+        self.programs = programs(net)
         self.right_of_way = RightOfWay(self.p.yield_gap, scenario["controller.anticipate_accel"])
         self.yields: list[list[tuple[YieldLine, float]]] = [[] for _ in range(n)]  # per car: the links that may have to yield
         self.names = [r.name for r in robots]
@@ -180,7 +185,21 @@ class CityCars:
                 _, line = min(ahead, key=lambda a: a[0])
                 if states[line.tls][line.link] not in GO:
                     self.held.add((round(world.t, 9), self.robots[k].name))
-        return self.signals.boxes(states, approach, speeds, comfort, lengths)
+        leaving = None
+        if self.signals.holds.yellow.preview > 0.0:
+            phases = self.sim.signal_phases(tuple(sorted(states)))
+            leaving = {tls: green_left(self.programs.get(tls, {}).get(program, ()), phase, to_switch)
+                       for tls, (program, phase, to_switch) in phases.items()}
+        return self.signals.boxes(states, approach, speeds, comfort, lengths, leaving, self.line_speeds(approach))
+
+    def line_speeds(self, approach: dict) -> np.ndarray:
+        """Per car, its path's speed [m/s] at the first of its stop lines ahead in ``approach`` (inf without one)."""
+        tops = np.full(len(self.robots), np.inf)
+        for k, near in approach.items():
+            arcs = [s for line, s in self.lines[k] if any(line is ln and d >= 0.0 for ln, d in near)]
+            if arcs:
+                tops[k] = float(self.tasks[k].speed_at(min(arcs)))
+        return tops
 
     def finished(self, world: WorldState) -> np.ndarray:
         """Cars within ``finish_margin`` of their route's end, or that SUMO took off."""
@@ -238,6 +257,13 @@ def drivable(scenario: Scenario, net, vehicles: list) -> list:
     for line in refused:
         print(f"aac-sumo: {line}", file=sys.stderr)
     return out
+
+
+def programs(net) -> dict[str, dict[str, list[tuple[float, str]]]]:
+    """Per traffic light of the sumolib network ``net`` (read with its programs), per program id,
+    its phases ``(duration [s], state)``."""
+    return {tls.getID(): {pid: [(float(ph.duration), ph.state) for ph in prog.getPhases()] for pid, prog in tls.getPrograms().items()}
+            for tls in net.getTrafficLights()}
 
 
 def shortest_yellows(net) -> dict[str, float]:

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from aac_sumo.experiments.junction_routes import RoutePath, internal_lanes
-from aac_sumo.experiments.signals import Holds, Line
+from aac_sumo.experiments.signals import Holds, Line, travel_time
 from aac_sumo.network import VEHICLE_CLASS, car_lanes
 from aac_sumo.sim.sumo_reading import polylines_cross
 
@@ -176,21 +176,6 @@ def clear_time(to_line: float, through: float, speed: float, accel: float, top: 
     if speed <= top:
         return travel_time(to_line + through, speed, accel, top)
     return max(to_line, 0.0) / speed + through / top
-
-
-def travel_time(distance: float, speed: float, accel: float, top: float) -> float:
-    """Time [s] to cover ``distance`` [m] from ``speed`` [m/s], speeding up at ``accel`` [m/s^2]
-    to at most ``top`` [m/s] (keeping ``speed`` when it is above ``top``)."""
-    if distance <= 0.0:
-        return 0.0
-    speed = max(speed, 0.0)
-    if speed >= top:
-        return distance / max(speed, 1e-9)
-    t_up = (top - speed) / accel
-    d_up = 0.5 * (speed + top) * t_up
-    if distance <= d_up:
-        return (-speed + math.sqrt(speed * speed + 2.0 * accel * distance)) / accel
-    return t_up + (distance - d_up) / top
 
 
 class RightOfWay:

@@ -249,6 +249,13 @@ class SumoReading:
         with self._sumo_errors("reading the traffic lights"):
             return {tls: self.api.trafficlight.getRedYellowGreenState(tls) for tls in ids}
 
+    def signal_phases(self, ids: tuple[str, ...]) -> dict[str, tuple[str, int, float]]:
+        """Each traffic light of ``ids``: its program's id, the index of its phase now and the time
+        [s] until that phase ends."""
+        with self._sumo_errors("reading the traffic lights"):
+            tl, now = self.api.trafficlight, self.api.simulation.getTime()
+            return {tls: (tl.getProgram(tls), tl.getPhase(tls), tl.getNextSwitch(tls) - now) for tls in ids}
+
     def lane_vehicles(self, lanes: tuple[str, ...]) -> dict[str, list[tuple[str, float, float]]]:
         """Each lane of ``lanes``: its vehicles now, ``(id, lane position of the front [m], speed [m/s])``."""
         with self._sumo_errors("reading the vehicles at the junctions"):
