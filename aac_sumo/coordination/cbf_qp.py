@@ -63,7 +63,7 @@ from aac_sumo.barriers import stage_parameters
 from aac_sumo.config.keys import NN, P
 from aac_sumo.config.schema import param, section
 from aac_sumo.coordination.base import Coordinator, Decision, Finished, RobotDecision
-from aac_sumo.coordination.tracking import Pursuit, track
+from aac_sumo.coordination.tracking import AimsAhead, track
 from aac_sumo.mpc.settings import MpcConfig
 from aac_sumo.mpc.planner import MpcPlanner, ego_discs
 from aac_sumo.references import PathReference
@@ -76,7 +76,7 @@ ROW_TOLERANCE = 1e-9
 
 @section("cbf_qp")
 @dataclass(frozen=True)
-class CbfQpParams:
+class CbfQpParams(AimsAhead):
     """CBF-QP settings: the neighbour radius [m] (centre to centre) within which another robot
     gets a barrier row, and the nominal tracking law's lookahead [m] and speed gain [1/s]."""
 
@@ -86,11 +86,6 @@ class CbfQpParams:
                                   "lookahead_min: a car that turns a tight corner slowly aims at the corner, not beyond it [s]", **NN)
     lookahead_min: float = param(0.0, "the shortest lookahead with lookahead_time > 0 [m]", **NN)
     speed_gain: float = param(1.0, "speed-error gain of the nominal tracking law [1/s]", **P)
-
-    @property
-    def pursuit(self) -> Pursuit:
-        """Where the nominal tracking law aims (:class:`~aac_sumo.coordination.tracking.Pursuit`)."""
-        return Pursuit(self.lookahead, self.lookahead_time, self.lookahead_min)
 
 
 @dataclass

@@ -26,7 +26,7 @@ from aac_sumo.config.keys import NN, P
 from aac_sumo.config.schema import from_section, param, section
 from aac_sumo.coordination.aac.params import AacParams
 from aac_sumo.coordination.base import FALLBACKS, Coordinator, Decision, Finished, RobotDecision, check_safety_options, straight_behind
-from aac_sumo.coordination.tracking import Pursuit, track
+from aac_sumo.coordination.tracking import AimsAhead, track
 from aac_sumo.coordination.prioritized import PrioritizedLfc
 from aac_sumo.mpc.planner import MpcPlanner
 from aac_sumo.references import PathReference
@@ -36,7 +36,7 @@ from aac_sumo.world import WorldState
 
 @section("lfc")
 @dataclass(frozen=True)
-class LfcParams:
+class LfcParams(AimsAhead):
     """LFC settings: the optional safety stop and its footprint margin [m], what a robot whose
     solve fails applies (``brake`` or ``tracking``), that tracking law's lookahead [m] and
     speed gain [1/s], and whether a robot ignores the robots straight behind it (needs the
@@ -60,11 +60,6 @@ class LfcParams:
 
     def __post_init__(self):
         check_safety_options(self.safety_stop, self.fallback, self.ignore_followers)
-
-    @property
-    def pursuit(self) -> Pursuit:
-        """Where that tracking law aims (:class:`~aac_sumo.coordination.tracking.Pursuit`)."""
-        return Pursuit(self.lookahead, self.lookahead_time, self.lookahead_min)
 
 
 class LfcCoordinator(Coordinator):

@@ -28,6 +28,16 @@ class Pursuit:
         return float(self.distance), float(self.time), float(self.least)
 
 
+class AimsAhead:
+    """Settings with a tracking law's ``lookahead`` [m], ``lookahead_time`` [s] and
+    ``lookahead_min`` [m] (a mixin of the coordinators' settings dataclasses)."""
+
+    @property
+    def pursuit(self) -> Pursuit:
+        """Where the tracking law aims (:class:`Pursuit`)."""
+        return Pursuit(self.lookahead, self.lookahead_time, self.lookahead_min)
+
+
 def pursuit(lookahead: float | Pursuit) -> Pursuit:
     """``lookahead`` as a :class:`Pursuit` (a float: a fixed distance [m])."""
     return lookahead if isinstance(lookahead, Pursuit) else Pursuit(float(lookahead))

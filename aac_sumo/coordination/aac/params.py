@@ -8,7 +8,7 @@ from aac_sumo.config.keys import NN, P
 from aac_sumo.config.schema import ParamError, param, section
 from aac_sumo.coordination.base import FALLBACKS, check_safety_options
 from aac_sumo.coordination.proximity import ProximityParams
-from aac_sumo.coordination.tracking import Pursuit
+from aac_sumo.coordination.tracking import AimsAhead
 
 
 @dataclass(frozen=True)
@@ -46,7 +46,7 @@ class Authorities:
 
 @section("aac")
 @dataclass(frozen=True)
-class AacParams:
+class AacParams(AimsAhead):
     """AAC settings: close-pair distance [m], proximity decision, safety stop (on/off, margin
     [m]), tracking law (lookahead [m], speed gain [1/s]), what an authority whose solve fails
     applies (``brake``: the planner's fallback; ``tracking``: the tracking law through the
@@ -146,8 +146,3 @@ class AacParams:
             raise ParamError("manoeuvre", "false unless {section}.commit is true", True)
         if self.authorities.spread and not self.commit:
             raise ParamError("authorities", "\"clusters\" or an integer unless {section}.commit is true", "spread")
-
-    @property
-    def pursuit(self) -> Pursuit:
-        """Where the tracking law aims (:class:`~aac_sumo.coordination.tracking.Pursuit`)."""
-        return Pursuit(self.lookahead, self.lookahead_time, self.lookahead_min)
