@@ -83,6 +83,12 @@ class CityParams:
     centre_turns: bool = param(True, "a car's path keeps inside each turn and curve by as much as centres the band its body "
                                "sweeps on its lane (lane_geometry.centring_shift: 0.4 m on a 7 m turn), so that its front corner "
                                "does not swing into the next lane; false: its rear axle follows the lanes' centre lines")
+    curb_clearance: float = param(0.0, "on the last curb_length before a junction a car keeps this between its right side and its "
+                                  "lane's right edge where a sidewalk runs there (it keeps left of the lane's centre if it must), "
+                                  "so that walkers passing it on the sidewalk as it stands in a queue keep clear; 0: the lane's "
+                                  "centre [m]", **NN)
+    curb_length: float = param(40.0, "the stretch before a junction where curb_clearance holds: about the queue a red light "
+                               "stands [m]", **NN)
 
 
 class CityCars:
@@ -216,7 +222,7 @@ def city_path(net, edges, start: int, s0: float, p: CityParams, a_lat_max: float
     of the first, ``s0`` [m] into it, as ``p`` asks; ValueError where there is none."""
     front = bumper_to_axle(length, wheelbase) if p.centre_turns else 0.0
     return route_path(net, route_legs(net, list(edges), start), s0, min(p.curve_lat_accel, a_lat_max), p.change_start, p.change_length,
-                      front, 0.5 * width)
+                      front, 0.5 * width, (p.curb_clearance, p.curb_length))
 
 
 def drivable(scenario: Scenario, net, vehicles: list) -> list:

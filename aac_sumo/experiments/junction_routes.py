@@ -35,6 +35,9 @@ SMOOTH_TOLERANCE = 0.04
 #: Stop lines and junction borders are looked for this far either side of where the lanes'
 #: bookkeeping puts them on the path [m] (a route may cross itself at a junction it passes twice).
 PROJECTION_WINDOW = 5.0
+#: A path moves over to its curb clearance (``route_path``'s ``curb``) along this much arc length
+#: [m]: a quintic smoothstep of 0.4 m over 30 m turns at most 0.0026 /m, 0.5 m/s^2 at 14 m/s.
+CURB_RAMP = 30.0
 
 
 @dataclass(frozen=True)
@@ -243,8 +246,31 @@ def _smooth(line: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     return points[len(pad): len(pad) + n + 1], curvature[len(pad): len(pad) + n + 1], step
 
 
+def _beside_walkway(net, leg: Leg) -> float:
+    """The width [m] of the car lane ``leg`` leaves its edge on, if a lane open only to
+    pedestrians (a sidewalk) runs on its right; 0 otherwise."""
+    lanes = net.getEdge(leg.edge).getLanes()
+    lane = car_lanes(net.getEdge(leg.edge))[leg.leave]
+    i = lanes.index(lane)
+    walkway = i > 0 and lanes[i - 1].allows("pedestrian") and not lanes[i - 1].allows(VEHICLE_CLASS)
+    return lane.getWidth() if walkway else 0.0
+
+
+def curb_shift(s: np.ndarray, spans: list[tuple[float, float, float]], length: float) -> np.ndarray:
+    """Leftward shift [m] at arc lengths ``s`` (N,) [m] of a path that keeps over by ``h`` [m] on
+    the last ``length`` [m] before each junction span ``(a, b, h)`` (arc lengths [m] where it
+    enters and leaves the junction): a smoothstep up over ``CURB_RAMP`` before that stretch and
+    back down across the junction; the largest where two overlap."""
+    shift = np.zeros_like(s)
+    for a, b, h in spans:
+        up = smoothstep((s - (a - length - CURB_RAMP)) / CURB_RAMP)
+        down = 1.0 - smoothstep((s - a) / max(b - a, 1e-6))
+        shift = np.maximum(shift, h * np.minimum(up, down))
+    return shift
+
+
 def route_path(net, legs: list[Leg], s0: float, a_lat: float, change_start: float, change_length: float,
-               front: float = 0.0, half_width: float = 0.0) -> RoutePath:
+               front: float = 0.0, half_width: float = 0.0, curb: tuple[float, float] = (0.0, 0.0)) -> RoutePath:
     """The path along ``legs`` from arc length ``s0`` [m] of the first leg's arrive lane (along its
     shape: SUMO's lane positions run along ``getLength()``, which may differ) to the end of the last
     edge's lane, through the junctions' internal lanes: ``smooth_path`` of the lanes' shapes sampled
@@ -282,11 +308,20 @@ def route_path(net, legs: list[Leg], s0: float, a_lat: float, change_start: floa
     right, left = (np.vstack([getattr(p, side) for p in pieces])[keep] for side in ("right", "left"))
 
     points, curvature, step = _smooth(line)
+    s_raw = np.arange(len(points)) * step  # point k is the spline at the shapes' arc length k * step
+    shift = np.zeros(len(points))
     if front > 0.0:
         shift = centring_shift(curvature, front, half_width)
-        points = offset_polyline(points, shift)
         curvature = curvature / np.maximum(1.0 - np.abs(curvature * shift), 0.5)  # a circle of radius R - |shift| (at most twice as tight)
-    s_raw = np.arange(len(points)) * step  # point k is the spline at the shapes' arc length k * step
+    clearance, curb_length = curb
+    if clearance > 0.0 and half_width > 0.0:
+        spans = [(raw_arc[ends[k]], raw_arc[ends[k + len(_drawn(net, leg))] + 1], max(clearance - (0.5 * width - half_width), 0.0))
+                 for leg, k in zip(legs, marks) if (width := _beside_walkway(net, leg)) > 0.0]
+        over = curb_shift(s_raw, spans, curb_length)
+        shift = shift + over
+        curvature = curvature + np.gradient(np.gradient(over, step), step)  # a lateral offset's second derivative bends a straight path
+    if shift.any():
+        points = offset_polyline(points, shift)
     i = np.clip(np.searchsorted(arc, s_raw, side="right") - 1, 0, len(arc) - 2)
     t = np.clip((s_raw - arc[i]) / (arc[i + 1] - arc[i]), 0.0, 1.0)
     caps = np.minimum(speed[i], speed[i + 1])  # a gap's bridge or a shared point: the lower limit
