@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from aac_sumo import network
-from aac_sumo.experiments.junction_routes import RoutePath, route_legs, route_path
+from aac_sumo.experiments.junction_routes import CURB_RAMP, RoutePath, curb_shift, route_legs, route_path
 from aac_sumo.experiments.lane_geometry import CURVE_DECEL, centring_shift
 from aac_sumo.geometry import along
 
@@ -23,14 +23,14 @@ CHANGE_START, CHANGE_LENGTH = 10.0, 30.0  # [m]
 WIDTH = 3.2  # netconvert's default lane width [m]
 
 
-def build(folder, nodes: dict[str, tuple[float, float, str]], edges: list[tuple[str, str, str, int]]):
+def build(folder, nodes: dict[str, tuple[float, float, str]], edges: list[tuple[str, str, str, int]], extra: str = ""):
     """The network netconvert builds from ``nodes`` (id: x, y, extra attributes) and ``edges``
-    (id, from, to, lanes; 13.9 m/s): its file."""
+    (id, from, to, lanes; 13.9 m/s; ``extra`` attributes on each): its file."""
     folder.mkdir()
     (folder / "net.nod.xml").write_text(
         "<nodes>" + "".join(f'<node id="{n}" x="{x}" y="{y}" {extra}/>' for n, (x, y, extra) in nodes.items()) + "</nodes>")
     (folder / "net.edg.xml").write_text(
-        "<edges>" + "".join(f'<edge id="{e}" from="{a}" to="{b}" numLanes="{k}" speed="13.9"/>' for e, a, b, k in edges) + "</edges>")
+        "<edges>" + "".join(f'<edge id="{e}" from="{a}" to="{b}" numLanes="{k}" speed="13.9" {extra}/>' for e, a, b, k in edges) + "</edges>")
     return network.build(folder)[0]
 
 
@@ -38,14 +38,18 @@ def read(path):
     return network.read(path, "sumo.net", "test", withInternal=True)
 
 
-@pytest.fixture(scope="module")
-def plus_file(tmp_path_factory):
+def plus_network(folder, extra: str = ""):
     """Node C at the origin with a traffic light (turn radius 10 m); arms N, E, S, W 100 m out.
     Edges are named by their nodes: NC leads from N into C, CW from C out to W."""
     arms = {"N": (0, 100), "E": (100, 0), "S": (0, -100), "W": (-100, 0)}
     nodes = {"C": (0, 0, 'type="traffic_light" radius="10"')} | {n: (x, y, "") for n, (x, y) in arms.items()}
     edges = [e for n in arms for e in ((f"{n}C", n, "C", 1 + (n == "W")), (f"C{n}", "C", n, 1 + (n == "W")))]
-    return build(tmp_path_factory.mktemp("plus") / "plus", nodes, edges)
+    return build(folder, nodes, edges, extra)
+
+
+@pytest.fixture(scope="module")
+def plus_file(tmp_path_factory):
+    return plus_network(tmp_path_factory.mktemp("plus") / "plus")
 
 
 @pytest.fixture(scope="module")
@@ -351,3 +355,59 @@ def test_a_car_whose_path_keeps_inside_a_turn_sweeps_a_band_nearer_its_lanes(plu
     assert reach[1] < reach[0] - 0.5 * largest
     straight = np.abs(plain.curvature) < 1e-4
     assert np.abs(kept.points[straight] - plain.points[straight]).max() < 1e-3
+
+
+# --- the curb clearance before a junction ---------------------------------------------------------
+
+
+@settings(max_examples=80, deadline=None)
+@given(a=st.floats(80.0, 300.0), inside=st.floats(4.0, 40.0), h=st.floats(0.05, 1.0), length=st.floats(0.0, 60.0))
+def test_the_curb_shift_holds_its_clearance_before_the_junction_and_ramps_smoothly_either_side(a, inside, h, length):
+    """Full shift ``h`` on the last ``length`` before the junction's entry ``a``, none a ramp
+    before that or beyond the junction's exit, never more than ``h``, and a slope no steeper
+    than the quintic smoothstep's (15/8 h over the ramp, or over the junction on the way back)."""
+    b = a + inside
+    s = np.linspace(0.0, b + 50.0, 20001)
+    shift = curb_shift(s, [(a, b, h)], length)
+    assert shift.min() >= 0.0 and shift.max() <= h + 1e-12
+    assert np.allclose(shift[(s >= a - length) & (s <= a)], h)
+    assert np.all(shift[(s <= a - length - CURB_RAMP) | (s >= b)] < 1e-9)
+    slope = np.abs(np.diff(shift) / np.diff(s))
+    assert slope.max() <= 15.0 / 8.0 * h / min(CURB_RAMP, inside) * 1.001
+
+
+@pytest.fixture(scope="module")
+def plus_walks(tmp_path_factory):
+    """The plus crossing with a 2 m sidewalk on the right of every edge."""
+    return read(plus_network(tmp_path_factory.mktemp("plus_walks") / "plus_walks", 'sidewalkWidth="2.0"'))
+
+
+def test_a_car_beside_a_sidewalk_keeps_its_curb_clearance_on_the_last_stretch_before_the_junction(plus_walks):
+    """A 1.8 m wide car going straight through the plus crossing with a sidewalk beside its lanes:
+    with ``curb = (1.1, 40)`` its right side keeps 1.1 m from its lane's right edge on the last
+    40 m before the junction (its path 0.4 m left of the 3.2 m lane's centre), keeps to the
+    centre line further back and beyond the junction, stays inside its lane all along, and turns
+    no sharper than the ramp's curvature (0.4 x 5.77 / 30^2 m^-1) on the straight."""
+    half = 0.9
+    plain = path(plus_walks, ["NC", "CS"], half_width=half)
+    kept = path(plus_walks, ["NC", "CS"], half_width=half, curb=(1.1, 40.0))
+    s_in = plain.junctions[0].s_in
+    s = arc(kept.points)
+    near = (s > s_in - 40.0) & (s < s_in - 0.5)
+    incoming = [shape(lane_of(plus_walks, "NC", 0))]
+    offset = distance(kept.points, incoming)
+    right = distance(kept.points, [shape(lane_of(plus_walks, "NC", 0)) + [-WIDTH / 2, 0.0]])  # the lane runs south at x = -1.6
+    assert np.allclose(offset[near], 0.4, atol=0.02)
+    assert np.all(right[near] - half > 1.1 - 0.02)
+    far = s < s_in - 40.0 - CURB_RAMP
+    assert np.abs(kept.points[far] - plain.points[far]).max() < 1e-6
+    beyond = s > plain.junctions[0].s_out + 1.0
+    assert np.allclose(kept.points[beyond], plain.points[beyond], atol=0.02)
+    assert np.all(kept.points[:, 0] + half < 0.0) and np.all(kept.points[:, 0] - half > -WIDTH)  # its body inside the southbound lane
+    assert np.abs(kept.curvature[s < s_in]).max() < 0.4 * 5.78 / CURB_RAMP**2 + 1e-3
+
+
+def test_without_a_sidewalk_the_curb_clearance_changes_nothing(plus):
+    plain = path(plus, ["NC", "CW"], half_width=0.9)
+    kept = path(plus, ["NC", "CW"], half_width=0.9, curb=(1.1, 40.0))
+    assert np.array_equal(plain.points, kept.points) and np.array_equal(plain.curvature, kept.curvature)
