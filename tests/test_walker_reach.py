@@ -28,9 +28,9 @@ def walker(centre, velocity, walkway=None, size=0.5) -> Obstacle:
     return Obstacle("p", "pedestrian", np.array(centre, float), np.array(velocity, float), 0.0, size, size, walkway=walkway)
 
 
-def reach_of(*walkers, margin=1.0, reach=1.5, walkway_time=10.0) -> WalkerReach:
+def reach_of(*walkers, margin=1.0, reach=1.5, walkway_time=10.0, to_end=False) -> WalkerReach:
     world = WorldState(0.0, np.zeros((0, 4)), [], list(walkers))
-    return WalkerReach.of(world, margin, reach, walkway_time, DT)
+    return WalkerReach.of(world, margin, reach, walkway_time, DT, to_end)
 
 
 def standing_course(centre, length=4.0, width=1.8, heading=0.0, periods=20) -> np.ndarray:
@@ -59,6 +59,21 @@ def test_a_walker_who_stays_on_her_walkway_never_reaches_a_car_beside_it():
     assert reach_of(near_end).slack(car) < -10.0
 
 
+def test_a_walker_near_her_walkways_end_keeps_to_it_until_she_can_reach_the_end():
+    """With ``to_end``: 12 m from her sidewalk's end at 1.0 m/s (reach 1.5 m/s) she cannot leave it for 8 s: a
+    car passing 3 m beside her way within those 8 s keeps its slack; one standing there until
+    10 s finds her region 1.5 m/s x 2 s wider by then, grown from her way."""
+    near_end = walker([0.0, 0.0], [1.0, 0.0], walkway=(12.0, 40.0))
+    radius = 0.5 * np.hypot(0.5, 0.5) + 1.0
+    t = np.arange(0, 71) * DT  # 7 s
+    passing = np.column_stack([-10.0 + 4.0 * t, np.full_like(t, 3.0), np.full_like(t, 4.0), np.full_like(t, 1.8), np.zeros_like(t)])
+    slack = reach_of(near_end, to_end=True).slack(passing)
+    assert 3.0 - 0.9 - radius - 0.5 * SEGMENT_STEP - 1e-9 <= slack <= 3.0 - 0.9 - radius + 1e-9
+    standing = standing_course([10.0, 3.0], periods=100)
+    assert np.isclose(reach_of(near_end, to_end=True).slack(standing), 3.0 - 0.9 - radius - 1.5 * 2.0, atol=0.5 * SEGMENT_STEP + 1e-9)
+    assert reach_of(near_end).slack(passing) < slack - 1.0  # without to_end her reach grows in every direction from now
+
+
 def test_a_walker_on_her_walkway_reaches_a_car_standing_on_it_at_the_reach_speed():
     """Ahead on her way: the region is the segment she can cover at max(her speed, reach)."""
     on_path = walker([0.0, 0.0], [1.0, 0.0], walkway=(500.0, 500.0))
@@ -70,23 +85,26 @@ def test_a_walker_on_her_walkway_reaches_a_car_standing_on_it_at_the_reach_speed
 
 @settings(max_examples=40, deadline=None)
 @given(cx=st.floats(-15, 15), cy=st.floats(-15, 15), heading=st.floats(-np.pi, np.pi), vx=st.floats(-1.6, 1.6),
-       vy=st.floats(-1.6, 1.6), bound=st.booleans(), periods=st.integers(0, 60))
-def test_the_slack_is_never_above_the_exact_region_and_at_most_half_a_step_below(cx, cy, heading, vx, vy, bound, periods):
-    """Against a dense sampling of the exact region (segment, then disc), for a car moving
+       vy=st.floats(-1.6, 1.6), way=st.sampled_from(["free", "bound", "end"]), end=st.floats(0.5, 14.0), periods=st.integers(0, 60))
+def test_the_slack_is_never_above_the_exact_region_and_at_most_half_a_step_below(cx, cy, heading, vx, vy, way, end, periods):
+    """Against a dense sampling of the exact region (segment, then disc; on a walkway whose end
+    she can reach, the segment grown from the soonest she can get there), for a car moving
     across it: never more slack than exact (the check never passes what it should refuse), and
     never more than half a SEGMENT_STEP less."""
-    who = walker([0.0, 0.0], [vx, vy], walkway=(1e4, 1e4) if bound else None)
-    reach = reach_of(who)
+    walkway = {"free": None, "bound": (1e4, 1e4), "end": (end, 30.0)}[way]
+    who = walker([0.0, 0.0], [vx, vy], walkway=walkway)
+    reach = reach_of(who, to_end=True)
+    bound = way == "bound"
     t = np.arange(periods + 1) * DT
     rows = np.column_stack([cx + 3.0 * t * np.cos(heading), cy + 3.0 * t * np.sin(heading), np.full_like(t, 4.0), np.full_like(t, 1.8),
                             np.full_like(t, heading)])
     speed = np.hypot(vx, vy)
     top = max(speed, 1.5)
-    way = np.array([vx, vy]) / max(speed, 1e-9) * top if bound else np.zeros(2)
-    growth = 0.0 if bound else top
+    along = np.array([vx, vy]) / max(speed, 1e-9) * top if way != "free" else np.zeros(2)
+    growth, delay = (0.0, 0.0) if bound else (top, end / top if way == "end" else 0.0)
     radius = 0.5 * np.hypot(0.5, 0.5) + 1.0
     u = np.linspace(0.0, 1.0, 801)[:, None]
-    exact = min(box_distance(way * tk * u, row).min() - radius - growth * tk for tk, row in zip(t, rows))
+    exact = min(box_distance(along * tk * u, row).min() - radius - growth * max(tk - delay, 0.0) for tk, row in zip(t, rows))
     slack = reach.slack(rows)
     assert slack <= exact + 1e-9
     assert slack >= min(exact - 0.5 * SEGMENT_STEP - top * t[-1] / 800, FAR) - 1e-9  # exact below FAR
@@ -131,18 +149,19 @@ def numpy_slack(reach: WalkerReach, rows: np.ndarray) -> float:
     if len(reach.centres) == 0 or len(rows) == 0:
         return np.inf
     t = np.arange(len(rows)) * reach.dt
-    extent = np.hypot(*reach.velocities.T)[None, :] * t[:, None] + reach.growth[None, :] * t[:, None] + reach.radius[None, :]
+    grown = reach.growth[None, :] * np.maximum(t[:, None] - reach.delay[None, :], 0.0)
+    extent = np.hypot(*reach.velocities.T)[None, :] * t[:, None] + grown + reach.radius[None, :]
     apart = np.hypot(rows[:, None, 0] - reach.centres[None, :, 0], rows[:, None, 1] - reach.centres[None, :, 1])
     bound = (apart - 0.5 * np.hypot(rows[:, 2], rows[:, 3])[:, None] - extent).min(axis=0)
     near = bound < FAR
     if not near.any():
         return float(bound.min())
-    c, v, r, g = reach.centres[near], reach.velocities[near], reach.radius[near], reach.growth[near]
+    c, v, r = reach.centres[near], reach.velocities[near], reach.radius[near]
     count = int(np.ceil(float((np.hypot(*v.T) * t[-1]).max()) / SEGMENT_STEP)) + 1
     u = np.linspace(0.0, 1.0, count)
     points = c[None, :, None, :] + (t[:, None, None, None] * u[None, None, :, None]) * v[None, :, None, :]
     spacing = np.hypot(*v.T)[None, :] * t[:, None] / max(count - 1, 1)
-    gap = boxes(points, rows).min(axis=2) - 0.5 * spacing - r[None, :] - g[None, :] * t[:, None]
+    gap = boxes(points, rows).min(axis=2) - 0.5 * spacing - r[None, :] - grown[:, near]
     return float(min(gap.min(), bound[~near].min(initial=np.inf)))
 
 
@@ -155,7 +174,7 @@ def test_the_compiled_slack_is_the_numpy_form_to_the_last_bit(seed, walkers, per
     people = [walker(rng.uniform(-spread, spread, 2), rng.uniform(-1.5, 1.5, 2) * rng.integers(0, 2),
                      walkway=(float(rng.uniform(0, 50)), float(rng.uniform(0, 50))) if rng.integers(0, 2) else None)
               for _ in range(walkers)]
-    reach = reach_of(*people)
+    reach = reach_of(*people, to_end=bool(rng.integers(0, 2)))
     heading = np.cumsum(rng.normal(0, 0.05, periods + 1)) + rng.uniform(-np.pi, np.pi)
     xy = np.cumsum(rng.uniform(0.0, 1.6, periods + 1)[:, None] * np.column_stack([np.cos(heading), np.sin(heading)]), axis=0)
     rows = np.column_stack([xy + rng.uniform(-10, 10, 2), np.full(periods + 1, 4.0), np.full(periods + 1, 1.8), heading])

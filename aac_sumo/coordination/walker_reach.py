@@ -7,7 +7,11 @@ max(``|v|``, ``pedestrian_reach``) [m/s]. ``t`` [s] later she is taken to be
   does not turn back) when she walks on a walkway of her own whose ends she cannot reach within
   ``walkway_time`` (:meth:`~aac_sumo.world.Obstacle.step_out_speed` is 0: SUMO's walkers leave a
   footpath only at its end), or walks across a crossing's strip at ``CROSSING_WALK`` or faster
-  (SUMO's walkers cross to the far side; a car goes once she has cleared its lane and margin).
+  (SUMO's walkers cross to the far side; a car goes once she has cleared its lane and margin);
+* with ``to_end`` (``aac.walkway_to_end``), on a walkway whose nearer end ``e`` [m] away she can
+  reach within ``walkway_time``: on that segment until ``t = e / V``, the soonest she can leave
+  the walkway, and within ``V (t - e/V)`` of it from then on (she may turn at the end, or
+  anywhere after it).
 Every car keeps ``radius`` from that region: her footprint's half diagonal plus
 ``pedestrian_margin``. Unlike the planner's regions over its short horizon (constant velocity,
 grown by the reach on every side), this is a bound on her speed, so it stays true over a
@@ -43,9 +47,10 @@ FAR = 5.0
 @dataclass(frozen=True)
 class WalkerReach:
     """The walkers of one period: each one's region at ``t`` [s] is the segment from its centre
-    (m, 2) [m] to ``centre + velocities * t`` ((m, 2) [m/s]), grown by ``radius + growth * t``
-    ((m,) [m], (m,) [m/s]); ``dt`` [s] is the period. ``strips`` (c, 2, 2) are the segments of
-    the crossings' centre lines, ``strip_radius`` (c,) [m] half their width plus the margin."""
+    (m, 2) [m] to ``centre + velocities * t`` ((m, 2) [m/s]), grown by ``radius + growth *
+    max(t - delay, 0)`` ((m,) [m], (m,) [m/s], (m,) [s]); ``dt`` [s] is the period. ``strips``
+    (c, 2, 2) are the segments of the crossings' centre lines, ``strip_radius`` (c,) [m] half
+    their width plus the margin."""
 
     centres: np.ndarray
     velocities: np.ndarray
@@ -54,11 +59,14 @@ class WalkerReach:
     dt: float
     strips: np.ndarray = field(default_factory=lambda: np.zeros((0, 2, 2)))
     strip_radius: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    delay: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @classmethod
-    def of(cls, world: WorldState, margin: float, reach: float, walkway_time: float, dt: float) -> "WalkerReach":
+    def of(cls, world: WorldState, margin: float, reach: float, walkway_time: float, dt: float, to_end: bool = False) -> "WalkerReach":
         """The pedestrians of ``world``, each kept ``margin`` [m] from, walking at most at
-        ``reach`` [m/s] or their speed now (``walkway_time`` [s]: see the module)."""
+        ``reach`` [m/s] or their speed now (``walkway_time`` [s]: see the module; ``to_end``:
+        one who can reach her walkway's end keeps to her way until then, else her reach grows
+        in every direction from now)."""
         walkers = [o for o in world.obstacles if o.kind == "pedestrian"]
         velocity = np.array([o.velocity for o in walkers], dtype=float).reshape(-1, 2)
         speed = np.hypot(*velocity.T)
@@ -69,11 +77,13 @@ class WalkerReach:
         centres = np.array([o.centre for o in walkers], dtype=float).reshape(-1, 2)
         crossing = (speed >= CROSSING_WALK) & np.any(segment_distance(centres, strips) <= half[None, :], axis=1)
         bound = crossing | np.array([o.step_out_speed(reach, walkway_time) == 0.0 for o in walkers], dtype=bool)  # keeps to her way
+        end = np.array([min(o.walkway) if o.walkway is not None else 0.0 for o in walkers], dtype=float)  # [m]
+        delay = np.where(bound | (not to_end), 0.0, end / np.maximum(top, 1e-9))  # until she can leave her walkway [s]
         way = velocity / np.maximum(speed, 1e-9)[:, None] * top[:, None]
-        return cls(centres, np.where(bound[:, None], way, 0.0),
+        return cls(centres, np.where((bound | (delay > 0.0))[:, None], way, 0.0),
                    np.array([0.5 * np.hypot(o.length, o.width) + margin for o in walkers], dtype=float),
                    np.where(bound, 0.0, top), float(dt),
-                   strips, half + margin)
+                   strips, half + margin, delay)
 
     def slack(self, rows: np.ndarray) -> float:
         """Least gap [m] between the footprints ``rows`` (K, 5) ``[cx, cy, length, width,
@@ -83,7 +93,7 @@ class WalkerReach:
         if len(self.centres) == 0 or len(rows) == 0:
             return np.inf
         rows = np.ascontiguousarray(rows, dtype=float)
-        return float(walker_slack(rows, np.cos(rows[:, 4]), np.sin(rows[:, 4]), self.centres, self.velocities, self.radius, self.growth,
+        return float(walker_slack(rows, np.cos(rows[:, 4]), np.sin(rows[:, 4]), self.centres, self.velocities, self.radius, self.growth, self.delay,
                                   self.dt, FAR, SEGMENT_STEP))
 
     def stand_slack(self, row: np.ndarray) -> float:

@@ -16,10 +16,10 @@ from aac_sumo.kernels.geometry import point_rect_distance
 
 
 @numba.njit(cache=True)
-def walker_slack(rows, cos_h, sin_h, centres, velocities, radius, growth, dt, far, step):
+def walker_slack(rows, cos_h, sin_h, centres, velocities, radius, growth, delay, dt, far, step):
     """Least gap [m] between the course's footprints ``rows`` (K, 5) (heading cosines and sines
     ``cos_h``, ``sin_h`` (K,)) and the walkers' regions (centres (m, 2), velocities (m, 2),
-    radius (m,), growth (m,)) at the same moments, row k at ``k * dt``: per walker a lower bound
+    radius (m,), growth (m,) from delay (m,) [s] on) at the same moments, row k at ``k * dt``: per walker a lower bound
     from the centres; the walkers it leaves below ``far`` are measured on their segments,
     sampled every at most ``step`` [m] and taken half a spacing nearer."""
     k_count, m = rows.shape[0], centres.shape[0]
@@ -33,7 +33,7 @@ def walker_slack(rows, cos_h, sin_h, centres, velocities, radius, growth, dt, fa
         bound = np.inf
         for k in range(k_count):
             t = k * dt
-            extent = speed[j] * t + growth[j] * t + radius[j]
+            extent = speed[j] * t + growth[j] * max(t - delay[j], 0.0) + radius[j]
             apart = math.hypot(rows[k, 0] - centres[j, 0], rows[k, 1] - centres[j, 1])
             bound = min(bound, apart - 0.5 * math.hypot(rows[k, 2], rows[k, 3]) - extent)
         if bound < far:
@@ -59,7 +59,7 @@ def walker_slack(rows, cos_h, sin_h, centres, velocities, radius, growth, dt, fa
                                   cos_h[k], sin_h[k], rows[k, 2], rows[k, 3])
                 closest = min(closest, d)
             spacing = speed[j] * t / max(count - 1, 1)
-            best = min(best, closest - 0.5 * spacing - radius[j] - growth[j] * t)
+            best = min(best, closest - 0.5 * spacing - radius[j] - growth[j] * max(t - delay[j], 0.0))
     return min(best, best_far)
 
 

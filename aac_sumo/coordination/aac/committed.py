@@ -84,7 +84,7 @@ class CommittedAac(Manoeuvring, Creeping, Queueing, TrafficBraking, AacCoordinat
         period = self.period
         self.period += 1
         statics = np.array([o.footprint() for o in world.obstacles if o.kind in ("static", "cone")]).reshape(-1, 5)
-        walkers = WalkerReach.of(world, cfg.pedestrian_margin, cfg.pedestrian_reach, cfg.walkway_time, cfg.dt)
+        walkers = WalkerReach.of(world, cfg.pedestrian_margin, cfg.pedestrian_reach, cfg.walkway_time, cfg.dt, self.params.walkway_to_end)
         first = self.book is None
         if first:
             self.book = CommitmentBook(fleet, [self.commitment(world, i, period, np.zeros((0, 2))) for i in range(n)],
