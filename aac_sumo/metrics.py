@@ -183,9 +183,10 @@ def _ttc_mean(ttc: pd.Series, ttc_max: float) -> float | None:
     return _finite(conflicts.mean()) if len(conflicts) else None
 
 
-#: How far [m/s^2] beyond a threshold a value may be by rounding alone (an input at the comfort bound, 2 m/s^2, came out as
-#: 2.0000000000000018 from a ramp summed stage by stage) and still not exceed it.
-ROUNDING = 1e-9
+#: How far [m/s^2] beyond a threshold a value may be by rounding or by the solver's tolerance on its bounds alone and still
+#: not exceed it: an input at the comfort bound, 2 m/s^2, came out as 2.0000000000000018 from a ramp summed stage by stage,
+#: and as 2.000000005 from fatrop's plans braking at that bound in the city.
+ROUNDING = 1e-6
 
 
 def _aggressive_steps(steps: pd.DataFrame, info: dict) -> pd.Series:
