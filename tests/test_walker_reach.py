@@ -61,8 +61,9 @@ def test_a_walker_who_stays_on_her_walkway_never_reaches_a_car_beside_it():
 
 def test_a_walker_near_her_walkways_end_keeps_to_it_until_she_can_reach_the_end():
     """With ``to_end``: 12 m from her sidewalk's end at 1.0 m/s (reach 1.5 m/s) she cannot leave it for 8 s: a
-    car passing 3 m beside her way within those 8 s keeps its slack; one standing there until
-    10 s finds her region 1.5 m/s x 2 s wider by then, grown from her way."""
+    car passing 3 m beside her way within those 8 s keeps its slack; for one standing there until
+    10 s she may be anywhere within 1.5 m/s x 10 s of where she is now by then, as without
+    ``to_end`` (the end may lie either way)."""
     near_end = walker([0.0, 0.0], [1.0, 0.0], walkway=(12.0, 40.0))
     radius = 0.5 * np.hypot(0.5, 0.5) + 1.0
     t = np.arange(0, 71) * DT  # 7 s
@@ -70,8 +71,23 @@ def test_a_walker_near_her_walkways_end_keeps_to_it_until_she_can_reach_the_end(
     slack = reach_of(near_end, to_end=True).slack(passing)
     assert 3.0 - 0.9 - radius - 0.5 * SEGMENT_STEP - 1e-9 <= slack <= 3.0 - 0.9 - radius + 1e-9
     standing = standing_course([10.0, 3.0], periods=100)
-    assert np.isclose(reach_of(near_end, to_end=True).slack(standing), 3.0 - 0.9 - radius - 1.5 * 2.0, atol=0.5 * SEGMENT_STEP + 1e-9)
+    nearest = np.hypot(8.0, 3.0 - 0.9)  # the car's corner nearest to where she is now
+    assert np.isclose(reach_of(near_end, to_end=True).slack(standing), nearest - radius - 1.5 * 10.0)
     assert reach_of(near_end).slack(passing) < slack - 1.0  # without to_end her reach grows in every direction from now
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 100_000), periods=st.integers(0, 120))
+def test_keeping_a_walker_to_her_way_until_its_end_never_makes_the_check_stricter(seed, periods):
+    """Her region with ``to_end`` lies inside the one without at every moment: a course the
+    check passes without it passes with it."""
+    rng = np.random.default_rng(seed)
+    who = walker(rng.uniform(-10, 10, 2), rng.uniform(-1.5, 1.5, 2), walkway=(float(rng.uniform(0, 20)), float(rng.uniform(0, 40))))
+    heading = rng.uniform(-np.pi, np.pi)
+    t = np.arange(periods + 1) * DT
+    rows = np.column_stack([rng.uniform(-10, 10) + 5.0 * t * np.cos(heading), rng.uniform(-10, 10) + 5.0 * t * np.sin(heading),
+                            np.full_like(t, 4.0), np.full_like(t, 1.8), np.full_like(t, heading)])
+    assert reach_of(who, to_end=True).slack(rows) >= reach_of(who).slack(rows) - 0.5 * SEGMENT_STEP - 1e-9
 
 
 def test_a_walker_on_her_walkway_reaches_a_car_standing_on_it_at_the_reach_speed():
@@ -87,8 +103,8 @@ def test_a_walker_on_her_walkway_reaches_a_car_standing_on_it_at_the_reach_speed
 @given(cx=st.floats(-15, 15), cy=st.floats(-15, 15), heading=st.floats(-np.pi, np.pi), vx=st.floats(-1.6, 1.6),
        vy=st.floats(-1.6, 1.6), way=st.sampled_from(["free", "bound", "end"]), end=st.floats(0.5, 14.0), periods=st.integers(0, 60))
 def test_the_slack_is_never_above_the_exact_region_and_at_most_half_a_step_below(cx, cy, heading, vx, vy, way, end, periods):
-    """Against a dense sampling of the exact region (segment, then disc; on a walkway whose end
-    she can reach, the segment grown from the soonest she can get there), for a car moving
+    """Against a dense sampling of the exact region (a segment, or a disc; on a walkway whose end
+    she can reach, the segment until the soonest she can get there, then the disc), for a car moving
     across it: never more slack than exact (the check never passes what it should refuse), and
     never more than half a SEGMENT_STEP less."""
     walkway = {"free": None, "bound": (1e4, 1e4), "end": (end, 30.0)}[way]
@@ -101,10 +117,11 @@ def test_the_slack_is_never_above_the_exact_region_and_at_most_half_a_step_below
     speed = np.hypot(vx, vy)
     top = max(speed, 1.5)
     along = np.array([vx, vy]) / max(speed, 1e-9) * top if way != "free" else np.zeros(2)
-    growth, delay = (0.0, 0.0) if bound else (top, end / top if way == "end" else 0.0)
+    growth, delay = (0.0, np.inf) if bound else (top, end / top if way == "end" else 0.0)
     radius = 0.5 * np.hypot(0.5, 0.5) + 1.0
     u = np.linspace(0.0, 1.0, 801)[:, None]
-    exact = min(box_distance(along * tk * u, row).min() - radius - growth * max(tk - delay, 0.0) for tk, row in zip(t, rows))
+    exact = min(box_distance(along * tk * u, row).min() - radius if tk < delay else box_distance(np.zeros((1, 2)), row).min() - radius - growth * tk
+                for tk, row in zip(t, rows))
     slack = reach.slack(rows)
     assert slack <= exact + 1e-9
     assert slack >= min(exact - 0.5 * SEGMENT_STEP - top * t[-1] / 800, FAR) - 1e-9  # exact below FAR
@@ -149,8 +166,10 @@ def numpy_slack(reach: WalkerReach, rows: np.ndarray) -> float:
     if len(reach.centres) == 0 or len(rows) == 0:
         return np.inf
     t = np.arange(len(rows)) * reach.dt
-    grown = reach.growth[None, :] * np.maximum(t[:, None] - reach.delay[None, :], 0.0)
-    extent = np.hypot(*reach.velocities.T)[None, :] * t[:, None] + grown + reach.radius[None, :]
+    walking = t[:, None] < reach.delay[None, :]  # (K, m): on her segment, else anywhere within growth * t
+    walked = np.where(walking, t[:, None], 0.0)
+    grown = np.where(walking, 0.0, reach.growth[None, :] * t[:, None])
+    extent = np.where(walking, np.hypot(*reach.velocities.T)[None, :] * t[:, None], grown) + reach.radius[None, :]
     apart = np.hypot(rows[:, None, 0] - reach.centres[None, :, 0], rows[:, None, 1] - reach.centres[None, :, 1])
     bound = (apart - 0.5 * np.hypot(rows[:, 2], rows[:, 3])[:, None] - extent).min(axis=0)
     near = bound < FAR
@@ -159,8 +178,8 @@ def numpy_slack(reach: WalkerReach, rows: np.ndarray) -> float:
     c, v, r = reach.centres[near], reach.velocities[near], reach.radius[near]
     count = int(np.ceil(float((np.hypot(*v.T) * t[-1]).max()) / SEGMENT_STEP)) + 1
     u = np.linspace(0.0, 1.0, count)
-    points = c[None, :, None, :] + (t[:, None, None, None] * u[None, None, :, None]) * v[None, :, None, :]
-    spacing = np.hypot(*v.T)[None, :] * t[:, None] / max(count - 1, 1)
+    points = c[None, :, None, :] + (walked[:, near, None, None] * u[None, None, :, None]) * v[None, :, None, :]
+    spacing = np.hypot(*v.T)[None, :] * walked[:, near] / max(count - 1, 1)
     gap = boxes(points, rows).min(axis=2) - 0.5 * spacing - r[None, :] - grown[:, near]
     return float(min(gap.min(), bound[~near].min(initial=np.inf)))
 

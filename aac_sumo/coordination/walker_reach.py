@@ -10,8 +10,8 @@ max(``|v|``, ``pedestrian_reach``) [m/s]. ``t`` [s] later she is taken to be
   (SUMO's walkers cross to the far side; a car goes once she has cleared its lane and margin);
 * with ``to_end`` (``aac.walkway_to_end``), on a walkway whose nearer end ``e`` [m] away she can
   reach within ``walkway_time``: on that segment until ``t = e / V``, the soonest she can leave
-  the walkway, and within ``V (t - e/V)`` of it from then on (she may turn at the end, or
-  anywhere after it).
+  the walkway, and within ``V t`` of ``c`` from then on, as without it (the end she may step out
+  at lies within that; which way it lies is not known).
 Every car keeps ``radius`` from that region: her footprint's half diagonal plus
 ``pedestrian_margin``. Unlike the planner's regions over its short horizon (constant velocity,
 grown by the reach on every side), this is a bound on her speed, so it stays true over a
@@ -47,8 +47,9 @@ FAR = 5.0
 @dataclass(frozen=True)
 class WalkerReach:
     """The walkers of one period: each one's region at ``t`` [s] is the segment from its centre
-    (m, 2) [m] to ``centre + velocities * t`` ((m, 2) [m/s]), grown by ``radius + growth *
-    max(t - delay, 0)`` ((m,) [m], (m,) [m/s], (m,) [s]); ``dt`` [s] is the period. ``strips``
+    (m, 2) [m] to ``centre + velocities * t`` ((m, 2) [m/s]) while ``t < delay`` ((m,) [s]: inf for a
+    walker who keeps to her way, 0 for one who may turn now), else the disc of ``growth * t``
+    ((m,) [m/s]) round her centre, either grown by ``radius`` (m,) [m]; ``dt`` [s] is the period. ``strips``
     (c, 2, 2) are the segments of the crossings' centre lines, ``strip_radius`` (c,) [m] half
     their width plus the margin."""
 
@@ -78,7 +79,7 @@ class WalkerReach:
         crossing = (speed >= CROSSING_WALK) & np.any(segment_distance(centres, strips) <= half[None, :], axis=1)
         bound = crossing | np.array([o.step_out_speed(reach, walkway_time) == 0.0 for o in walkers], dtype=bool)  # keeps to her way
         end = np.array([min(o.walkway) if o.walkway is not None else 0.0 for o in walkers], dtype=float)  # [m]
-        delay = np.where(bound | (not to_end), 0.0, end / np.maximum(top, 1e-9))  # until she can leave her walkway [s]
+        delay = np.where(bound, np.inf, end / np.maximum(top, 1e-9) if to_end else 0.0)  # until she may leave her way [s]
         way = velocity / np.maximum(speed, 1e-9)[:, None] * top[:, None]
         return cls(centres, np.where((bound | (delay > 0.0))[:, None], way, 0.0),
                    np.array([0.5 * np.hypot(o.length, o.width) + margin for o in walkers], dtype=float),

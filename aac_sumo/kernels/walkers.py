@@ -18,10 +18,12 @@ from aac_sumo.kernels.geometry import point_rect_distance
 @numba.njit(cache=True)
 def walker_slack(rows, cos_h, sin_h, centres, velocities, radius, growth, delay, dt, far, step):
     """Least gap [m] between the course's footprints ``rows`` (K, 5) (heading cosines and sines
-    ``cos_h``, ``sin_h`` (K,)) and the walkers' regions (centres (m, 2), velocities (m, 2),
-    radius (m,), growth (m,) from delay (m,) [s] on) at the same moments, row k at ``k * dt``: per walker a lower bound
-    from the centres; the walkers it leaves below ``far`` are measured on their segments,
-    sampled every at most ``step`` [m] and taken half a spacing nearer."""
+    ``cos_h``, ``sin_h`` (K,)) and the walkers' regions at the same moments, row k at ``k * dt``:
+    walker j's at t is the segment from ``centres[j]`` to ``centres[j] + velocities[j] t`` while
+    t < ``delay[j]`` [s], else the disc of ``growth[j] t`` round ``centres[j]``, either grown by
+    ``radius[j]``. Per walker a lower bound from the centres; the walkers it leaves below ``far``
+    are measured on their segments, sampled every at most ``step`` [m] and taken half a spacing
+    nearer."""
     k_count, m = rows.shape[0], centres.shape[0]
     speed = np.empty(m)
     for j in range(m):
@@ -33,7 +35,7 @@ def walker_slack(rows, cos_h, sin_h, centres, velocities, radius, growth, delay,
         bound = np.inf
         for k in range(k_count):
             t = k * dt
-            extent = speed[j] * t + growth[j] * max(t - delay[j], 0.0) + radius[j]
+            extent = (speed[j] * t if t < delay[j] else growth[j] * t) + radius[j]
             apart = math.hypot(rows[k, 0] - centres[j, 0], rows[k, 1] - centres[j, 1])
             bound = min(bound, apart - 0.5 * math.hypot(rows[k, 2], rows[k, 3]) - extent)
         if bound < far:
@@ -51,15 +53,16 @@ def walker_slack(rows, cos_h, sin_h, centres, velocities, radius, growth, delay,
             continue
         for k in range(k_count):
             t = k * dt
+            walked = t if t < delay[j] else 0.0  # along her segment
             closest = np.inf
             for q in range(count):
                 u = 1.0 if q == count - 1 and count > 1 else q * du  # numpy.linspace(0, 1, count)
-                tu = t * u
+                tu = walked * u
                 d = point_rect_distance(centres[j, 0] + tu * velocities[j, 0], centres[j, 1] + tu * velocities[j, 1], rows[k, 0], rows[k, 1],
                                   cos_h[k], sin_h[k], rows[k, 2], rows[k, 3])
                 closest = min(closest, d)
-            spacing = speed[j] * t / max(count - 1, 1)
-            best = min(best, closest - 0.5 * spacing - radius[j] - growth[j] * max(t - delay[j], 0.0))
+            spacing = speed[j] * walked / max(count - 1, 1)
+            best = min(best, closest - 0.5 * spacing - radius[j] - (0.0 if t < delay[j] else growth[j] * t))
     return min(best, best_far)
 
 
