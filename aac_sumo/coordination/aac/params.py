@@ -116,8 +116,8 @@ class AacParams(AimsAhead):
                                "brakes at once, as for SUMO's cars (mode traffic_brake)")
     walkway_to_end: bool = param(False, "with commit, a walker on a walkway of her own who can reach its nearer end within "
                                  "controller.walkway_time keeps to her way in the exact check until she could get there (SUMO's "
-                                 "walkers leave a sidewalk only at its ends), her reach growing from then on; false: it grows in "
-                                 "every direction from now")
+                                 "walkers leave a sidewalk only at its ends), then may be anywhere within her reach of where she is, "
+                                 "as without it; false: from now")
     traffic_beside: bool = param(False, "with commit, the exact check holds a commitment against the braking courses of the "
                                  "uncontrolled vehicles beside and behind the robot in another lane too, not only those ahead "
                                  "(a car whose nose swings into the next lane at a junction meets the cars coming up there); "
