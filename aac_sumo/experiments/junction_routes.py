@@ -249,10 +249,10 @@ def _smooth(line: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
 def _beside_walkway(net, leg: Leg) -> float:
     """The width [m] of the car lane ``leg`` leaves its edge on, if a lane open only to
     pedestrians (a sidewalk) runs on its right; 0 otherwise."""
-    lanes = net.getEdge(leg.edge).getLanes()
-    lane = car_lanes(net.getEdge(leg.edge))[leg.leave]
-    i = lanes.index(lane)
-    walkway = i > 0 and lanes[i - 1].allows("pedestrian") and not lanes[i - 1].allows(VEHICLE_CLASS)
+    edge = net.getEdge(leg.edge)
+    lane = car_lanes(edge)[leg.leave]
+    i = lane.getIndex()
+    walkway = i > 0 and edge.getLane(i - 1).allows("pedestrian") and not edge.getLane(i - 1).allows(VEHICLE_CLASS)
     return lane.getWidth() if walkway else 0.0
 
 
@@ -302,6 +302,7 @@ def route_path(net, legs: list[Leg], s0: float, a_lat: float, change_start: floa
     raw = np.vstack([p.points for p in pieces])
     raw_arc = _arc(raw)
     ends = np.cumsum([len(p.points) for p in pieces]) - 1  # index in raw of each piece's last point
+    borders = [(ends[k], ends[k + len(_drawn(net, leg))] + 1) for leg, k in zip(legs, marks)]  # per junction: raw indices in and out
     keep = np.r_[True, np.diff(raw_arc) > 1e-6]  # junction gaps: the shapes meet, drop the duplicates
     line, arc = raw[keep], raw_arc[keep]
     speed = np.concatenate([np.full(len(p.points), p.speed) for p in pieces])[keep]
@@ -315,8 +316,8 @@ def route_path(net, legs: list[Leg], s0: float, a_lat: float, change_start: floa
         curvature = curvature / np.maximum(1.0 - np.abs(curvature * shift), 0.5)  # a circle of radius R - |shift| (at most twice as tight)
     clearance, curb_length = curb
     if clearance > 0.0 and half_width > 0.0:
-        spans = [(raw_arc[ends[k]], raw_arc[ends[k + len(_drawn(net, leg))] + 1], max(clearance - (0.5 * width - half_width), 0.0))
-                 for leg, k in zip(legs, marks) if (width := _beside_walkway(net, leg)) > 0.0]
+        spans = [(raw_arc[into], raw_arc[out], max(clearance - (0.5 * width - half_width), 0.0))
+                 for leg, (into, out) in zip(legs, borders) if (width := _beside_walkway(net, leg)) > 0.0]
         over = curb_shift(s_raw, spans, curb_length)
         shift = shift + over
         curvature = curvature + np.gradient(np.gradient(over, step), step)  # a lateral offset's second derivative bends a straight path
@@ -334,9 +335,9 @@ def route_path(net, legs: list[Leg], s0: float, a_lat: float, change_start: floa
         return _project(points, path_arc, raw[raw_index], float(np.interp(raw_arc[raw_index], s_raw, path_arc)))
 
     stops, junctions = [], []
-    for leg, k in zip(legs, marks):
-        s_in = s_of(ends[k])  # the incoming lane's end
-        junctions.append(JunctionSpan(leg.junction, s_in, s_of(ends[k + len(_drawn(net, leg))] + 1)))  # the next edge's lane's start
+    for leg, (into, out) in zip(legs, borders):
+        s_in = s_of(into)  # the incoming lane's end
+        junctions.append(JunctionSpan(leg.junction, s_in, s_of(out)))  # the next edge's lane's start
         if leg.tls:
             lane = car_lanes(net.getEdge(leg.edge))[leg.leave]
             (x0, y0), (x1, y1) = _shape(lane)[-2:]
