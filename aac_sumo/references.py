@@ -230,6 +230,34 @@ class PathReference:
         return bool(np.hypot(*(np.asarray(state[:2]) - self.points[-1])) <= tolerance)
 
 
+def reference_points(tasks: list[PathReference], states: np.ndarray, dt: float) -> np.ndarray:
+    """Each robot's reference ``[x, y, heading, v]`` where it is (n, 4): row i is
+    ``tasks[i].horizon(states[i], 0, dt)[0]`` to the bit. Robots on their path (no goal
+    approach, no speed limits) take only the projection and the pose lookup one at a time;
+    their speeds and unwrapped headings are computed for all of them at once (the same
+    elementwise operations, so the same numbers)."""
+    states = np.asarray(states, dtype=float)
+    out = np.empty((len(tasks), 4))
+    on_path = np.zeros(len(tasks), dtype=bool)
+    s0 = np.zeros(len(tasks))
+    for i, task in enumerate(tasks):
+        _, _, s, mode = task._goal_mode(states[i])
+        if mode == "path" and task.limits is None:
+            on_path[i], s0[i] = True, s
+            out[i, :3] = task.pose_at(s)[0]
+        else:
+            out[i] = task.horizon(states[i], 0, dt)[0]
+    rows = np.flatnonzero(on_path)
+    if rows.size:
+        picked = [tasks[i] for i in rows]
+        speed = np.array([t.speed for t in picked])
+        stops = np.array([t.stop_at_end for t in picked], dtype=bool)
+        braking = np.sqrt(2.0 * np.array([t.decel for t in picked]) * np.clip(np.array([t.length for t in picked]) - s0[rows], 0.0, None))
+        out[rows, 3] = np.where(stops, np.minimum(speed, braking), speed)
+        out[rows, 2] = states[rows, 2] + wrap_angle(out[rows, 2] - states[rows, 2])
+    return out
+
+
 class LateralBand:
     """Where a robot's rear axle may be across its reference: between the ``right`` and ``left``
     boundary polylines (M, 2) of its road [m], at least ``margin`` [m] inside each, and at most

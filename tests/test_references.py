@@ -159,3 +159,27 @@ def test_pose_at_is_the_segment_interpolation_clamped_on_a_stopping_path(seed, m
     heading = path.seg_heading[i]
     xy = path.points[i] + local[:, None] * np.column_stack([np.cos(heading), np.sin(heading)])
     np.testing.assert_array_equal(path.pose_at(s), np.column_stack([xy, heading]))
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 100_000), robots=st.integers(1, 40))
+def test_reference_points_are_each_horizons_first_row_to_the_bit(seed, robots):
+    """``reference_points`` (the runner's reference of every robot, its speeds and headings
+    computed for all at once) gives row for row what ``horizon(state, 0, dt)[0]`` gives: on
+    paths that stop or go on, with speed limits, near goals (the approach and the back-off, with
+    their free headings) and on the paths themselves, with headings many turns off."""
+    from aac_sumo.references import reference_points
+
+    rng = np.random.default_rng(seed)
+    tasks, states = [], []
+    for _ in range(robots):
+        points = np.cumsum(rng.uniform(-3, 3, (int(rng.integers(2, 12)), 2)), axis=0)
+        limits = rng.uniform(0.5, 2.0, len(points)) if rng.random() < 0.2 else None
+        tasks.append(PathReference(points, rng.uniform(0.5, 3.0), rng.uniform(0.5, 2.0), stop_at_end=bool(rng.random() < 0.7),
+                                   approach=float(rng.choice([0.0, 1.0])), turn_radius=float(rng.choice([0.0, 0.66])), arrive=0.2,
+                                   limits=limits))
+        near = tasks[-1].points[int(rng.integers(len(tasks[-1].points)))]
+        states.append([*(near + rng.normal(0, 1.5, 2)), rng.uniform(-20, 20), rng.uniform(-1, 2)])
+    states = np.array(states)
+    expected = np.array([task.horizon(state, 0, 0.1)[0] for task, state in zip(tasks, states)])
+    np.testing.assert_array_equal(reference_points(tasks, states, 0.1), expected)

@@ -57,14 +57,20 @@ def _pair_time(rows, velocity, radius, i, j, hx, hy):
     wx, wy = velocity[i, 0] - velocity[j, 0], velocity[i, 1] - velocity[j, 1]
     if wx * hx + wy * hy <= 1e-6:
         return np.inf
+    dx, dy = rows[j, 0] - rows[i, 0], rows[j, 1] - rows[i, 1]
+    reach = radius[i] + radius[j] + 1e-9
+    # without a root or a division first: a pair that is well off the sweep's line or behind it
+    # (by a millionth more than the test below asks) never touches; the test below decides the rest
+    loose = (reach * (1.0 + 1e-6) + 1e-6) ** 2 * (wx * wx + wy * wy)
+    across, along = dx * wy - dy * wx, dx * wx + dy * wy
+    if across * across > loose or (along < 0.0 and along * along > loose):
+        return np.inf
     closing = math.hypot(wx, wy)
     if closing <= 1e-6:
         return np.inf
     ux, uy = wx / closing, wy / closing
     # each footprint lies within its half diagonal of its centre: farther off the line of the
     # sweep, or behind it, the two never touch
-    dx, dy = rows[j, 0] - rows[i, 0], rows[j, 1] - rows[i, 1]
-    reach = radius[i] + radius[j] + 1e-9
     if abs(dx * uy - dy * ux) > reach or dx * ux + dy * uy < -reach:
         return np.inf
     return sweep_gap(rows[i], rows[j], ux, uy) / closing
@@ -78,7 +84,7 @@ def _half_diagonals(rows):
     return out
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, parallel=True)
 def times_to_collision(rows, velocity, n):
     """Per robot i < n, the least time to collision [s] with the others: footprint rows ``rows``
     (M, 5) ``[cx, cy, length, width, heading]`` and velocities ``velocity`` (M, 2) [m/s] of
@@ -89,7 +95,7 @@ def times_to_collision(rows, velocity, n):
     counts."""
     radius = _half_diagonals(rows)
     out = np.full(n, np.inf)
-    for i in range(n):
+    for i in numba.prange(n):  # each robot's least time alone: the same numbers on any number of threads
         hx, hy = math.cos(rows[i, 4]), math.sin(rows[i, 4])
         for j in range(rows.shape[0]):
             if j != i:

@@ -9,15 +9,18 @@ import sys
 import threading
 import time
 
+import numba
 import numpy as np
 import pandas as pd
 
 from aac_sumo import experiments
 from aac_sumo.config import Scenario
+from aac_sumo.coordination.threads import cores
 from aac_sumo.experiments.common import Setup
 from aac_sumo.geometry import pairwise_rect_clearance
 from aac_sumo.metrics import nearest_robot_distance, pedestrian_clearance, time_to_collision
 from aac_sumo.mpc.problem import get_problem
+from aac_sumo.references import reference_points as paths_reference_points
 from aac_sumo.runs.recording import Recording, RunResult, assemble_metrics
 from aac_sumo.world import WorldState
 
@@ -97,6 +100,8 @@ def loop(setup: Setup, rec: Recording) -> None:
     window = int(round(patience / dt))
     crossings = tuple(rec.crossings or ())  # the map's, static: every period's world holds them
     history: deque[np.ndarray] = deque(maxlen=window + 1)  # rear-axle positions, for the deadlock rule
+    workers = scenario["controller.workers"]  # the metrics' compiled loops share the coordinator's threads
+    numba.set_num_threads(min(workers if workers > 0 else cores(), numba.config.NUMBA_NUM_THREADS))
     active_overlaps: set = set()
     for k in range(int(round(duration / dt)) + 1):
         if STOP.is_set():  # asked to stop (aac-sumo run's SIGINT/SIGTERM handler), between two periods
@@ -132,11 +137,11 @@ def loop(setup: Setup, rec: Recording) -> None:
             rec.sim_collisions = (rec.sim_collisions or 0) + contacts.sim_collisions
         rec.periods.append(dict(t=world.t, compute_ms=decision.compute_ms, **decision.notes))
         inputs = decision.inputs if contacts.applied is None else contacts.applied  # what the robots did (SUMO's driver)
+        refs = reference_points(setup, np.flatnonzero(here), world.states)
         for i, (robot, r) in enumerate(zip(world.robots, decision.robots)):
             if not here[i]:
                 continue
-            x = world.states[i]
-            ref = reference_point(setup, i, x)
+            x, ref = world.states[i], refs[i]
             rec.steps.append(dict(
                 t=world.t, robot=robot.name, x=x[0], y=x[1], heading=x[2], v=x[3],
                 accel=inputs[i, 0], steer=inputs[i, 1],
@@ -156,10 +161,9 @@ def arrival_rows(setup: Setup, world: WorldState, arriving: np.ndarray, steps: l
     then; the last inputs are the ones in effect). Without them the last robot to arrive was
     never marked arrived."""
     last = {row["robot"]: row for row in steps}
-    rows = []
+    rows, refs = [], reference_points(setup, np.flatnonzero(arriving), world.states)
     for i in np.flatnonzero(arriving):
-        name, x = world.robots[i].name, world.states[i]
-        ref = reference_point(setup, int(i), x)
+        name, x, ref = world.robots[i].name, world.states[i], refs[i]
         held = last.get(name, {})
         rows.append(dict(t=world.t, robot=name, x=x[0], y=x[1], heading=x[2], v=x[3], accel=held.get("accel", 0.0),
                          steer=held.get("steer", 0.0), ref_x=ref[0], ref_y=ref[1], ref_heading=ref[2], ref_v=ref[3], status="",
@@ -193,12 +197,17 @@ def with_vehicle_columns(steps: pd.DataFrame, wheelbase: dict, dt: float) -> pd.
     return steps
 
 
-def reference_point(setup: Setup, i: int, state: np.ndarray) -> np.ndarray:
-    """Robot ``i``'s reference ``[x, y, heading, v]`` where it is: the projection of its
-    rear axle ``state`` onto its task's path, as stage 0 of the MPC's reference. The runner
-    computes it for every robot at every step, whatever the coordinator did, so that
-    ``tracking_error_m`` measures every coordinator on the same samples."""
-    return setup.tasks[i].horizon(state, 0, setup.scenario["scenario.dt"])[0]
+def reference_points(setup: Setup, robots: np.ndarray, states: np.ndarray) -> np.ndarray:
+    """The references ``[x, y, heading, v]`` (n, 4) of the ``robots`` (indices) where they are,
+    in their rows (the others' rows unset): the projection of each rear axle (``states``, n
+    rows) onto its task's path, as stage 0 of the MPC's reference
+    (:func:`~aac_sumo.references.reference_points`). The runner computes them for every robot
+    at every step, whatever the coordinator did, so that ``tracking_error_m`` measures every
+    coordinator on the same samples."""
+    out = np.empty((len(states), 4))
+    if len(robots):
+        out[robots] = paths_reference_points([setup.tasks[i] for i in robots], states[robots], setup.scenario["scenario.dt"])
+    return out
 
 
 def warm_up(setup: Setup, world: WorldState) -> None:
@@ -217,8 +226,7 @@ def warm_up(setup: Setup, world: WorldState) -> None:
     pedestrian_clearance(world)
     footprints = world.robot_footprints()
     pairwise_rect_clearance(footprints, footprints)
-    for i in range(len(world.robots)):
-        reference_point(setup, i, world.states[i])
+    reference_points(setup, np.arange(len(world.robots)), world.states)
     try:
         shadow = copy.deepcopy(setup.coordinator)
         shadow.warm_up(world)
