@@ -35,6 +35,19 @@ def course_clearance(own, others, margin):
 
 
 @numba.njit(cache=True)
+def _ragged_gap(own, r_own, flat, first, count, radius, margin):
+    """:func:`course_clearance` of ``own`` (K, 5) against the course of ``count`` rows from row
+    ``first`` of ``flat`` (half diagonal ``radius``), each standing at its last row once ended."""
+    best = np.inf
+    for k in range(max(own.shape[0], count)):
+        a = own[min(k, own.shape[0] - 1)]
+        b = flat[first + min(k, count - 1)]
+        apart = math.hypot(a[0] - b[0], a[1] - b[1]) - r_own - radius
+        best = min(best, apart if apart >= margin else rect_clearance(a, b))
+    return best
+
+
+@numba.njit(cache=True)
 def ragged_nearest(own, flat, starts, lengths, boxes, skip, margin):
     """:func:`course_clearance` of the course ``own`` (K, 5) against courses of different
     lengths stored one after the other in ``flat`` (T, 5), and the course that gives it (the
@@ -45,10 +58,10 @@ def ragged_nearest(own, flat, starts, lengths, boxes, skip, margin):
 
     ``boxes`` (J, 4) ``[x_lo, y_lo, x_hi, y_hi]`` [m] bound each course's footprint centres
     (:func:`course_boxes`). The gap between two boxes less both half diagonals bounds every
-    stage's disc gap from below, so the courses are visited nearest box first, and the visit
-    stops at the first course whose bound is at least ``margin`` and above the least
-    clearance found: no course after it can give a smaller value, so the result is the same
-    as comparing every course."""
+    stage's disc gap from below. The course of the least bound is compared first; after it, a
+    course whose bound is at least ``margin`` and above the least clearance found so far is
+    skipped: its clearance is at least its bound, so it can neither give nor tie the least
+    (which only falls), and the result is the same as comparing every course."""
     n_own = own.shape[0]
     r_own = 0.5 * math.hypot(own[0, 2], own[0, 3])
     x_lo, x_hi, y_lo, y_hi = own[0, 0], own[0, 0], own[0, 1], own[0, 1]
@@ -58,25 +71,23 @@ def ragged_nearest(own, flat, starts, lengths, boxes, skip, margin):
     count_j = starts.shape[0]
     bound = np.empty(count_j)
     radius = np.empty(count_j)
+    least = -1
     for j in range(count_j):
         radius[j] = 0.5 * math.hypot(flat[starts[j], 2], flat[starts[j], 3])
         dx = max(boxes[j, 0] - x_hi, x_lo - boxes[j, 2], 0.0)
         dy = max(boxes[j, 1] - y_hi, y_lo - boxes[j, 3], 0.0)
         bound[j] = math.hypot(dx, dy) - r_own - radius[j]
-    best, nearest = np.inf, -1
-    for j in np.argsort(bound, kind="mergesort"):
-        if j == skip:
+        if j != skip and (least < 0 or bound[j] < bound[least]):
+            least = j
+    if least < 0:
+        return np.inf, -1
+    best, nearest = _ragged_gap(own, r_own, flat, starts[least], lengths[least], radius[least], margin), least
+    for j in range(count_j):
+        if j == skip or j == least or (bound[j] >= margin and bound[j] > best):
             continue
-        if bound[j] >= margin and bound[j] > best:
-            break
-        first, count = starts[j], lengths[j]
-        for k in range(max(n_own, count)):
-            a = own[min(k, n_own - 1)]
-            b = flat[first + min(k, count - 1)]
-            apart = math.hypot(a[0] - b[0], a[1] - b[1]) - r_own - radius[j]
-            gap = apart if apart >= margin else rect_clearance(a, b)
-            if gap < best or (gap == best and j < nearest):
-                best, nearest = gap, j
+        gap = _ragged_gap(own, r_own, flat, starts[j], lengths[j], radius[j], margin)
+        if gap < best or (gap == best and j < nearest):
+            best, nearest = gap, j
     return best, nearest
 
 
