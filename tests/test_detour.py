@@ -184,11 +184,18 @@ def test_near_its_goal_a_detour_goes_straight_there():
     assert len(detours.path(0).points) == 3
 
 
-@settings(max_examples=40, deadline=None)
-@given(seed=st.integers(0, 10_000), m=st.integers(0, 6), k=st.integers(1, 30))
-def test_rects_within_is_rect_distances_below_the_reach(seed, m, k):
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 10_000), m=st.integers(0, 40), k=st.integers(1, 300), along_path=st.booleans())
+def test_rects_within_is_rect_distances_below_the_reach(seed, m, k, along_path):
+    """Scattered points, and samples every few centimetres along a winding way (as a reference's
+    are), where the kernel skips the samples that a rectangle's distance rules out."""
     rng = np.random.default_rng(seed)
-    rects, points = random_rects(rng, m), rng.uniform(-4, 4, (k, 2))
+    if along_path:
+        turns = np.cumsum(rng.normal(0, 0.3, k))
+        points = np.cumsum(rng.uniform(0.0, 0.1, k)[:, None] * np.column_stack([np.cos(turns), np.sin(turns)]), axis=0) - 2.0
+    else:
+        points = rng.uniform(-4, 4, (k, 2))
+    rects = random_rects(rng, m)
     expected = [rect_distances(points, rect[None]).min() < CLEARANCE for rect in rects]
     np.testing.assert_array_equal(rects_within(points, rects, CLEARANCE), np.array(expected, dtype=bool))
 

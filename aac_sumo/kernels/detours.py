@@ -177,14 +177,24 @@ def rects_within(points, rects, reach):
         return out
     x_lo, x_hi = points[:, 0].min(), points[:, 0].max()
     y_lo, y_hi = points[:, 1].min(), points[:, 1].max()
+    walked = np.zeros(len(points))  # distance along the points, one to the next [m]
+    for p in range(1, len(points)):
+        walked[p] = walked[p - 1] + math.hypot(points[p, 0] - points[p - 1, 0], points[p, 1] - points[p - 1, 1])
     for k in range(len(rects)):
         # a rectangle lies within its half diagonal of its centre: one that far beyond the points' box is out of reach
+        far = reach + 0.5 * math.hypot(rects[k, 2], rects[k, 3]) + 1e-9
         outside = math.hypot(max(x_lo - rects[k, 0], rects[k, 0] - x_hi, 0.0), max(y_lo - rects[k, 1], rects[k, 1] - y_hi, 0.0))
-        if outside > reach + 0.5 * math.hypot(rects[k, 2], rects[k, 3]) + 1e-9:
+        if outside > far:
             continue
         c, s = math.cos(rects[k, 4]), math.sin(rects[k, 4])
-        for p in range(len(points)):
+        p = 0
+        while p < len(points):
+            centre = math.hypot(points[p, 0] - rects[k, 0], points[p, 1] - rects[k, 1])
+            if centre > far:  # the points within (centre - far) of it along the way are out of reach too
+                p = max(p + 1, np.searchsorted(walked, walked[p] + (centre - far), side="left"))
+                continue
             if _rect_distance(points[p, 0], points[p, 1], rects[k], c, s) < reach:
                 out[k] = True
                 break
+            p += 1
     return out
