@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from aac_sumo import config
 from aac_sumo.runs import runner
 from aac_sumo.cli.app import main
-from aac_sumo.coordination.detour import SAMPLES, Detours, plan_detour
+from aac_sumo.coordination.detour import LOOKAHEAD, SAMPLES, Detours, plan_detour
 from aac_sumo.geometry import rect_distances
 from aac_sumo.kernels.detours import band_costs, distance_field, rects_within, shortcut
 from aac_sumo.references import PathReference
@@ -147,6 +147,20 @@ def test_detours_only_where_a_standing_robot_is_in_the_way():
     np.testing.assert_allclose(route.points[-1], tasks[0].points[-1])
     assert polyline_distance(route.points, footprints[[1]]) >= CLEARANCE - CELL
     assert route.speed == tasks[0].speed and route.approach == tasks[0].approach
+
+
+def test_a_robot_plans_round_what_stands_within_the_lookahead_on_its_way_and_not_beyond():
+    """A parked robot on a long way is gone round once it lies within ``LOOKAHEAD`` of the rest of
+    the way, not while it lies farther on (it is likely to have moved by then)."""
+    for start, detoured in ((-LOOKAHEAD - 5.0, False), (-LOOKAHEAD + 5.0, True)):
+        tasks = [PathReference([[start, 0.0], [10.0, 0.0]], 1.0, approach=0.6),  # runs through robot 1's spot at x = 0
+                 PathReference([[-4.0, 4.0], [0.0, 0.0]], 1.0, approach=0.6)]    # parked at its goal
+        detours = Detours(tasks, stall_periods=10, check_periods=10, hard=HARD, clearance=CLEARANCE, cell=CELL)
+        states = np.array([[start, 0.0, 0.0, 1.0], [0.0, 0.0, 0.8, 0.0]])
+        footprints = np.column_stack([states[:, :2], np.full(2, 0.6), np.full(2, 0.4), states[:, 2]])
+        done = np.array([False, True])
+        detours.update(states, footprints, done, done, np.zeros((0, 5)), period=0)
+        assert (detours.routes[0] is not None) == detoured
 
 
 def test_detour_needs_committed_plans(capsys):

@@ -45,6 +45,10 @@ STILL_SPEED = 0.05
 CHECK_SPACING = 0.1
 #: Fewest reference checks in a period worth sharing out among threads (each is mostly Python).
 NEAR_THREADS = 16
+#: How far along what is left of its reference [m] a robot looks for standing footprints (20 s
+#: at the swarms' 1 m/s): what stands farther on is likely to have moved by the time it gets there,
+#: and a crowd of 1,000 re-planned hundreds of whole detours a second for it.
+LOOKAHEAD = 20.0
 #: Within this distance [m] of its goal, a robot on a detour whose straight way to the goal is
 #: free goes straight there: a detour's last corner near the goal is a hook a car cannot follow.
 FINAL = 1.5
@@ -86,7 +90,7 @@ class Detours:
     but its own, from its footprint centre to its goal, ``hard`` and ``clearance`` [m], grid
     ``cell`` [m]) when it has stood for ``stall_periods`` (and again after each further such
     stretch), and, every ``check_periods``, when what is left of its reference (from its
-    projection on) comes within ``clearance`` of a standing footprint. A robot on a grid detour
+    projection on, for ``LOOKAHEAD``) comes within ``clearance`` of a standing footprint. A robot on a grid detour
     re-plans only when something stands near what is left of it that its plan did not go round
     (the same footprint row); after a stall, also when it has moved since the plan or a
     footprint it went round there no longer stands. Within ``FINAL`` of its
@@ -168,10 +172,12 @@ class Detours:
 
     def near(self, i: int, state: np.ndarray, rects: np.ndarray) -> np.ndarray:
         """Which of ``rects`` (m, 5) come within ``clearance`` of what is left of robot ``i``'s
-        reference, from its projection to the goal (samples every ``CHECK_SPACING``), (m,)."""
+        reference, from its projection on for ``LOOKAHEAD`` or to the goal (samples every
+        ``CHECK_SPACING``), (m,)."""
         path = self.path(i)
         s0, _ = path.project(state[:2])
-        s = np.append(np.arange(s0, path.length, CHECK_SPACING), path.length)
+        end = min(path.length, s0 + LOOKAHEAD)
+        s = np.append(np.arange(s0, end, CHECK_SPACING), end)
         return rects_within(path.pose_at(s)[:, :2], rects, self.clearance)
 
     def keeps(self, i: int, state: np.ndarray, start: np.ndarray, near: np.ndarray, stalled: bool) -> bool:
