@@ -45,9 +45,10 @@ STILL_SPEED = 0.05
 CHECK_SPACING = 0.1
 #: Fewest reference checks in a period worth sharing out among threads (each is mostly Python).
 NEAR_THREADS = 16
-#: How far along what is left of its reference [m] a robot looks for standing footprints (20 s
-#: at the swarms' 1 m/s): what stands farther on is likely to have moved by the time it gets there,
-#: and a crowd of 1,000 re-planned hundreds of whole detours a second for it.
+#: How far along what is left of its reference [m] a robot looks for standing footprints, and
+#: plans its detours (20 s at the swarms' 1 m/s): what stands farther on is likely to have moved
+#: by the time it gets there, and a crowd of 1,000 re-planned hundreds of whole detours a second
+#: for it, each an A* search across the area.
 LOOKAHEAD = 20.0
 #: Within this distance [m] of its goal, a robot on a detour whose straight way to the goal is
 #: free goes straight there: a detour's last corner near the goal is a hook a car cannot follow.
@@ -87,7 +88,8 @@ class Detours:
 
     Standing are the debris, the ``parked`` robots and those that have stood for
     ``stall_periods``. A robot plans a detour (:func:`plan_detour` round the standing footprints
-    but its own, from its footprint centre to its goal, ``hard`` and ``clearance`` [m], grid
+    but its own, from its footprint centre to its goal, or to ``LOOKAHEAD`` on along its
+    reference and then along the rest of it (:meth:`plan`), ``hard`` and ``clearance`` [m], grid
     ``cell`` [m]) when it has stood for ``stall_periods`` (and again after each further such
     stretch), and, every ``check_periods``, when what is left of its reference (from its
     projection on, for ``LOOKAHEAD``) comes within ``clearance`` of a standing footprint. A robot on a grid detour
@@ -156,13 +158,26 @@ class Detours:
         nears = thread_map(lambda check: self.near(check[0], states[check[0]], check[1]), checks, self.workers, NEAR_THREADS)
         jobs = [(i, rects) for (i, rects, stalled), near in zip(checks, nears)  # to plan, each round what stood at the period's start
                 if not self.keeps(i, states[i], footprints[i, :2], rects[near], stalled)]
-        plans = thread_map(lambda job: plan_detour(footprints[job[0], :2], self.goals[job[0]], job[1], self.hard, self.clearance,
-                                                   self.cell), jobs, self.workers)
+        plans = thread_map(lambda job: self.plan(job[0], states[job[0]], footprints[job[0], :2], job[1]), jobs, self.workers)
         for (i, rects), waypoints in zip(jobs, plans):
             if waypoints is not None and len(waypoints) >= 2:
                 self.routes[i], self.final[i] = self.route(i, waypoints), False
                 self.basis[i] = (footprints[i, :2].copy(), rects)
                 self.planned += 1
+
+    def plan(self, i: int, state: np.ndarray, start: np.ndarray, rects: np.ndarray) -> np.ndarray | None:
+        """Waypoints (K, 2) [m] of robot ``i``'s new detour from its footprint centre ``start`` round
+        ``rects`` (:func:`plan_detour`): where more than ``LOOKAHEAD`` of its reference is left
+        beyond the projection of its rear axle ``state``, to the reference's point ``LOOKAHEAD``
+        on and then along the rest of the reference (what stands farther on is looked at again
+        on the way); else, or when that point is blocked, to its goal. None: no way found."""
+        path = self.path(i)
+        s0 = path.project(state[:2])[0]
+        if path.length - s0 > LOOKAHEAD:
+            head = plan_detour(start, path.pose_at(s0 + LOOKAHEAD)[0, :2], rects, self.hard, self.clearance, self.cell)
+            if head is not None and len(head) >= 2:
+                return np.vstack([head, path.points[path.s > s0 + LOOKAHEAD]])
+        return plan_detour(start, self.goals[i], rects, self.hard, self.clearance, self.cell)
 
     def route(self, i: int, waypoints: np.ndarray) -> PathReference:
         """A detour of robot ``i`` through ``waypoints`` (K, 2), with its task's speed, braking,
