@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from aac_sumo.geometry import polyline_offset, wrap_angle
-from aac_sumo.kernels.paths import closest_on_polyline, path_headings, path_poses, polyline_chunks, project_points
+from aac_sumo.kernels.paths import closest_on_polyline, path_headings, path_poses, paths_at, polyline_chunks, project_points
 
 #: Segments per bounding circle of a path's projection (:func:`~aac_sumo.kernels.paths.closest_on_polyline`):
 #: at least PROJECTION_CHUNK, and the square root of the segment count on longer paths, so that a
@@ -230,31 +230,49 @@ class PathReference:
         return bool(np.hypot(*(np.asarray(state[:2]) - self.points[-1])) <= tolerance)
 
 
-def reference_points(tasks: list[PathReference], states: np.ndarray, dt: float) -> np.ndarray:
+class PathSet:
+    """The arrays of many paths end to end, for compiled loops over robots (:func:`paths_at`):
+    built for one list of tasks, and :meth:`holds` tells whether it is still that list."""
+
+    def __init__(self, tasks: list[PathReference]):
+        self.tasks = tuple(tasks)
+        parts = [task.arrays() for task in tasks]
+        rows = lambda k: np.r_[0, np.cumsum([len(p[k]) for p in parts])].astype(np.int64)
+        self.path_rows, self.seg_rows, self.chunk_rows = rows(0), rows(1), rows(6)
+        join = lambda k, width: np.ascontiguousarray(np.concatenate([p[k] for p in parts]).reshape(-1, *width))
+        self.arrays = (join(0, (2,)), join(1, ()), join(2, ()), join(3, (2,)), join(4, ()), join(5, ()), join(6, (2,)), join(7, ()),
+                       self.path_rows, self.seg_rows, self.chunk_rows, np.array([p[8] for p in parts], dtype=np.int64),
+                       np.array([t.stop_at_end for t in tasks], dtype=bool), np.array([t.approach for t in tasks]),
+                       np.array([t.length for t in tasks]))
+        self.stop_at_end, self.length = self.arrays[12], self.arrays[14]
+        self.speed, self.decel = np.array([t.speed for t in tasks]), np.array([t.decel for t in tasks])
+        self.limited = np.array([t.limits is not None for t in tasks], dtype=bool)
+
+    def holds(self, tasks: list[PathReference]) -> bool:
+        """Whether ``tasks`` are the very objects this set was built for."""
+        return len(tasks) == len(self.tasks) and all(a is b for a, b in zip(tasks, self.tasks))
+
+
+def reference_points(tasks: list[PathReference], states: np.ndarray, dt: float, paths: PathSet | None = None) -> np.ndarray:
     """Each robot's reference ``[x, y, heading, v]`` where it is (n, 4): row i is
-    ``tasks[i].horizon(states[i], 0, dt)[0]`` to the bit. Robots on their path (no goal
-    approach, no speed limits) take only the projection and the pose lookup one at a time;
-    their speeds and unwrapped headings are computed for all of them at once (the same
-    elementwise operations, so the same numbers)."""
-    states = np.asarray(states, dtype=float)
+    ``tasks[i].horizon(states[i], 0, dt)[0]`` to the bit. Robots surely on their paths (no goal
+    approach, no speed limits) are projected in one compiled loop (``paths``: the tasks' arrays
+    end to end, built here if not given) and their speeds and unwrapped headings computed for all
+    at once (the same operations, so the same numbers); the others one at a time by ``horizon``."""
+    states = np.ascontiguousarray(states, dtype=float)
+    paths = paths if paths is not None and paths.holds(tasks) else PathSet(tasks)
+    s0, pose, on_path = paths_at(states, *paths.arrays)
+    on_path &= ~paths.limited
     out = np.empty((len(tasks), 4))
-    on_path = np.zeros(len(tasks), dtype=bool)
-    s0 = np.zeros(len(tasks))
-    for i, task in enumerate(tasks):
-        _, _, s, mode = task._goal_mode(states[i])
-        if mode == "path" and task.limits is None:
-            on_path[i], s0[i] = True, s
-            out[i, :3] = task.pose_at(s)[0]
-        else:
-            out[i] = task.horizon(states[i], 0, dt)[0]
+    for i in np.flatnonzero(~on_path):
+        out[i] = tasks[i].horizon(states[i], 0, dt)[0]
     rows = np.flatnonzero(on_path)
     if rows.size:
-        picked = [tasks[i] for i in rows]
-        speed = np.array([t.speed for t in picked])
-        stops = np.array([t.stop_at_end for t in picked], dtype=bool)
-        braking = np.sqrt(2.0 * np.array([t.decel for t in picked]) * np.clip(np.array([t.length for t in picked]) - s0[rows], 0.0, None))
-        out[rows, 3] = np.where(stops, np.minimum(speed, braking), speed)
-        out[rows, 2] = states[rows, 2] + wrap_angle(out[rows, 2] - states[rows, 2])
+        speed = paths.speed[rows]
+        braking = np.sqrt(2.0 * paths.decel[rows] * np.clip(paths.length[rows] - s0[rows], 0.0, None))
+        out[rows, :3] = pose[rows]
+        out[rows, 3] = np.where(paths.stop_at_end[rows], np.minimum(speed, braking), speed)
+        out[rows, 2] = states[rows, 2] + wrap_angle(pose[rows, 2] - states[rows, 2])
     return out
 
 

@@ -168,7 +168,7 @@ def test_reference_points_are_each_horizons_first_row_to_the_bit(seed, robots):
     computed for all at once) gives row for row what ``horizon(state, 0, dt)[0]`` gives: on
     paths that stop or go on, with speed limits, near goals (the approach and the back-off, with
     their free headings) and on the paths themselves, with headings many turns off."""
-    from aac_sumo.references import reference_points
+    from aac_sumo.references import PathSet, reference_points
 
     rng = np.random.default_rng(seed)
     tasks, states = [], []
@@ -183,3 +183,7 @@ def test_reference_points_are_each_horizons_first_row_to_the_bit(seed, robots):
     states = np.array(states)
     expected = np.array([task.horizon(state, 0, 0.1)[0] for task, state in zip(tasks, states)])
     np.testing.assert_array_equal(reference_points(tasks, states, 0.1), expected)
+    np.testing.assert_array_equal(reference_points(tasks, states, 0.1, PathSet(tasks)), expected)  # the arrays kept
+    stale = PathSet(tasks[::-1])  # built for other tasks: not used
+    assert stale.holds(tasks[::-1]) and (robots == 1 or not stale.holds(tasks))
+    np.testing.assert_array_equal(reference_points(tasks, states, 0.1, stale), expected)

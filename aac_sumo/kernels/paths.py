@@ -146,3 +146,30 @@ def path_poses(points, cum, seg_len, seg_dir, seg_heading, stop_at_end, s):
         out[k, 1] = points[i, 1] + local * seg_dir[i, 1]
         out[k, 2] = seg_heading[i]
     return out
+
+
+@numba.njit(cache=True)
+def paths_at(states, points, seg_len, cum, seg_dir, seg_heading, t_max, chunk_centre, chunk_radius, path_rows, seg_rows, chunk_rows,
+             chunk, stop_at_end, approach, length):
+    """Where each robot's rear axle (``states`` (n, 4)) projects on its own path, for many paths
+    stored end to end (path k: ``points[path_rows[k]:path_rows[k + 1]]`` with its segments'
+    arrays from ``seg_rows[k]`` and its projection chunks from ``chunk_rows[k]``, as
+    :meth:`~aac_sumo.references.PathReference.arrays` gives each): the arc length (n,) [m] and
+    the pose ``[x, y, heading]`` (n, 3) there, as ``PathReference.project`` and ``pose_at``
+    give them, and whether the robot is surely on its path rather than approaching its goal
+    (``PathReference.horizon``'s rule, with a nanometre to spare; False: decide it there)."""
+    n = states.shape[0]
+    s = np.empty(n)
+    pose = np.empty((n, 3))
+    on_path = np.zeros(n, dtype=np.bool_)
+    for k in range(n):
+        p0, p1, q0, q1 = path_rows[k], path_rows[k + 1], seg_rows[k], seg_rows[k + 1]
+        pts, lengths, arcs = points[p0:p1], seg_len[q0:q1], cum[p0:p1]
+        i, t, off = closest_on_polyline(pts, lengths, t_max[q0:q1], states[k, 0], states[k, 1], chunk_centre[chunk_rows[k]:chunk_rows[k + 1]],
+                                        chunk_radius[chunk_rows[k]:chunk_rows[k + 1]], chunk[k])
+        s[k] = arcs[i] + t * lengths[i]
+        pose[k] = path_poses(pts, arcs, lengths, seg_dir[q0:q1], seg_heading[q0:q1], stop_at_end[k], s[k:k + 1])[0]
+        gx, gy = pts[p1 - p0 - 1, 0] - states[k, 0], pts[p1 - p0 - 1, 1] - states[k, 1]
+        dist = math.hypot(gx, gy)
+        on_path[k] = not stop_at_end[k] or approach[k] <= 0.0 or (dist > approach[k] + 1e-9 and length[k] - s[k] > off + 1e-9)
+    return s, pose, on_path

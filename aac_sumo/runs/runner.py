@@ -20,7 +20,7 @@ from aac_sumo.experiments.common import Setup
 from aac_sumo.geometry import pairwise_rect_clearance
 from aac_sumo.metrics import nearest_robot_distance, pedestrian_clearance, time_to_collision
 from aac_sumo.mpc.problem import get_problem
-from aac_sumo.references import reference_points as paths_reference_points
+from aac_sumo.references import PathSet, reference_points
 from aac_sumo.runs.recording import Recording, RunResult, assemble_metrics
 from aac_sumo.world import WorldState
 
@@ -100,6 +100,7 @@ def loop(setup: Setup, rec: Recording) -> None:
     window = int(round(patience / dt))
     crossings = tuple(rec.crossings or ())  # the map's, static: every period's world holds them
     history: deque[np.ndarray] = deque(maxlen=window + 1)  # rear-axle positions, for the deadlock rule
+    references = References(setup)
     workers = scenario["controller.workers"]  # the metrics' compiled loops share the coordinator's threads
     numba.set_num_threads(min(workers if workers > 0 else cores(), numba.config.NUMBA_NUM_THREADS))
     active_overlaps: set = set()
@@ -116,7 +117,7 @@ def loop(setup: Setup, rec: Recording) -> None:
         rec.arrival[arriving] = world.t
         if done.all():
             rec.completed, rec.task_duration = True, world.t
-            rec.steps += arrival_rows(setup, world, arriving & here, rec.steps)
+            rec.steps += arrival_rows(world, arriving & here, rec.steps, references)
             return
         if k * dt >= duration - 1e-9:
             return
@@ -137,7 +138,7 @@ def loop(setup: Setup, rec: Recording) -> None:
             rec.sim_collisions = (rec.sim_collisions or 0) + contacts.sim_collisions
         rec.periods.append(dict(t=world.t, compute_ms=decision.compute_ms, **decision.notes))
         inputs = decision.inputs if contacts.applied is None else contacts.applied  # what the robots did (SUMO's driver)
-        refs = reference_points(setup, np.flatnonzero(here), world.states)
+        refs = references(world.states)
         for i, (robot, r) in enumerate(zip(world.robots, decision.robots)):
             if not here[i]:
                 continue
@@ -154,14 +155,14 @@ def loop(setup: Setup, rec: Recording) -> None:
             ))
 
 
-def arrival_rows(setup: Setup, world: WorldState, arriving: np.ndarray, steps: list[dict]) -> list[dict]:
+def arrival_rows(world: WorldState, arriving: np.ndarray, steps: list[dict], references: References) -> list[dict]:
     """``steps.csv`` rows of the robots ``arriving`` (n,) at the run's last observation, the one
     that completes it: their state and reference point, ``arrived`` true, no solve (``status``
     empty), and the inputs and mode of their last row in ``steps`` held (no decision is taken
     then; the last inputs are the ones in effect). Without them the last robot to arrive was
     never marked arrived."""
     last = {row["robot"]: row for row in steps}
-    rows, refs = [], reference_points(setup, np.flatnonzero(arriving), world.states)
+    rows, refs = [], references(world.states)
     for i in np.flatnonzero(arriving):
         name, x, ref = world.robots[i].name, world.states[i], refs[i]
         held = last.get(name, {})
@@ -197,17 +198,21 @@ def with_vehicle_columns(steps: pd.DataFrame, wheelbase: dict, dt: float) -> pd.
     return steps
 
 
-def reference_points(setup: Setup, robots: np.ndarray, states: np.ndarray) -> np.ndarray:
-    """The references ``[x, y, heading, v]`` (n, 4) of the ``robots`` (indices) where they are,
-    in their rows (the others' rows unset): the projection of each rear axle (``states``, n
-    rows) onto its task's path, as stage 0 of the MPC's reference
-    (:func:`~aac_sumo.references.reference_points`). The runner computes them for every robot
-    at every step, whatever the coordinator did, so that ``tracking_error_m`` measures every
-    coordinator on the same samples."""
-    out = np.empty((len(states), 4))
-    if len(robots):
-        out[robots] = paths_reference_points([setup.tasks[i] for i in robots], states[robots], setup.scenario["scenario.dt"])
-    return out
+class References:
+    """Every robot's reference ``[x, y, heading, v]`` where it is (n, 4): the projection of its
+    rear axle onto its task's path, as stage 0 of the MPC's reference
+    (:func:`~aac_sumo.references.reference_points`; the tasks' arrays kept while the tasks stay
+    the same objects). The runner computes them for every robot at every step, whatever the
+    coordinator did, so that ``tracking_error_m`` measures every coordinator on the same samples."""
+
+    def __init__(self, setup: Setup):
+        self.setup, self.paths = setup, None
+
+    def __call__(self, states: np.ndarray) -> np.ndarray:
+        tasks = self.setup.tasks
+        if self.paths is None or not self.paths.holds(tasks):
+            self.paths = PathSet(tasks)
+        return reference_points(tasks, states, self.setup.scenario["scenario.dt"], self.paths)
 
 
 def warm_up(setup: Setup, world: WorldState) -> None:
@@ -226,7 +231,7 @@ def warm_up(setup: Setup, world: WorldState) -> None:
     pedestrian_clearance(world)
     footprints = world.robot_footprints()
     pairwise_rect_clearance(footprints, footprints)
-    reference_points(setup, np.arange(len(world.robots)), world.states)
+    References(setup)(world.states)
     try:
         shadow = copy.deepcopy(setup.coordinator)
         shadow.warm_up(world)
