@@ -260,6 +260,8 @@ def reference_points(tasks: list[PathReference], states: np.ndarray, dt: float, 
     end to end, built here if not given) and their speeds and unwrapped headings computed for all
     at once (the same operations, so the same numbers); the others one at a time by ``horizon``."""
     states = np.ascontiguousarray(states, dtype=float)
+    if not len(tasks):
+        return np.empty((0, 4))
     paths = paths if paths is not None and paths.holds(tasks) else PathSet(tasks)
     s0, pose, on_path = paths_at(states, *paths.arrays)
     on_path &= ~paths.limited
