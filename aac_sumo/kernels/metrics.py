@@ -94,10 +94,22 @@ def times_to_collision(rows, velocity, n):
     along ``w``, touches j's: TTC = :func:`sweep_gap` along ``w`` / ``|w|``. inf when nothing
     counts."""
     radius = _half_diagonals(rows)
+    m = rows.shape[0]
+    cx, cy = np.ascontiguousarray(rows[:, 0]), np.ascontiguousarray(rows[:, 1])
+    vx, vy = np.ascontiguousarray(velocity[:, 0]), np.ascontiguousarray(velocity[:, 1])
     out = np.full(n, np.inf)
     for i in numba.prange(n):  # each robot's least time alone: the same numbers on any number of threads
         hx, hy = math.cos(rows[i, 4]), math.sin(rows[i, 4])
-        for j in range(rows.shape[0]):
-            if j != i:
+        # first, without branches (a loop the compiler can vectorise), the pairs that pass
+        # _pair_time's two cheap tests, computed as it computes them; it decides those alone
+        passing = np.empty(m, dtype=np.bool_)
+        for j in range(m):
+            wx, wy = vx[i] - vx[j], vy[i] - vy[j]
+            dx, dy = cx[j] - cx[i], cy[j] - cy[i]
+            loose = ((radius[i] + radius[j] + 1e-9) * (1.0 + 1e-6) + 1e-6) ** 2 * (wx * wx + wy * wy)
+            across, along = dx * wy - dy * wx, dx * wx + dy * wy
+            passing[j] = (wx * hx + wy * hy > 1e-6) & (across * across <= loose) & ((along >= 0.0) | (along * along <= loose))
+        for j in range(m):
+            if passing[j] and j != i:
                 out[i] = min(out[i], _pair_time(rows, velocity, radius, i, j, hx, hy))
     return out
