@@ -50,21 +50,14 @@ def sweep_gap(a, b, dx, dy):
 
 
 @numba.njit(cache=True)
-def _pair_time(rows, velocity, radius, i, j, hx, hy):
-    """The time to collision [s] of robot ``i`` (heading cosine and sine ``hx``, ``hy``) with
-    ``j`` as :func:`times_to_collision` counts it (inf when it does not count); ``radius``: each
-    row's half diagonal [m]."""
+def _pair_time(rows, velocity, radius, i, j):
+    """The time to collision [s] of robot ``i`` with ``j`` as :func:`times_to_collision` counts
+    it (inf when it does not count), for a pair that passed its cheap tests there (the closing
+    velocity points ahead of ``i``; ``j`` not well off the sweep's line nor behind it);
+    ``radius``: each row's half diagonal [m]."""
     wx, wy = velocity[i, 0] - velocity[j, 0], velocity[i, 1] - velocity[j, 1]
-    if wx * hx + wy * hy <= 1e-6:
-        return np.inf
     dx, dy = rows[j, 0] - rows[i, 0], rows[j, 1] - rows[i, 1]
     reach = radius[i] + radius[j] + 1e-9
-    # without a root or a division first: a pair that is well off the sweep's line or behind it
-    # (by a millionth more than the test below asks) never touches; the test below decides the rest
-    loose = (reach * (1.0 + 1e-6) + 1e-6) ** 2 * (wx * wx + wy * wy)
-    across, along = dx * wy - dy * wx, dx * wx + dy * wy
-    if across * across > loose or (along < 0.0 and along * along > loose):
-        return np.inf
     closing = math.hypot(wx, wy)
     if closing <= 1e-6:
         return np.inf
@@ -100,8 +93,9 @@ def times_to_collision(rows, velocity, n):
     out = np.full(n, np.inf)
     for i in numba.prange(n):  # each robot's least time alone: the same numbers on any number of threads
         hx, hy = math.cos(rows[i, 4]), math.sin(rows[i, 4])
-        # first, without branches (a loop the compiler can vectorise), the pairs that pass
-        # _pair_time's two cheap tests, computed as it computes them; it decides those alone
+        # first, without branches (a loop the compiler can vectorise), the pairs that can count:
+        # the closing velocity points ahead of i, and, without a root or a division, j is not
+        # off the sweep's line or behind it by a millionth more than _pair_time's exact test asks
         passing = np.empty(m, dtype=np.bool_)
         for j in range(m):
             wx, wy = vx[i] - vx[j], vy[i] - vy[j]
@@ -111,5 +105,5 @@ def times_to_collision(rows, velocity, n):
             passing[j] = (wx * hx + wy * hy > 1e-6) & (across * across <= loose) & ((along >= 0.0) | (along * along <= loose))
         for j in range(m):
             if passing[j] and j != i:
-                out[i] = min(out[i], _pair_time(rows, velocity, radius, i, j, hx, hy))
+                out[i] = min(out[i], _pair_time(rows, velocity, radius, i, j))
     return out
