@@ -186,3 +186,15 @@ def test_the_weight_vector_is_filled_by_name():
     assert len(w) == N_WEIGHTS
     assert w[WEIGHTS["q"]].tolist() == [2.0, 2.0, 3.0, 4.0] and w[WEIGHTS["p"]].tolist() == [20.0, 20.0, 30.0, 40.0]
     assert w[WEIGHTS["r"]].tolist() == [5.0, 6.0] and w[WEIGHTS["s"]].tolist() == [7.0, 8.0]
+
+
+def test_a_negative_zero_is_read_as_zero_so_a_jitter_of_it_builds():
+    """``-0.0`` passes ``>= 0`` but numpy's ``uniform(-x, x)`` refuses it as a width (the fuzz
+    test found ``braking.t_brake_jitter = -0.0``): a number key reads it as 0.0."""
+    import math
+
+    from aac_sumo import experiments
+
+    scenario = config.load(config.resolve("braking")).with_overrides(["braking.t_brake_jitter=-0.0"])
+    assert math.copysign(1.0, scenario["braking.t_brake_jitter"]) == 1.0
+    experiments.build(scenario)

@@ -54,7 +54,7 @@ class Key:
             ok = True
         elif self.type is float:
             ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
-            value = float(value) if ok else value
+            value = float(value) + 0.0 if ok else value  # + 0.0: a negative zero is zero (numpy's uniform(-x, x) refuses x = -0.0)
         elif self.type is int:
             ok = isinstance(value, int) and not isinstance(value, bool)
         else:
