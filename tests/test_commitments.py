@@ -116,14 +116,49 @@ def test_one_authority_in_each_cluster_per_period(commit):
 
 
 @settings(max_examples=4, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(seed=st.integers(0, 10_000))
-@example(seed=4063)
-def test_spread_authorities_keep_every_commitment_apart(seed):
-    """Several authorities in one cluster plan in the same period; each commits only against the
-    commitments made before it, so the invariant holds as with one."""
-    scenario = config.load("random_crossing", PLAIN + ["random_crossing.n_robots=12", f"scenario.seed={seed}", 'aac.authorities="spread"'])
+@given(seed=st.integers(0, 10_000), crowd=st.sampled_from([0, 4]))
+@example(seed=4063, crowd=0)
+def test_spread_authorities_keep_every_commitment_apart(seed, crowd):
+    """Several authorities in one cluster plan in the same period (with ``crowd_authorities``, also
+    robots whose reach discs meet); each commits only against the commitments made before it, so
+    the invariant holds as with one."""
+    scenario = config.load("random_crossing", PLAIN + ["random_crossing.n_robots=12", f"scenario.seed={seed}", 'aac.authorities="spread"',
+                                                       f"aac.crowd_authorities={crowd}"])
     _, overlaps = drive(scenario, 40, commitments_apart)
     assert not overlaps
+
+
+@pytest.mark.parametrize("crowd", [1, 3, 100])
+def test_crowd_authorities_add_robots_in_no_close_pair_with_the_periods_authorities(crowd):
+    """A packed 4 x 4 block, 0.9 m apart, all one cluster: "spread" alone gives the authorities
+    whose reach discs cannot meet; ``crowd_authorities`` adds at most that many more, the
+    longest-waiting first, each at least ``close_distance`` from every authority before it;
+    with enough of them, every robot left out is in a close pair with one that plans."""
+    starts = [[0.9 * (k % 4), 0.9 * (k // 4), 0.0] for k in range(16)]
+    goals = [[0.9 * (k % 4) + 20.0, 0.9 * (k // 4)] for k in range(16)]
+    sets = swarm(starts, goals) + ['aac.authorities="spread"', "controller.obstacle_slots=16"]
+    spread = experiments.build(config.load("swarm_rescue", sets))
+    crowded = experiments.build(config.load("swarm_rescue", sets + [f"aac.crowd_authorities={crowd}"]))
+    world = crowded.sim.observe()
+    members = np.arange(16)
+    for setup in (spread, crowded):
+        setup.coordinator.decide(world)  # builds its fleet
+        assert len(setup.coordinator.groups(world, np.zeros(16, dtype=bool))) == 1  # one cluster (and this period's reach discs)
+        setup.coordinator.last_turn[:] = 0
+    before = [i for i, _ in spread.coordinator.turns_in_group(world, members, members, [RobotDecision(False)] * 16, 1)]
+    turns = [(i, why) for i, why in crowded.coordinator.turns_in_group(world, members, members, [RobotDecision(False)] * 16, 1)]
+    held = [i for i, _ in turns]
+    assert held[: len(before)] == before  # the same first authorities
+    extra = held[len(before):]
+    assert 1 <= len(extra) <= crowd and all(why == "round_robin" for _, why in turns[len(before):])
+    centres = world.robot_centres()
+    close = crowded.coordinator.params.close_distance
+    for k, i in enumerate(extra):
+        earlier = held[: len(before) + k]
+        assert np.hypot(*(centres[earlier] - centres[i]).T).min() >= close
+    if crowd == 100:
+        left = np.setdiff1d(members, held)
+        assert all(np.hypot(*(centres[held] - centres[j]).T).min() < close for j in left)
 
 
 def test_spread_gives_a_long_cluster_one_authority_per_stretch_that_cannot_meet():

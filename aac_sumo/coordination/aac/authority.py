@@ -155,14 +155,31 @@ class AacCoordinator(Coordinator):
                        period: int):
         """This period's authorities of one group, in turn, as ``(robot, why)``: one
         (:meth:`choose_in_group`), or with ``authorities = "spread"`` then more, each among the
-        candidates out of reach of those before it (:meth:`out_of_reach`), chosen once the one
-        before has planned, by round robin alone (:meth:`longest_waiting`; the lead's cycle and
-        the proximity decision pick the first)."""
+        candidates out of reach of those before it (:meth:`out_of_reach`), then up to
+        ``crowd_authorities`` more, each among the candidates in no close pair with those before
+        it (:meth:`apart`); each chosen once the one before has planned, by round robin alone
+        (:meth:`longest_waiting`; the lead's cycle and the proximity decision pick the first)."""
         i, reason = self.choose_in_group(world, members, candidates, records, period)
         yield i, reason
-        while self.params.authorities.spread and (candidates := self.out_of_reach(world, i, candidates)).size:
-            i, reason = self.longest_waiting(candidates, period)
+        chosen, rest = [i], candidates
+        while self.params.authorities.spread and (rest := self.out_of_reach(world, i, rest)).size:
+            i, reason = self.longest_waiting(rest, period)
+            chosen.append(i)
             yield i, reason
+        centres = world.robot_centres()
+        for _ in range(self.params.crowd_authorities):
+            apart = self.apart(centres, np.setdiff1d(candidates, chosen), np.array(chosen))
+            if not apart.size:
+                return
+            i, reason = self.longest_waiting(apart, period)
+            chosen.append(i)
+            yield i, reason
+
+    def apart(self, centres: np.ndarray, candidates: np.ndarray, chosen: np.ndarray) -> np.ndarray:
+        """Those of ``candidates`` whose footprint centre lies at least ``close_distance`` [m]
+        from that of every robot in ``chosen``: in no close pair with this period's authorities."""
+        gaps = np.hypot(*(centres[candidates, None, :] - centres[None, chosen, :]).transpose(2, 0, 1))
+        return candidates[gaps.min(axis=1, initial=np.inf) >= self.params.close_distance]
 
     def longest_waiting(self, candidates: np.ndarray, period: int) -> tuple[int, str]:
         """Round robin: the candidate that held authority longest ago (ties go to the lowest index)."""

@@ -86,6 +86,10 @@ class AacParams(AimsAhead):
                                      type=object, parse=lambda a: Authorities.parse(a), raw_default=1,
                                      check=lambda a: a in ("clusters", "spread") or (isinstance(a, int) and not isinstance(a, bool) and a >= 1),
                                      expect="a positive integer, \"clusters\" or \"spread\"")
+    crowd_authorities: int = param(0, "with authorities = \"spread\", up to this many more robots of a cluster plan each period after "
+                                   "those out of reach: the longest-waiting first, each at least close_distance from every robot that "
+                                   "planned before it in the period, round the commitments made before it (0: none)",
+                                   check=lambda k: isinstance(k, int) and not isinstance(k, bool) and 0 <= k <= 1000, expect="an integer in 0..1000")
     tail_brake: float = param(0.5, "deceleration of a commitment's stopping tail, as a share of the strongest braking |robot.a_min|",
                               check=lambda x: 0 < x <= 1, expect="in (0, 1]")
     firm_tail: float = param(0.0, "a commitment whose stopping tail at tail_brake fails the exact check is tried again with its "
@@ -150,3 +154,5 @@ class AacParams(AimsAhead):
             raise ParamError("manoeuvre", "false unless {section}.commit is true", True)
         if self.authorities.spread and not self.commit:
             raise ParamError("authorities", "\"clusters\" or an integer unless {section}.commit is true", "spread")
+        if self.crowd_authorities and not self.authorities.spread:
+            raise ParamError("crowd_authorities", "0 unless {section}.authorities is \"spread\"", self.crowd_authorities)
