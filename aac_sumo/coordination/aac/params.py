@@ -89,7 +89,7 @@ class AacParams(AimsAhead):
     crowd_authorities: int = param(0, "with authorities = \"spread\", up to this many more robots of a cluster plan each period after "
                                    "those out of reach: the longest-waiting first, each at least close_distance from every robot that "
                                    "planned before it in the period, round the commitments made before it (0: none)",
-                                   check=lambda k: isinstance(k, int) and not isinstance(k, bool) and 0 <= k <= 1000, expect="an integer in 0..1000")
+                                   check=lambda k: 0 <= k <= 1000, expect="in 0..1000")
     tail_brake: float = param(0.5, "deceleration of a commitment's stopping tail, as a share of the strongest braking |robot.a_min|",
                               check=lambda x: 0 < x <= 1, expect="in (0, 1]")
     firm_tail: float = param(0.0, "a commitment whose stopping tail at tail_brake fails the exact check is tried again with its "
