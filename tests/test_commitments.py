@@ -161,6 +161,16 @@ def test_crowd_authorities_add_robots_in_no_close_pair_with_the_periods_authorit
         assert all(np.hypot(*(centres[held] - centres[j]).T).min() < close for j in left)
 
 
+def test_crowd_authorities_act_only_with_spread():
+    """With one authority a period (the paper, the ablation's plain variants) the key changes
+    nothing: the scenario may set it and a user's ``aac.authorities=1`` still gives one."""
+    starts = [[0.9 * (k % 4), 0.9 * (k // 4), 0.0] for k in range(16)]
+    goals = [[0.9 * (k % 4) + 20.0, 0.9 * (k // 4)] for k in range(16)]
+    setup = experiments.build(config.load("swarm_rescue", swarm(starts, goals) + ["aac.authorities=1", "aac.crowd_authorities=5",
+                                                                                 "controller.obstacle_slots=16"]))
+    assert setup.coordinator.decide(setup.sim.observe()).notes["authorities"] == 1
+
+
 def test_spread_gives_a_long_cluster_one_authority_per_stretch_that_cannot_meet():
     """Nine robots in a row 1.2 m apart, each reach disc meeting its neighbours': one cluster.
     "clusters" gives it one authority; "spread" more, every two of them with reach discs apart."""

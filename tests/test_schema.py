@@ -172,7 +172,6 @@ def test_a_set_key_reaches_its_field_and_nested_fields():
     (["lfc.ignore_followers=true"], "lfc.ignore_followers", "expected false unless lfc.safety_stop is true, got True"),
     (["aac.commit=false", "aac.detour=true"], "aac.detour", "expected false unless aac.commit is true, got True"),
     (["aac.commit=false", "aac.manoeuvre=true"], "aac.manoeuvre", "expected false unless aac.commit is true, got True"),
-    (['aac.authorities="clusters"', "aac.crowd_authorities=2"], "aac.crowd_authorities", 'expected 0 unless aac.authorities is "spread", got 2'),
 ])
 def test_the_safety_rules_name_the_scenario_key(sets, key, text):
     scenario = config.load("swarm_rescue", sets)

@@ -80,7 +80,9 @@ def test_plain_paper_behaviour_has_no_safety_stops():
     assert m["n_robots"] == 8 and m["collisions"] == 0
     assert (steps.groupby("robot")["t"].count() == 30).all() and steps["t"].max() == pytest.approx(2.9)
     radius = np.hypot(steps["x"], steps["y"]).groupby(steps["robot"])
-    assert (radius.first() - radius.last() > 1.0).all()  # each robot covered ground towards the centre
+    # each robot covered ground towards the centre (0.94-1.04 m: with crowd authorities all eight plan every period
+    # and set off on their MPC plans, a little slower than on the tracking law between turns, 1.0-1.1 m)
+    assert (radius.first() - radius.last() > 0.9).all()
     assert m["safety_stops"] == 0 and not (steps["mode"] == "safety_stop").any()
     guarded = runner.run(config.load("circle_swap", ["aac.safety_stop=true", *sets])).metrics
     assert guarded["safety_stops"] > 0

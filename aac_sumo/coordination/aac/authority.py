@@ -155,7 +155,7 @@ class AacCoordinator(Coordinator):
                        period: int):
         """This period's authorities of one group, in turn, as ``(robot, why)``: one
         (:meth:`choose_in_group`), or with ``authorities = "spread"`` then more, each among the
-        candidates out of reach of those before it (:meth:`out_of_reach`), then up to
+        candidates out of reach of those before it (:meth:`out_of_reach`), and then up to
         ``crowd_authorities`` more, each among the candidates in no close pair with those before
         it (:meth:`apart`); each chosen once the one before has planned, by round robin alone
         (:meth:`longest_waiting`; the lead's cycle and the proximity decision pick the first)."""
@@ -167,7 +167,7 @@ class AacCoordinator(Coordinator):
             chosen.append(i)
             yield i, reason
         centres = world.robot_centres()
-        for _ in range(self.params.crowd_authorities):
+        for _ in range(self.params.crowd_authorities if self.params.authorities.spread else 0):
             apart = self.apart(centres, np.setdiff1d(candidates, chosen), np.array(chosen))
             if not apart.size:
                 return

@@ -88,7 +88,8 @@ class AacParams(AimsAhead):
                                      expect="a positive integer, \"clusters\" or \"spread\"")
     crowd_authorities: int = param(0, "with authorities = \"spread\", up to this many more robots of a cluster plan each period after "
                                    "those out of reach: the longest-waiting first, each at least close_distance from every robot that "
-                                   "planned before it in the period, round the commitments made before it (0: none)",
+                                   "planned before it in the period, round the commitments made before it (0: none; no effect "
+                                   "with other authorities settings)",
                                    check=lambda k: 0 <= k <= 1000, expect="in 0..1000")
     tail_brake: float = param(0.5, "deceleration of a commitment's stopping tail, as a share of the strongest braking |robot.a_min|",
                               check=lambda x: 0 < x <= 1, expect="in (0, 1]")
@@ -154,5 +155,3 @@ class AacParams(AimsAhead):
             raise ParamError("manoeuvre", "false unless {section}.commit is true", True)
         if self.authorities.spread and not self.commit:
             raise ParamError("authorities", "\"clusters\" or an integer unless {section}.commit is true", "spread")
-        if self.crowd_authorities and not self.authorities.spread:
-            raise ParamError("crowd_authorities", "0 unless {section}.authorities is \"spread\"", self.crowd_authorities)
