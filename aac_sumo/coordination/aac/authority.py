@@ -166,8 +166,10 @@ class AacCoordinator(Coordinator):
             i, reason = self.longest_waiting(rest, period)
             chosen.append(i)
             yield i, reason
-        for _ in range(self.params.crowd_authorities if self.params.authorities.spread else 0):
-            apart = self.apart(world.robot_centres(), np.setdiff1d(candidates, chosen), np.array(chosen))
+        extra = self.params.crowd_authorities if self.params.authorities.spread else 0
+        centres = world.robot_centres() if extra else None
+        for _ in range(extra):
+            apart = self.apart(centres, np.setdiff1d(candidates, chosen), np.array(chosen))
             if not apart.size:
                 return
             i, reason = self.longest_waiting(apart, period)
