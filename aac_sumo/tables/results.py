@@ -76,9 +76,14 @@ HIGHWAY_STORED = ("sweep", "highway_work_zone", *(a for key in (
 #: The city's controlled cars under AAC and under SUMO's own driver (the same cars, routes, walkers and traffic).
 CITY = ("sweep", "city", "--grid", "controller.coordinator=aac,sumo", "--seeds", "5")
 
+#: Table I's two coordinators on 20 seeds (0-19), every emergency layer off (the scenario's): is AAC's task time
+#: no longer than LFC's beyond the seed-to-seed spread?
+SWARM_20 = ("sweep", "swarm_rescue", "--grid", "controller.coordinator=aac,lfc", "--grid", "controller.horizon=5,10,15", "--seeds", "20")
+
 JOBS = (
     Job("swarm_table1_seeds0-4", ("table", "swarm", "--seeds", "5", "--baselines")),
     Job("swarm_table1_seeds5-9", ("table", "swarm", "--seeds", "5", "--baselines") + HELD_OUT),
+    Job("swarm_table1_sweep_seeds0-19", SWARM_20, SWEEP_OUTPUTS),
     Job("lane_change_table2_seeds0-4", ("table", "lane-change", "--seeds", "5", "--baselines")),
     Job("lane_change_table2_seeds5-9", ("table", "lane-change", "--seeds", "5", "--baselines") + HELD_OUT),
     Job("lane_change_lfc_committed_seeds0-4", LFC_COMMITTED, SWEEP_OUTPUTS),
