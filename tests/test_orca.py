@@ -157,3 +157,31 @@ def test_the_halfplane_tracking_law_keeps_a_head_on_swap_apart():
     m = runner.run(scenario).metrics
     assert m["completed"] is True, m.get("incomplete_reason")
     assert m["collisions"] == 0 and m["min_clearance_m"] > 0
+
+
+def test_the_rvo2_disc_table_runs_the_seeds_it_is_given_and_names_them(tmp_path):
+    """``python -m aac_sumo.tables.orca_discs --seed S --seeds N``: each of the 9 cells over seeds
+    S..S+N-1, in files named for them, the first line naming the command; the same seed gives the
+    same run (the table's held-out blocks are comparable with ours)."""
+    import pandas as pd
+
+    from aac_sumo.tables import orca_discs
+
+    assert orca_discs.main(["--seed", "7", "--seeds", "1", "--out", str(tmp_path)]) == 0
+    runs = pd.read_csv(tmp_path / "orca_rvo2_discs_seeds7-7.csv")
+    assert len(runs) == 9 and set(runs["seed"]) == {7}
+    assert set(zip(runs["n_robots"], runs["radius"])) == {(n, r) for n in (8, 16, 24) for r in (4.0, 6.0, 8.0)}
+    assert "--seed 7 --seeds 1" in (tmp_path / "orca_rvo2_discs_seeds7-7.md").read_text().splitlines()[2]
+    again = orca_discs.run(16, 4.0, 7)
+    row = runs[(runs["n_robots"] == 16) & (runs["radius"] == 4.0)].iloc[0]
+    assert again["completed"] == row["completed"] and again["min_gap_m"] == pytest.approx(row["min_gap_m"], abs=1e-9)
+
+
+@pytest.mark.parametrize("args", [["--seed", "-1"], ["--seeds", "0"]])
+def test_the_rvo2_disc_table_refuses_impossible_seeds_with_exit_2(tmp_path, capsys, args):
+    from aac_sumo.tables import orca_discs
+
+    with pytest.raises(SystemExit) as stop:
+        orca_discs.main([*args, "--out", str(tmp_path)])
+    assert stop.value.code == 2
+    assert "--seed" in capsys.readouterr().err.strip().splitlines()[-1]

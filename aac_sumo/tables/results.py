@@ -121,8 +121,9 @@ JOBS = (
     Job("orca_circle_swap", (), tuple((f"orca_circle_swap_{v}_seeds0-4{ext}", f"_{v}_seeds0-4{ext}")
                                       for v in ("plain", "margin", "noise", "halfplanes") for ext in (".md", ".csv")),
         parallel=False, module="aac_sumo.tables.orca_circle_swap"),
-    Job("orca_rvo2_discs_seeds0-4", (), (("orca_rvo2_discs_seeds0-4.md", ".md"), ("orca_rvo2_discs_seeds0-4.csv", ".csv")),
-        parallel=False, module="aac_sumo.tables.orca_discs"),
+    *(Job(f"orca_rvo2_discs_seeds{b}-{b + 4}", ("--seed", str(b)), ((f"orca_rvo2_discs_seeds{b}-{b + 4}.md", ".md"),
+                                                                   (f"orca_rvo2_discs_seeds{b}-{b + 4}.csv", ".csv")),
+          parallel=False, module="aac_sumo.tables.orca_discs") for b in (0, 5, 10)),
 )
 
 
