@@ -177,11 +177,11 @@ def test_the_rvo2_disc_table_runs_the_seeds_it_is_given_and_names_them(tmp_path)
     assert again["completed"] == row["completed"] and again["min_gap_m"] == pytest.approx(row["min_gap_m"], abs=1e-9)
 
 
-@pytest.mark.parametrize("args", [["--seed", "-1"], ["--seeds", "0"]])
-def test_the_rvo2_disc_table_refuses_impossible_seeds_with_exit_2(tmp_path, capsys, args):
+@pytest.mark.parametrize("args, flag", [(["--seed", "-1"], "--seed:"), (["--seeds", "0"], "--seeds:")])
+def test_the_rvo2_disc_table_refuses_impossible_seeds_with_exit_2_and_one_line(tmp_path, capsys, args, flag):
     from aac_sumo.tables import orca_discs
 
-    with pytest.raises(SystemExit) as stop:
-        orca_discs.main([*args, "--out", str(tmp_path)])
-    assert stop.value.code == 2
-    assert "--seed" in capsys.readouterr().err.strip().splitlines()[-1]
+    assert orca_discs.main([*args, "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and flag in err[0] and "expected an integer" in err[0] and args[1] in err[0]
+    assert not list(tmp_path.iterdir())  # nothing run, nothing written

@@ -82,7 +82,9 @@ def main(argv=None) -> int:
     parser.add_argument("--seeds", type=int, default=5, metavar="N", help="seeds per cell, S to S+N-1 (default 5)")
     args = parser.parse_args(argv)
     if args.seed < 0 or args.seeds < 1:
-        parser.error(f"--seed: expected an integer >= 0, got {args.seed}; --seeds: expected an integer >= 1, got {args.seeds}")
+        flag, value, least = ("--seed", args.seed, 0) if args.seed < 0 else ("--seeds", args.seeds, 1)
+        print(f"python -m aac_sumo.tables.orca_discs: {flag}: expected an integer >= {least}, got {value}", file=sys.stderr)
+        return 2
     seeds = range(args.seed, args.seed + args.seeds)
     name = f"orca_rvo2_discs_seeds{seeds[0]}-{seeds[-1]}"
     args.out.mkdir(parents=True, exist_ok=True)
