@@ -8,10 +8,10 @@ STAMP := $(VENV)/.installed
 
 .PHONY: demo demo-braking test test-fast bench results clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e ".[dev]"
+	$(BIN)/pip install --quiet -c constraints.txt -e ".[dev]"
 	@echo "compiling the numba kernels and the lane change's C solver once (about 30 s)"
 	$(BIN)/aac-sumo run lane_change --set scenario.duration=1 --out $(VENV)/warm-up > /dev/null
 	touch $(STAMP)

@@ -11,7 +11,16 @@ The names below load their modules on first use, so that ``import aac_sumo`` sta
 
 from __future__ import annotations
 
-import importlib
+import os
+
+# One run, one result on any x86-64 machine with AVX2: numpy's AVX-512 kernels and OpenBLAS's
+# per-CPU kernels round differently in the last bit, and a committed-plan run turns such a bit
+# into other decisions (docs/reliability.md, "Reproducible runs"). Set before numpy is imported;
+# a value already in the environment wins.
+os.environ.setdefault("NPY_DISABLE_CPU_FEATURES", "X86_V4 AVX512_ICL AVX512_SPR")
+os.environ.setdefault("OPENBLAS_CORETYPE", "Haswell")
+
+import importlib  # noqa: E402
 from importlib.metadata import PackageNotFoundError, version
 
 try:

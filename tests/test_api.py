@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import re
 import subprocess
 import sys
@@ -36,3 +37,22 @@ def test_the_package_exports_the_api_lazily():
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     assert done.stdout.strip()
+
+
+def _imported_env(env: dict) -> list[str]:
+    """What ``import aac_sumo`` leaves of the CPU-dispatch pins, and whether numpy came with it."""
+    code = ("import os, sys, aac_sumo; print('numpy' in sys.modules); "
+            "print(os.environ['NPY_DISABLE_CPU_FEATURES']); print(os.environ['OPENBLAS_CORETYPE'])")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=env)
+    assert done.returncode == 0, done.stderr
+    return done.stdout.splitlines()
+
+
+def test_importing_the_package_pins_numpy_and_openblas_kernels_before_numpy_loads():
+    clean = {k: v for k, v in os.environ.items() if k not in ("NPY_DISABLE_CPU_FEATURES", "OPENBLAS_CORETYPE")}
+    assert _imported_env(clean) == ["False", "X86_V4 AVX512_ICL AVX512_SPR", "Haswell"]
+
+
+def test_a_users_own_cpu_dispatch_settings_win():
+    env = dict(os.environ, NPY_DISABLE_CPU_FEATURES="X86_V3", OPENBLAS_CORETYPE="Prescott")
+    assert _imported_env(env) == ["False", "X86_V3", "Prescott"]
