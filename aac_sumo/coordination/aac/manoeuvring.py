@@ -1,5 +1,6 @@
 """Manoeuvring: a robot in a jam for ``manoeuvre_time`` takes, when it holds authority and its plan
-and creeping leave it standing, the first ``ESCAPE`` metres of a way to its goal planned on exact
+and creeping leave it standing (or, with ``livelock_time``, when it has rocked that long beside
+its goal without getting nearer), the first ``ESCAPE`` metres of a way to its goal planned on exact
 footprints (:mod:`~aac_sumo.coordination.manoeuvre`), and drives them without replanning (a mixin
 of :class:`~aac_sumo.coordination.aac.committed.CommittedAac`).
 
@@ -37,6 +38,13 @@ ESCAPE_END = 0.2
 INSIDE = 0.05
 
 
+def quiet(centres: np.ndarray, rows: np.ndarray, idle: np.ndarray) -> np.ndarray:
+    """For each robot of ``rows``, whether every robot whose footprint centre (``centres``, n by 2
+    [m]) lies within ``JAM_RADIUS`` of its own is ``idle`` (n,), itself included."""
+    near = np.hypot(*(centres[rows, None] - centres[None]).transpose(2, 0, 1)) <= JAM_RADIUS
+    return np.all(idle[None] | ~near, axis=1)
+
+
 class Manoeuvring:
     """The manoeuvring step of committed AAC (needs the coordinator's ``book``, ``fleet``,
     ``planner``, ``params``, ``tasks``, ``last_inputs``, ``commitment``, ``finished`` and
@@ -55,7 +63,7 @@ class Manoeuvring:
                   statics: np.ndarray) -> tuple[RobotDecision, int, int]:
         """Robot ``i``'s turn of authority: on a manoeuvre, it drives on with it; else it plans
         (:meth:`plan_committed`), and when that leaves it standing after it has stalled
-        (:meth:`stalled`), it manoeuvres where a way is found and passes the exact check.
+        (:meth:`stalled`), or it is livelocked, it manoeuvres where a way is found and passes the exact check.
         A robot still rocking brakes to rest first, within its manoeuvre.
         Returns its record, whether its plan was cut (or replaced), and whether its commitment
         was kept, as :meth:`plan_committed`."""
@@ -66,7 +74,7 @@ class Manoeuvring:
             return RobotDecision(True, reason=reason, mode="manoeuvre"), 0, 1
         record, cut, kept = self.plan_committed(world, i, others, reason, period, statics)
         stays = np.hypot(*(self.book.items[i].states[-1, :2] - world.states[i, :2])) < STAYS
-        if stays and record.mode != "creep" and self.manoeuvre(world, i, period, statics):
+        if (stays or self.livelocked[i]) and record.mode != "creep" and self.manoeuvre(world, i, period, statics):
             record.mode = "manoeuvre"
             return record, 1, 0
         return record, cut, kept
@@ -83,21 +91,29 @@ class Manoeuvring:
                                for j in range(n)]
             self._counted = self._searched = -1
             self.goals = np.array([task.points[-1] for task in self.tasks])
+            self.best = np.hypot(*(world.states[:, :2] - self.goals).T)  # nearest to its goal so far [m], and when
+            self.best_period = np.full(n, period)
         if self._counted == period:
             return
         self._counted = period
         self.trail.append(world.states[:, :2].copy())
-        self.jammed = np.zeros(n, dtype=bool)
+        self.jammed, self.livelocked = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+        done, centres = np.asarray(self.finished(world), dtype=bool), world.robot_centres()
+        dist = np.hypot(*(world.states[:, :2] - self.goals).T)
+        nearer = dist < self.best - STALL
+        self.best[nearer], self.best_period[nearer] = dist[nearer], period
+        if self.params.livelock_time > 0.0:
+            idle = (period - self.best_period >= int(round(self.params.livelock_time / self.planner.config.dt))) | done
+            rows = np.flatnonzero(idle & ~done)
+            self.livelocked[rows] = quiet(centres, rows, idle)
         if len(self.trail) == self.trail.maxlen:
             path = np.asarray(self.trail)
-            done = np.asarray(self.finished(world), dtype=bool)
             still = (np.hypot(*(path - path[0]).transpose(2, 0, 1)).max(axis=0) <= STALL) | done
             gained = np.hypot(*(path[0] - self.goals).T) - np.hypot(*(path[-1] - self.goals).T)
             idle = (gained <= STALL) | done  # moving, but none the nearer its goal (making room, rocking)
-            centres = world.robot_centres()
             rows = np.flatnonzero(still)  # only a robot that stood can be in a jam: no n-by-n distances
-            near = np.hypot(*(centres[rows, None] - centres[None]).transpose(2, 0, 1)) <= JAM_RADIUS
-            self.jammed[rows] = np.all(idle[None] | ~near, axis=1)
+            self.jammed[rows] = quiet(centres, rows, idle)
+        self.jammed |= self.livelocked
 
     def stalled(self, i: int) -> bool:
         """Whether robot ``i`` is in a jam: it got no further than ``STALL`` [m] from where it
@@ -105,7 +121,9 @@ class Manoeuvring:
         too), and no unfinished robot whose centre lies within ``JAM_RADIUS`` of its own got
         more than ``STALL`` nearer its goal meanwhile (one that waits while its neighbours move
         on does not stall; neighbours that only make room for a leader, or rock, move on
-        nowhere)."""
+        nowhere). With ``livelock_time`` also a robot that moves but has got no ``STALL`` nearer
+        its goal for that long, nor has any unfinished robot near it (livelocked: rocking back
+        and forth beside its goal between the approach and the back-off)."""
         return bool(self.jammed[i])
 
     def manoeuvre(self, world: WorldState, i: int, period: int, statics: np.ndarray) -> bool:

@@ -146,6 +146,8 @@ class AacParams(AimsAhead):
                             "forwards and, where it may reverse, backwards), and drives it when it passes the exact check; no "
                             "walkers or uncontrolled vehicles about")
     manoeuvre_time: float = param(3.0, "standing time after which a robot may manoeuvre [s]", **P)
+    livelock_time: float = param(0.0, "with manoeuvre: a robot that got no nearer its goal for this long [s], nor did any "
+                                 "unfinished robot near it, may manoeuvre even while it moves (rocking); 0 = off", **NN)
 
     def __post_init__(self):
         check_safety_options(self.safety_stop, self.fallback, self.ignore_followers, self.commit, self.detour)
