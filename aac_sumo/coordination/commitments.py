@@ -65,13 +65,9 @@ class Commitment:
     react: tuple | None = field(default=None, repr=False, compare=False)  # (period, its reaction then, that reaction's footprint rows), once asked for
 
     def input_at(self, period: int) -> np.ndarray:
-        """The input [accel, steer] of ``period``; once the commitment has ended (the robot
-        stands), no acceleration and the wheels left where its last input turned them (setting
-        them straight at once would break the steering-rate limit)."""
+        """The input [accel, steer] of ``period``; once ended (standing), none and the wheels where its last input left them."""
         k = period - self.start
-        if k < len(self.inputs):
-            return self.inputs[k]
-        return np.array([0.0, self.inputs[-1, 1]]) if len(self.inputs) else np.zeros(2)
+        return self.inputs[k] if k < len(self.inputs) else np.array([0.0, self.inputs[-1, 1] if len(self.inputs) else 0.0])
 
     def stage(self, period: int) -> str:
         """``plan`` in the planned part, ``tail`` while braking, ``hold`` once standing."""
