@@ -9,7 +9,9 @@ and round robin pick it within its group, with the conflict-resolution rules of
 :meth:`~aac_sumo.coordination.aac.authority.AacCoordinator.choose_in_group` and
 :mod:`~aac_sumo.coordination.make_room`. A standing authority whose plan leaves it standing
 may creep, and one that has stood long may manoeuvre; robots whose plan runs out extend their
-commitment on the tracking law where the exact check allows; detours route robots round standing footprints.
+commitment on the tracking law where the exact check allows; detours route robots round standing footprints;
+with ``goal_cruise`` a plan towards a goal goes on along its path before its tail
+(:mod:`~aac_sumo.coordination.aac.goal_cruise`).
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ import numpy as np
 
 from aac_sumo.coordination.aac.authority import SHIFT_DECAY, SHIFT_GROWTH, SLOW_SHARE, AacCoordinator
 from aac_sumo.coordination.aac.creeping import Creeping
+from aac_sumo.coordination.aac.goal_cruise import GoalCruise
 from aac_sumo.coordination.aac.manoeuvring import Manoeuvring
 from aac_sumo.coordination.aac.queueing import Queueing
 from aac_sumo.coordination.aac.traffic import TrafficBraking
@@ -56,7 +59,7 @@ DETOUR_CELL = 0.1
 DETOUR_CHECK = 1.0
 
 
-class CommittedAac(Manoeuvring, Creeping, Queueing, TrafficBraking, AacCoordinator):
+class CommittedAac(Manoeuvring, Creeping, GoalCruise, Queueing, TrafficBraking, AacCoordinator):
     """AAC with committed plans (see the module)."""
 
     commit = True
@@ -162,19 +165,6 @@ class CommittedAac(Manoeuvring, Creeping, Queueing, TrafficBraking, AacCoordinat
         ``firm_tail``) of its strongest braking, at most its comfort deceleration."""
         share = self.params.firm_tail if firm else self.params.tail_brake
         return np.minimum(share * -self.fleet.a_min, self.fleet.comfort)
-
-    def reaction_decel(self) -> np.ndarray:
-        """Each robot's reaction deceleration [m/s^2] (``traffic_reaction``): ``reaction_brake``
-        of its strongest braking, else its firm tail's (``firm_tail``), else its gentle tail's."""
-        if self.params.reaction_brake > 0.0:
-            return self.params.reaction_brake * -self.fleet.a_min
-        return self.tail_decel(self.params.firm_tail > self.params.tail_brake)
-
-    def held_decel(self, calm: float) -> np.ndarray:
-        """Each robot's deceleration [m/s^2] the check holds it to behind an uncontrolled vehicle:
-        its reaction's (``traffic_reaction``), else its gentle tail's within ``calm``, the
-        comfort envelope of its continuation."""
-        return self.reaction_decel() if self.params.traffic_reaction else np.minimum(self.tail_decel(), calm)
 
     def commitment(self, world: WorldState, i: int, period: int, head: np.ndarray, firm: bool = False):
         """Robot ``i``'s commitment from now: the inputs ``head`` (m, 2), then its stopping tail
@@ -295,6 +285,8 @@ class CommittedAac(Manoeuvring, Creeping, Queueing, TrafficBraking, AacCoordinat
             passed = self.continued_commitment(world, i, period, plan.inputs, statics, seen)
         if passed is None and self.book.traffic and self.behind_traffic[i]:  # behind a SUMO car: its continuation from now
             passed = self.continued_commitment(world, i, period, np.zeros((0, 2)), statics, seen)
+        if passed is None and plan.status == "solved" and self.params.goal_cruise > 0.0 and self.path(i).stop_at_end:
+            passed = self.cruising_to_goal(world, i, period, plan.inputs, statics)
         for m in cuts if passed is None else ():
             passed = self.passing(world, i, period, plan.inputs[:m], statics)
             if passed is not None:
@@ -313,7 +305,7 @@ class CommittedAac(Manoeuvring, Creeping, Queueing, TrafficBraking, AacCoordinat
         """Robots without authority whose planned course runs out (at most one planned period
         left) go on as the paper's robots without a plan do, on the tracking law, but only when
         that course (N periods of the law, continued with ``cruise`` as a plan is, then a stopping
-        tail) passes the same exact check as a plan; a robot whose try failed waits ``EXTENSION_RETRY`` periods before the next one. The
+        tail; with ``goal_cruise``, that much longer first) passes the same exact check as a plan; a robot whose try failed waits ``EXTENSION_RETRY`` periods before the next one. The
         law ignores obstacles, and uncontrolled vehicles are not in the check (walkers are), so a
         robot that such a vehicle (growing at the walkers' reach) may reach meanwhile is not
         extended. With ``cruise``, a robot renews its continuation every ``RENEW_EVERY``
@@ -356,8 +348,12 @@ class CommittedAac(Manoeuvring, Creeping, Queueing, TrafficBraking, AacCoordinat
                 continue
             if self.path(j).heading_free(world.states[j]):
                 continue  # approaching its goal off its path: a manoeuvre for its MPC, not for the forward-only law
-            candidate = self.commitment(world, j, period, self.tracking_inputs(world, j, cfg.horizon, comfort=True))
+            course = self.tracking_inputs(world, j, cfg.horizon + self.goal_cruise_periods(j), comfort=True)
+            candidate = self.commitment(world, j, period, course)
             gap, blocker = book.check(j, candidate, period, statics)
+            if gap < book.margin and len(course) > cfg.horizon:  # the law's course without its cruise
+                candidate = self.commitment(world, j, period, course[:cfg.horizon])
+                gap, blocker = book.check(j, candidate, period, statics)
             if gap >= book.margin:
                 book.replace(j, candidate, period)
                 records[j].mode = "tracking"

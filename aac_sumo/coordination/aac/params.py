@@ -102,6 +102,10 @@ class AacParams(AimsAhead):
                           "to this long (then half, a quarter) at the speeds its reference anticipates (slowing for what is ahead, "
                           "yielding to walkers) before its stopping tail, where the exact check passes; 0: the tail follows the plan [s]",
                           check=lambda x: 0 <= x <= 60, expect="in [0, 60]")
+    goal_cruise: float = param(0.0, "with commit, on a path that ends at a goal (a swarm): a committed plan goes on along its path on "
+                               "the tracking law for up to this long (then half, a quarter) before its stopping tail, where the exact "
+                               "check passes, so the others see it keep going; 0: the tail follows the plan [s]",
+                               check=lambda x: 0 <= x <= 60, expect="in [0, 60]")
     continuation_jerk: float = param(6.0, "with cruise, a continuation changes its acceleration by at most this per second, from "
                                      "the acceleration before it (except braking for where a SUMO car ahead could stand); 0: "
                                      "no bound (chosen on S2's seeds 10-14: jerk p95 6 against 15-16 unbounded, tasks 0.2-0.5 s longer) [m/s^3]", **NN)

@@ -46,6 +46,19 @@ class TrafficBraking:
     ``params``, ``planner``, ``last_inputs``, ``path``, ``tail_decel`` and
     ``continued_commitment``)."""
 
+    def reaction_decel(self) -> np.ndarray:
+        """Each robot's reaction deceleration [m/s^2] (``traffic_reaction``): ``reaction_brake``
+        of its strongest braking, else its firm tail's (``firm_tail``), else its gentle tail's."""
+        if self.params.reaction_brake > 0.0:
+            return self.params.reaction_brake * -self.fleet.a_min
+        return self.tail_decel(self.params.firm_tail > self.params.tail_brake)
+
+    def held_decel(self, calm: float) -> np.ndarray:
+        """Each robot's deceleration [m/s^2] the check holds it to behind an uncontrolled vehicle:
+        its reaction's (``traffic_reaction``), else its gentle tail's within ``calm``, the
+        comfort envelope of its continuation."""
+        return self.reaction_decel() if self.params.traffic_reaction else np.minimum(self.tail_decel(), calm)
+
     def brake_for_traffic(self, world: WorldState, period: int, parked: np.ndarray, records: list[RobotDecision],
                           statics: np.ndarray) -> int:
         """Robots whose commitment already meets the braking course of an uncontrolled vehicle
