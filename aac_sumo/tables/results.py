@@ -84,6 +84,8 @@ JOBS = (
     Job("swarm_table1_seeds0-4", ("table", "swarm", "--seeds", "5", "--baselines")),
     Job("swarm_table1_seeds5-9", ("table", "swarm", "--seeds", "5", "--baselines") + HELD_OUT),
     Job("swarm_table1_sweep_seeds0-19", SWARM_20, SWEEP_OUTPUTS),
+    Job("swarm_table1_goal_cruise_seeds0-19", ("sweep", "swarm_rescue", "--grid", "aac.goal_cruise=0,1", "--grid", "controller.horizon=5,10,15",
+                                               "--seeds", "20"), SWEEP_OUTPUTS),  # AAC's goal cruise, off and on (ablation)
     Job("lane_change_table2_seeds0-4", ("table", "lane-change", "--seeds", "5", "--baselines")),
     Job("lane_change_table2_seeds5-9", ("table", "lane-change", "--seeds", "5", "--baselines") + HELD_OUT),
     Job("lane_change_lfc_committed_seeds0-4", LFC_COMMITTED, SWEEP_OUTPUTS),
