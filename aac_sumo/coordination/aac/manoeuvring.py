@@ -2,7 +2,8 @@
 and creeping leave it standing (or, with ``livelock_time``, when it has rocked that long beside
 its goal without getting nearer), the first ``ESCAPE`` metres of a way to its goal planned on exact
 footprints (:mod:`~aac_sumo.coordination.manoeuvre`), and drives them without replanning (a mixin
-of :class:`~aac_sumo.coordination.aac.committed.CommittedAac`).
+of :class:`~aac_sumo.coordination.aac.committed.CommittedAac`). With ``manoeuvre_subgoal``, a robot
+far from its goal that finds no way to it searches one to a point that far towards it instead.
 
 Frames and units: world frame [m], speeds [m/s], periods of ``dt`` [s].
 """
@@ -36,6 +37,9 @@ ESCAPE = 1.5
 ESCAPE_END = 0.2
 #: The manoeuvre ends this far [m] inside the goal's arrival radius.
 INSIDE = 0.05
+#: With ``manoeuvre_subgoal``, a robot far from its goal that finds no way to it searches one to
+#: within SUBGOAL_TOLERANCE [m] of the point that far along the straight line to its goal.
+SUBGOAL_TOLERANCE = 0.5
 
 
 def quiet(centres: np.ndarray, rows: np.ndarray, idle: np.ndarray) -> np.ndarray:
@@ -129,7 +133,9 @@ class Manoeuvring:
     def manoeuvre(self, world: WorldState, i: int, period: int, statics: np.ndarray) -> bool:
         """Robot ``i``, stalled (:meth:`stalled`), searches a manoeuvre to its
         goal round every standing obstacle and every other robot's footprints along the rest of
-        its commitment (held as standing), and commits to its first ``ESCAPE`` [m], smoothed
+        its commitment (held as standing), or where none is found and ``manoeuvre_subgoal`` > 0, to within
+        ``SUBGOAL_TOLERANCE`` of the point that far along the straight line to its goal (when it lies farther
+        than that), and commits to its first ``ESCAPE`` [m], smoothed
         where it can be (``SMOOTH``), when that passes the exact check.
         Not with uncontrolled moving agents about (the check does not hold them), and one search
         a period at most. Returns whether it committed."""
@@ -142,17 +148,26 @@ class Manoeuvring:
         obstacles = np.vstack([np.asarray(statics, dtype=float).reshape(-1, 5), *others])
         steer, goal = float(self.last_inputs[i, 1]), task.points[-1]
         brake, rest = self.manoeuvres[i][0].to_rest(world.states[i], steer)  # a robot rocking on the spot stops first
-        for planner in self.manoeuvres[i]:  # arcs of 0.3 m and more; where they find no way, inching too
-            legs = planner.search(rest, steer, goal, task.arrive - INSIDE, obstacles, book.margin)
+        targets, way, sub = [(goal, task.arrive - INSIDE)], goal - rest[:2], self.params.manoeuvre_subgoal
+        if sub > 0.0 and np.hypot(*way) > sub + SUBGOAL_TOLERANCE:  # far from its goal: a way out towards it, where none reaches it
+            targets.append((rest[:2] + sub * way / np.hypot(*way), SUBGOAL_TOLERANCE))
+        legs, whole = None, True
+        for target, tolerance in targets:
+            for planner in self.manoeuvres[i]:  # arcs of 0.3 m and more; where they find no way, inching too
+                legs = planner.search(rest, steer, target, tolerance, obstacles, book.margin)
+                if legs is not None:
+                    break
             if legs is not None:
                 break
+            whole = False
         self.next_manoeuvre[i], self._searched = period + RETRY, period
         if not legs:
             return False
         reach = np.cumsum([planner.distances[d] for d, _ in legs])
         legs = legs[: max(int(np.searchsorted(reach, ESCAPE, side="right")), 1)]  # the way out; then its MPC again
         searched = np.vstack([brake, planner.stop_and_go(legs, steer)])
-        end, near = (goal, task.arrive) if len(legs) == len(reach) else (self.commitment(world, i, period, searched).states[-1, :2], ESCAPE_END)
+        whole = whole and len(legs) == len(reach)
+        end, near = (goal, task.arrive) if whole else (self.commitment(world, i, period, searched).states[-1, :2], ESCAPE_END)
         for inputs in [np.vstack([brake, planner.smooth(legs, steer, share * task.speed)]) for share in SMOOTH] + [searched]:
             candidate = self.commitment(world, i, period, inputs)
             if np.hypot(*(candidate.states[-1, :2] - end)) <= near and book.clearance(i, candidate, period, statics) >= book.margin:

@@ -152,6 +152,9 @@ class AacParams(AimsAhead):
     manoeuvre_time: float = param(3.0, "standing time after which a robot may manoeuvre [s]", **P)
     livelock_time: float = param(0.0, "with manoeuvre: a robot that got no nearer its goal for this long [s], nor did any "
                                  "unfinished robot near it, may manoeuvre even while it moves (rocking); 0 = off", **NN)
+    manoeuvre_subgoal: float = param(0.0, "with manoeuvre: where no way to its goal is found, a robot farther than this + 0.5 m "
+                                     "from its goal searches one to within 0.5 m of the point this far along the straight line to "
+                                     "it (a way out of a jam far from its goal); 0 = off [m]", **NN)
 
     def __post_init__(self):
         check_safety_options(self.safety_stop, self.fallback, self.ignore_followers, self.commit, self.detour)
