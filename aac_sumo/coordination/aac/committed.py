@@ -349,6 +349,9 @@ class CommittedAac(Manoeuvring, Creeping, GoalCruise, Queueing, TrafficBraking, 
             if self.path(j).heading_free(world.states[j]):
                 continue  # approaching its goal off its path: a manoeuvre for its MPC, not for the forward-only law
             course = self.tracking_inputs(world, j, cfg.horizon + self.goal_cruise_periods(j), comfort=True)
+            if len(course) > cfg.horizon:  # its cruise, as a plan's (GoalCruise.gentle_cruise)
+                v = float(world.states[j, 3] + course[:cfg.horizon, 0].sum() * cfg.dt)
+                course = np.vstack([course[:cfg.horizon], self.gentle_cruise(j, v, course[cfg.horizon:])])
             candidate = self.commitment(world, j, period, course)
             gap, blocker = book.check(j, candidate, period, statics)
             if gap < book.margin and len(course) > cfg.horizon:  # the law's course without its cruise

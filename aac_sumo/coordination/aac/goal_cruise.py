@@ -18,6 +18,13 @@ class GoalCruise:
         """Periods of ``goal_cruise`` on robot ``i``'s path (0 on a path that goes on)."""
         return int(round(self.params.goal_cruise / self.planner.config.dt)) if self.path(i).stop_at_end else 0
 
+    def gentle_cruise(self, i: int, v: float, more: np.ndarray) -> np.ndarray:
+        """The inputs ``more`` (K, 2) of robot ``i``'s cruise from speed ``v`` [m/s] up to where the law's stop at
+        the goal would brake harder than the robot's tail or reverse it (the tail takes over there)."""
+        speeds = v + np.cumsum(more[:, 0]) * self.planner.config.dt
+        hard = np.flatnonzero((speeds * v <= 0.0) | (more[:, 0] < -self.tail_decel()[i]))
+        return more[: hard[0]] if len(hard) else more
+
     def cruising_to_goal(self, world: WorldState, i: int, period: int, head: np.ndarray, statics: np.ndarray):
         """Robot ``i``'s commitment to ``head`` (m, 2) continued on the tracking law (comfort bounds) along its path, which
         ends at its goal, for ``goal_cruise`` [s], else half or a quarter of it, then its stopping tail: the longest that
@@ -27,9 +34,7 @@ class GoalCruise:
         up = cfg.comfort_accel if cfg.comfort_accel > 0.0 else None
         more = track_course(world.robots[i], end, task, self.params.pursuit, self.params.speed_gain, float(head[-1, 1]), cfg.dt, periods,
                             self.keep_right_shift(world, i), a_lat=self.tracking_lat(), a_up=up)
-        speeds = end[3] + np.cumsum(more[:, 0]) * cfg.dt
-        hard = np.flatnonzero((speeds * end[3] <= 0.0) | (more[:, 0] < -self.tail_decel()[i]))
-        more = more[: hard[0]] if len(hard) else more  # up to where its stop at the goal brakes harder than the tail, or reverses
+        more = self.gentle_cruise(i, float(end[3]), more)
         periods = len(more)
         for k in (periods, periods // 2, periods // 4):
             candidate = self.passing(world, i, period, np.vstack([head, more[:k]]), statics) if k > 0 else None
